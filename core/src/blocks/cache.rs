@@ -1,0 +1,177 @@
+//! The node's block cache: C blocks of local memory, least recently used evicted first
+//! (paper §4.3), counting hits and misses.
+
+use super::layout::{Block, BLOCK_SIZE};
+use super::store::{BlockError, BlockSource};
+use lru::LruCache;
+use std::num::NonZeroUsize;
+use std::sync::Arc;
+
+/// Hit and miss counts of a cache.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
+pub struct CacheStats {
+    /// Accesses served from the cache.
+    pub hits: u64,
+    /// Accesses that fetched the block from the source.
+    pub misses: u64,
+    /// Misses of blocks whose owning fork is not the node's home fork (they cross the
+    /// G-bus in the paper's machine).
+    pub remote_misses: u64,
+}
+
+impl CacheStats {
+    /// hits / (hits + misses), 1 when there was no access.
+    pub fn hit_ratio(&self) -> f64 {
+        let n = self.hits + self.misses;
+        if n == 0 {
+            1.0
+        } else {
+            self.hits as f64 / n as f64
+        }
+    }
+    /// Sum of two counts.
+    pub fn add(self, o: CacheStats) -> CacheStats {
+        CacheStats {
+            hits: self.hits + o.hits,
+            misses: self.misses + o.misses,
+            remote_misses: self.remote_misses + o.remote_misses,
+        }
+    }
+}
+
+/// An LRU cache of blocks in front of a [`BlockSource`]. Capacity `None` is unlimited.
+pub struct BlockCache {
+    source: Arc<dyn BlockSource>,
+    lru: LruCache<u32, Box<Block>>,
+    stats: CacheStats,
+    /// (home fork, number of forks), to count remote misses.
+    home: (u32, u32),
+}
+
+impl BlockCache {
+    /// A cache of `capacity` blocks (at least 1), or unlimited for `None`.
+    pub fn new(source: Arc<dyn BlockSource>, capacity: Option<usize>) -> Self {
+        let lru = match capacity {
+            Some(c) => LruCache::new(NonZeroUsize::new(c.max(1)).unwrap_or(NonZeroUsize::MIN)),
+            None => LruCache::unbounded(),
+        };
+        BlockCache {
+            source,
+            lru,
+            stats: CacheStats::default(),
+            home: (0, 1),
+        }
+    }
+
+    /// Declares the node's home fork among `forks` (block `b` lives on fork `b mod forks`),
+    /// so that misses of blocks owned by another fork are counted as remote.
+    pub fn with_home(mut self, home_fork: u32, forks: u32) -> Self {
+        self.home = (home_fork, forks.max(1));
+        self
+    }
+
+    /// Block `id`, from the cache or fetched from the source (evicting the least
+    /// recently used block when full).
+    pub fn get(&mut self, id: u32) -> Result<&Block, BlockError> {
+        if self.lru.contains(&id) {
+            self.stats.hits += 1;
+        } else {
+            self.stats.misses += 1;
+            if id % self.home.1 != self.home.0 {
+                self.stats.remote_misses += 1;
+            }
+            // Reuse the evicted block's memory when the cache is full.
+            let mut buf = if self.lru.len() == self.lru.cap().get() {
+                self.lru
+                    .pop_lru()
+                    .map(|(_, b)| b)
+                    .unwrap_or_else(|| Box::new([0u8; BLOCK_SIZE]))
+            } else {
+                Box::new([0u8; BLOCK_SIZE])
+            };
+            self.source.fetch(id, &mut buf)?;
+            self.lru.put(id, buf);
+        }
+        match self.lru.get(&id) {
+            Some(b) => Ok(&**b),
+            None => Err(BlockError::Unavailable {
+                id,
+                reason: "cache lost a block it just stored".into(),
+            }),
+        }
+    }
+
+    /// Drops every cached block of the given ids range (used when a phase rewrites
+    /// blocks, e.g. vertex energies).
+    pub fn invalidate_range(&mut self, ids: std::ops::Range<u32>) {
+        for id in ids {
+            self.lru.pop(&id);
+        }
+    }
+
+    /// Hits and misses so far.
+    pub fn stats(&self) -> CacheStats {
+        self.stats
+    }
+
+    /// Blocks currently held.
+    pub fn len(&self) -> usize {
+        self.lru.len()
+    }
+
+    /// True when no block is held.
+    pub fn is_empty(&self) -> bool {
+        self.lru.is_empty()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::blocks::MemStore;
+
+    fn store(n: u32) -> Arc<MemStore> {
+        Arc::new(MemStore::new(
+            (0..n)
+                .map(|i| {
+                    let mut b = Box::new([0u8; BLOCK_SIZE]);
+                    b[0] = i as u8;
+                    b
+                })
+                .collect(),
+        ))
+    }
+
+    #[test]
+    fn evicts_least_recently_used() {
+        let mut c = BlockCache::new(store(4), Some(2));
+        assert_eq!(c.get(0).unwrap()[0], 0);
+        assert_eq!(c.get(1).unwrap()[0], 1);
+        c.get(0).unwrap(); // 1 is now least recent
+        c.get(2).unwrap(); // evicts 1
+        c.get(0).unwrap(); // hit
+        c.get(1).unwrap(); // miss again
+        assert_eq!((c.stats().hits, c.stats().misses), (2, 4));
+        assert_eq!(c.len(), 2);
+    }
+
+    #[test]
+    fn unlimited_cache_misses_once_per_block() {
+        let mut c = BlockCache::new(store(4), None);
+        for _ in 0..3 {
+            for id in 0..4 {
+                c.get(id).unwrap();
+            }
+        }
+        assert_eq!((c.stats().hits, c.stats().misses), (8, 4));
+    }
+
+    #[test]
+    fn out_of_range_is_an_error() {
+        let mut c = BlockCache::new(store(2), Some(2));
+        assert_eq!(
+            c.get(5).unwrap_err(),
+            BlockError::OutOfRange { id: 5, total: 2 }
+        );
+    }
+}

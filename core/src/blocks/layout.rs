@@ -1,0 +1,277 @@
+//! Byte layout of the four block kinds. Little-endian, fixed-size records.
+
+use crate::math::{Rgb, Vec3};
+
+/// Bytes per block (paper §4.3: "packed in 2KB blocks").
+pub const BLOCK_SIZE: usize = 2048;
+/// One block of scene data.
+pub type Block = [u8; BLOCK_SIZE];
+/// Marks "no block" (an empty subspace, the end of a chain).
+pub const NO_BLOCK: u32 = u32::MAX;
+
+/// Bytes of one patch record: 3 corners (9 x f64), material, subdivisions, first element.
+pub const PATCH_RECORD: usize = 96;
+/// Patch records per block.
+pub const PATCHES_PER_BLOCK: usize = BLOCK_SIZE / PATCH_RECORD;
+/// Bytes of one element record: patch, local index, 3 vertex ids, area.
+pub const ELEMENT_RECORD: usize = 32;
+/// Element records per block.
+pub const ELEMENTS_PER_BLOCK: usize = BLOCK_SIZE / ELEMENT_RECORD;
+/// Bytes of one vertex-energy record: irradiance RGB as 3 x f32.
+pub const VERTEX_RECORD: usize = 12;
+/// Vertex-energy records per block.
+pub const VERTICES_PER_BLOCK: usize = BLOCK_SIZE / VERTEX_RECORD;
+/// Header of a subspace block: entry count, next block of the chain.
+pub const SUBSPACE_HEADER: usize = 8;
+/// Patch ids per subspace block.
+pub const SUBSPACE_IDS_PER_BLOCK: usize = (BLOCK_SIZE - SUBSPACE_HEADER) / 4;
+
+/// The kind of a block, derived from its id and the scene's [`BlockLayout`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum BlockKind {
+    /// Patch-id list of a subspace.
+    Subspace,
+    /// Patch records.
+    Patch,
+    /// Element records.
+    Element,
+    /// Vertex irradiance records.
+    VertexEnergy,
+}
+
+/// Where each kind of block starts in the global id space:
+/// `[subspace blocks][patch blocks][element blocks][vertex-energy blocks]`.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct BlockLayout {
+    /// First patch block.
+    pub patch_base: u32,
+    /// First element block.
+    pub element_base: u32,
+    /// First vertex-energy block.
+    pub vertex_base: u32,
+    /// Total number of blocks.
+    pub total: u32,
+}
+
+impl BlockLayout {
+    /// Kind of block `id`, `None` when out of range.
+    pub fn kind(&self, id: u32) -> Option<BlockKind> {
+        if id >= self.total {
+            None
+        } else if id >= self.vertex_base {
+            Some(BlockKind::VertexEnergy)
+        } else if id >= self.element_base {
+            Some(BlockKind::Element)
+        } else if id >= self.patch_base {
+            Some(BlockKind::Patch)
+        } else {
+            Some(BlockKind::Subspace)
+        }
+    }
+    /// Block and byte offset of patch `p`.
+    pub fn patch_slot(&self, p: u32) -> (u32, usize) {
+        let p = p as usize;
+        (
+            self.patch_base + (p / PATCHES_PER_BLOCK) as u32,
+            (p % PATCHES_PER_BLOCK) * PATCH_RECORD,
+        )
+    }
+    /// Block and byte offset of element `e`.
+    pub fn element_slot(&self, e: u32) -> (u32, usize) {
+        let e = e as usize;
+        (
+            self.element_base + (e / ELEMENTS_PER_BLOCK) as u32,
+            (e % ELEMENTS_PER_BLOCK) * ELEMENT_RECORD,
+        )
+    }
+    /// Block and byte offset of vertex `v`.
+    pub fn vertex_slot(&self, v: u32) -> (u32, usize) {
+        let v = v as usize;
+        (
+            self.vertex_base + (v / VERTICES_PER_BLOCK) as u32,
+            (v % VERTICES_PER_BLOCK) * VERTEX_RECORD,
+        )
+    }
+    /// Number of vertex-energy blocks.
+    pub fn vertex_blocks(&self) -> u32 {
+        self.total - self.vertex_base
+    }
+}
+
+/// A triangle patch as stored in a patch block.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PatchRecord {
+    /// Corners.
+    pub v: [Vec3; 3],
+    /// Material index.
+    pub material: u32,
+    /// Subdivision count n (n*n elements).
+    pub subdivisions: u32,
+    /// Id of the patch's first element; its elements are consecutive.
+    pub first_element: u32,
+}
+
+/// An element as stored in an element block.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ElementRecord {
+    /// Owning patch.
+    pub patch: u32,
+    /// Index within the patch's regular subdivision.
+    pub local: u32,
+    /// Global (welded) vertex ids.
+    pub vertices: [u32; 3],
+    /// Area.
+    pub area: f64,
+}
+
+fn put_u32(b: &mut [u8], at: usize, v: u32) {
+    b[at..at + 4].copy_from_slice(&v.to_le_bytes());
+}
+fn put_f64(b: &mut [u8], at: usize, v: f64) {
+    b[at..at + 8].copy_from_slice(&v.to_le_bytes());
+}
+fn get_u32(b: &[u8], at: usize) -> u32 {
+    let mut a = [0u8; 4];
+    a.copy_from_slice(&b[at..at + 4]);
+    u32::from_le_bytes(a)
+}
+fn get_f64(b: &[u8], at: usize) -> f64 {
+    let mut a = [0u8; 8];
+    a.copy_from_slice(&b[at..at + 8]);
+    f64::from_le_bytes(a)
+}
+fn get_f32(b: &[u8], at: usize) -> f32 {
+    let mut a = [0u8; 4];
+    a.copy_from_slice(&b[at..at + 4]);
+    f32::from_le_bytes(a)
+}
+
+impl PatchRecord {
+    /// Writes the record at byte offset `at`.
+    pub fn encode(&self, b: &mut Block, at: usize) {
+        for (i, p) in self.v.iter().enumerate() {
+            put_f64(b, at + 24 * i, p.x);
+            put_f64(b, at + 24 * i + 8, p.y);
+            put_f64(b, at + 24 * i + 16, p.z);
+        }
+        put_u32(b, at + 72, self.material);
+        put_u32(b, at + 76, self.subdivisions);
+        put_u32(b, at + 80, self.first_element);
+    }
+    /// Reads the record at byte offset `at`.
+    pub fn decode(b: &Block, at: usize) -> PatchRecord {
+        let p = |i: usize| {
+            Vec3::new(
+                get_f64(b, at + 24 * i),
+                get_f64(b, at + 24 * i + 8),
+                get_f64(b, at + 24 * i + 16),
+            )
+        };
+        PatchRecord {
+            v: [p(0), p(1), p(2)],
+            material: get_u32(b, at + 72),
+            subdivisions: get_u32(b, at + 76),
+            first_element: get_u32(b, at + 80),
+        }
+    }
+}
+
+impl ElementRecord {
+    /// Writes the record at byte offset `at`.
+    pub fn encode(&self, b: &mut Block, at: usize) {
+        put_u32(b, at, self.patch);
+        put_u32(b, at + 4, self.local);
+        for i in 0..3 {
+            put_u32(b, at + 8 + 4 * i, self.vertices[i]);
+        }
+        put_f64(b, at + 24, self.area);
+    }
+    /// Reads the record at byte offset `at`.
+    pub fn decode(b: &Block, at: usize) -> ElementRecord {
+        ElementRecord {
+            patch: get_u32(b, at),
+            local: get_u32(b, at + 4),
+            vertices: [get_u32(b, at + 8), get_u32(b, at + 12), get_u32(b, at + 16)],
+            area: get_f64(b, at + 24),
+        }
+    }
+}
+
+/// Writes a vertex irradiance at byte offset `at` (stored as f32).
+pub fn encode_vertex_energy(b: &mut Block, at: usize, e: Rgb) {
+    for i in 0..3 {
+        b[at + 4 * i..at + 4 * i + 4].copy_from_slice(&(e.0[i] as f32).to_le_bytes());
+    }
+}
+
+/// Reads a vertex irradiance at byte offset `at`.
+pub fn decode_vertex_energy(b: &Block, at: usize) -> Rgb {
+    Rgb([
+        get_f32(b, at) as f64,
+        get_f32(b, at + 4) as f64,
+        get_f32(b, at + 8) as f64,
+    ])
+}
+
+/// Writes the header of a subspace block: number of ids in it, next block of the chain.
+pub fn encode_subspace_header(b: &mut Block, count: u32, next: u32) {
+    put_u32(b, 0, count);
+    put_u32(b, 4, next);
+}
+
+/// Reads a subspace block: appends its patch ids to `out` and returns the next block of
+/// the chain (or [`NO_BLOCK`]). A corrupt count is clamped to the block's capacity.
+pub fn decode_subspace(b: &Block, out: &mut Vec<u32>) -> u32 {
+    let count = (get_u32(b, 0) as usize).min(SUBSPACE_IDS_PER_BLOCK);
+    out.extend((0..count).map(|i| get_u32(b, SUBSPACE_HEADER + 4 * i)));
+    get_u32(b, 4)
+}
+
+/// Writes patch id number `i` of a subspace block.
+pub fn encode_subspace_id(b: &mut Block, i: usize, id: u32) {
+    put_u32(b, SUBSPACE_HEADER + 4 * i, id);
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn records_round_trip() {
+        let mut b = [0u8; BLOCK_SIZE];
+        let p = PatchRecord {
+            v: [
+                Vec3::new(1.0, 2.0, 3.0),
+                Vec3::new(-4.0, 5.5, 6.0),
+                Vec3::new(1e5, 0.1, -0.0),
+            ],
+            material: 7,
+            subdivisions: 20,
+            first_element: 12345,
+        };
+        p.encode(&mut b, PATCH_RECORD * (PATCHES_PER_BLOCK - 1));
+        assert_eq!(
+            PatchRecord::decode(&b, PATCH_RECORD * (PATCHES_PER_BLOCK - 1)),
+            p
+        );
+        let e = ElementRecord {
+            patch: 3,
+            local: 9,
+            vertices: [1, 2, 3],
+            area: 0.25,
+        };
+        e.encode(&mut b, 0);
+        assert_eq!(ElementRecord::decode(&b, 0), e);
+        encode_vertex_energy(&mut b, 24, Rgb::new(1.5, 2.0, 0.25));
+        assert_eq!(decode_vertex_energy(&b, 24), Rgb::new(1.5, 2.0, 0.25));
+    }
+
+    #[test]
+    fn records_fit_in_a_block() {
+        assert!(PATCHES_PER_BLOCK * PATCH_RECORD <= BLOCK_SIZE);
+        assert!(ELEMENTS_PER_BLOCK * ELEMENT_RECORD <= BLOCK_SIZE);
+        assert!(VERTICES_PER_BLOCK * VERTEX_RECORD <= BLOCK_SIZE);
+        assert_eq!(SUBSPACE_IDS_PER_BLOCK, 510);
+    }
+}

@@ -1,0 +1,238 @@
+//! Triangles: watertight ray intersection, area and exact solid angle.
+
+use super::Ray;
+use crate::math::Vec3;
+
+/// A ray/triangle hit: distance and barycentric weights of the three corners.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TriHit {
+    /// Ray parameter of the hit.
+    pub t: f64,
+    /// Barycentric weights of vertices 0, 1, 2 (sum to 1, each in [0, 1]).
+    pub bary: [f64; 3],
+}
+
+/// Watertight ray/triangle intersection (Woop, Benthin and Wald, JCGT 2013).
+///
+/// The ray is sheared so that it points along +z; the three 2D edge functions of the
+/// triangle are then evaluated at the origin. A shared edge of two triangles yields edge
+/// functions that are exact negatives of each other, so a ray through that edge hits at
+/// least one of them: no ray passes between neighbouring triangles. Values of exactly
+/// zero (on an edge or vertex) count as a hit. Returns a hit with `tmin < t < tmax`.
+/// Degenerate triangles (zero determinant) and non-finite rays never hit.
+pub fn intersect_watertight(ray: &Ray, v: &[Vec3; 3], tmin: f64, tmax: f64) -> Option<TriHit> {
+    let d = ray.direction;
+    let ad = d.abs();
+    // Axis of the largest direction component becomes z.
+    let kz = if ad.x >= ad.y && ad.x >= ad.z {
+        0
+    } else if ad.y >= ad.z {
+        1
+    } else {
+        2
+    };
+    let mut kx = (kz + 1) % 3;
+    let mut ky = (kx + 1) % 3;
+    if d[kz] < 0.0 {
+        std::mem::swap(&mut kx, &mut ky);
+    }
+    let dz = d[kz];
+    if dz == 0.0 || !dz.is_finite() {
+        return None; // zero or non-finite direction
+    }
+    let sx = d[kx] / dz;
+    let sy = d[ky] / dz;
+    let sz = 1.0 / dz;
+
+    let a = v[0] - ray.origin;
+    let b = v[1] - ray.origin;
+    let c = v[2] - ray.origin;
+    let ax = a[kx] - sx * a[kz];
+    let ay = a[ky] - sy * a[kz];
+    let bx = b[kx] - sx * b[kz];
+    let by = b[ky] - sy * b[kz];
+    let cx = c[kx] - sx * c[kz];
+    let cy = c[ky] - sy * c[kz];
+
+    let u = cx * by - cy * bx;
+    let vv = ax * cy - ay * cx;
+    let w = bx * ay - by * ax;
+    if (u < 0.0 || vv < 0.0 || w < 0.0) && (u > 0.0 || vv > 0.0 || w > 0.0) {
+        return None;
+    }
+    let det = u + vv + w;
+    if det == 0.0 || !det.is_finite() {
+        return None;
+    }
+    let az = sz * a[kz];
+    let bz = sz * b[kz];
+    let cz = sz * c[kz];
+    let t_scaled = u * az + vv * bz + w * cz;
+    let t = t_scaled / det;
+    if !(t > tmin && t < tmax) {
+        return None;
+    }
+    let inv = 1.0 / det;
+    Some(TriHit {
+        t,
+        bary: [u * inv, vv * inv, w * inv],
+    })
+}
+
+/// Area of a triangle.
+pub fn triangle_area(v: &[Vec3; 3]) -> f64 {
+    0.5 * (v[1] - v[0]).cross(v[2] - v[0]).length()
+}
+
+/// Exact solid angle of a triangle seen from `p` (Van Oosterom and Strackee, 1983):
+/// `tan(Omega / 2) = |a . (b x c)| / (abc + (a.b)c + (a.c)b + (b.c)a)`.
+/// Zero when `p` lies in the triangle's plane.
+pub fn solid_angle(p: Vec3, v: &[Vec3; 3]) -> f64 {
+    let a = v[0] - p;
+    let b = v[1] - p;
+    let c = v[2] - p;
+    let (la, lb, lc) = (a.length(), b.length(), c.length());
+    if la == 0.0 || lb == 0.0 || lc == 0.0 {
+        return 0.0;
+    }
+    let num = a.dot(b.cross(c)).abs();
+    let den = la * lb * lc + a.dot(b) * lc + a.dot(c) * lb + b.dot(c) * la;
+    let omega = 2.0 * num.atan2(den);
+    if omega.is_finite() {
+        omega.max(0.0)
+    } else {
+        0.0
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn tri() -> [Vec3; 3] {
+        [
+            Vec3::new(0.0, 0.0, 0.0),
+            Vec3::new(1.0, 0.0, 0.0),
+            Vec3::new(0.0, 1.0, 0.0),
+        ]
+    }
+
+    #[test]
+    fn hits_inside_misses_outside() {
+        let r = Ray::new(Vec3::new(0.25, 0.25, 1.0), Vec3::new(0.0, 0.0, -1.0));
+        let h = intersect_watertight(&r, &tri(), 0.0, f64::INFINITY).unwrap();
+        assert!((h.t - 1.0).abs() < 1e-15);
+        assert!((h.bary[1] - 0.25).abs() < 1e-15 && (h.bary[2] - 0.25).abs() < 1e-15);
+        let r = Ray::new(Vec3::new(0.75, 0.75, 1.0), Vec3::new(0.0, 0.0, -1.0));
+        assert!(intersect_watertight(&r, &tri(), 0.0, f64::INFINITY).is_none());
+    }
+
+    #[test]
+    fn shared_edge_is_hit_by_one_of_two_triangles() {
+        // Square split along its diagonal; rays aimed exactly at points of the diagonal.
+        let t1 = [
+            Vec3::new(0.0, 0.0, 0.0),
+            Vec3::new(1.0, 0.0, 0.0),
+            Vec3::new(1.0, 1.0, 0.0),
+        ];
+        let t2 = [
+            Vec3::new(0.0, 0.0, 0.0),
+            Vec3::new(1.0, 1.0, 0.0),
+            Vec3::new(0.0, 1.0, 0.0),
+        ];
+        let o = Vec3::new(0.3, -0.7, 2.0);
+        // Interior points of the diagonal (its ends are corners of the square's outline).
+        for i in 1..1000 {
+            let s = i as f64 / 1000.0;
+            let target = Vec3::new(s, s, 0.0);
+            let r = Ray::new(o, (target - o).normalized());
+            let h1 = intersect_watertight(&r, &t1, 0.0, f64::INFINITY);
+            let h2 = intersect_watertight(&r, &t2, 0.0, f64::INFINITY);
+            assert!(
+                h1.is_some() || h2.is_some(),
+                "ray through diagonal point {s} missed both"
+            );
+        }
+    }
+
+    #[test]
+    fn degenerate_triangle_never_hits() {
+        let t = [
+            Vec3::new(0.0, 0.0, 0.0),
+            Vec3::new(1.0, 0.0, 0.0),
+            Vec3::new(2.0, 0.0, 0.0),
+        ];
+        let r = Ray::new(Vec3::new(1.0, 0.0, 1.0), Vec3::new(0.0, 0.0, -1.0));
+        assert!(intersect_watertight(&r, &t, 0.0, f64::INFINITY).is_none());
+    }
+
+    #[test]
+    fn non_finite_rays_never_hit() {
+        for d in [
+            Vec3::new(f64::NAN, 0.0, -1.0),
+            Vec3::new(0.0, 0.0, 0.0),
+            Vec3::new(0.0, 0.0, f64::INFINITY),
+        ] {
+            let r = Ray::new(Vec3::new(0.25, 0.25, 1.0), d);
+            assert!(intersect_watertight(&r, &tri(), 0.0, f64::INFINITY).is_none());
+        }
+    }
+
+    #[test]
+    fn solid_angle_of_cube_faces_sums_to_four_pi() {
+        // A unit cube around the origin: 12 triangles, total 4 pi.
+        let c = |x: f64, y: f64, z: f64| Vec3::new(x, y, z);
+        let faces = [
+            [
+                c(-1., -1., -1.),
+                c(1., -1., -1.),
+                c(1., 1., -1.),
+                c(-1., 1., -1.),
+            ],
+            [
+                c(-1., -1., 1.),
+                c(1., -1., 1.),
+                c(1., 1., 1.),
+                c(-1., 1., 1.),
+            ],
+            [
+                c(-1., -1., -1.),
+                c(1., -1., -1.),
+                c(1., -1., 1.),
+                c(-1., -1., 1.),
+            ],
+            [
+                c(-1., 1., -1.),
+                c(1., 1., -1.),
+                c(1., 1., 1.),
+                c(-1., 1., 1.),
+            ],
+            [
+                c(-1., -1., -1.),
+                c(-1., 1., -1.),
+                c(-1., 1., 1.),
+                c(-1., -1., 1.),
+            ],
+            [
+                c(1., -1., -1.),
+                c(1., 1., -1.),
+                c(1., 1., 1.),
+                c(1., -1., 1.),
+            ],
+        ];
+        let p = c(0.1, -0.2, 0.3);
+        let total: f64 = faces
+            .iter()
+            .map(|q| solid_angle(p, &[q[0], q[1], q[2]]) + solid_angle(p, &[q[0], q[2], q[3]]))
+            .sum();
+        assert!(
+            (total - 4.0 * std::f64::consts::PI).abs() < 1e-12,
+            "{total}"
+        );
+    }
+
+    #[test]
+    fn solid_angle_is_zero_in_plane() {
+        assert_eq!(solid_angle(Vec3::new(5.0, 5.0, 0.0), &tri()), 0.0);
+    }
+}

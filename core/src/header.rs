@@ -1,0 +1,86 @@
+//! The resident part of a prepared scene: what the paper's forks send to every node once
+//! and never expire (lights, materials, camera, settings, grid header, block layout).
+
+use crate::blocks::BlockLayout;
+use crate::math::Vec3;
+use crate::plan::EffectsPlan;
+use crate::scene::{Camera, Light, Material, RenderSettings};
+
+/// The uniform grid of subspaces.
+#[derive(Clone, Debug, PartialEq)]
+pub struct GridHeader {
+    /// Lower corner of the grid.
+    pub min: Vec3,
+    /// Upper corner of the grid.
+    pub max: Vec3,
+    /// Subspaces along x, y, z.
+    pub dims: [u32; 3],
+    /// First subspace block of each cell (x fastest, then y, then z), or `NO_BLOCK` when
+    /// the subspace is empty.
+    pub cell_first_block: Vec<u32>,
+}
+
+impl GridHeader {
+    /// Size of one subspace.
+    pub fn cell_size(&self) -> Vec3 {
+        let e = self.max - self.min;
+        Vec3::new(
+            e.x / self.dims[0] as f64,
+            e.y / self.dims[1] as f64,
+            e.z / self.dims[2] as f64,
+        )
+    }
+    /// Number of subspaces.
+    pub fn cells(&self) -> usize {
+        self.dims.iter().map(|&d| d as usize).product()
+    }
+    /// Linear index of cell (x, y, z).
+    pub fn cell_index(&self, c: [u32; 3]) -> usize {
+        (c[2] as usize * self.dims[1] as usize + c[1] as usize) * self.dims[0] as usize
+            + c[0] as usize
+    }
+}
+
+/// Counts of scene entities.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
+pub struct Counts {
+    /// Triangle patches.
+    pub patches: u32,
+    /// Triangle elements.
+    pub elements: u32,
+    /// Welded element vertices.
+    pub vertices: u32,
+    /// Subspaces (grid cells).
+    pub subspaces: u32,
+    /// Blocks of patch-id lists.
+    pub subspace_blocks: u32,
+    /// Blocks of patch records.
+    pub patch_blocks: u32,
+    /// Blocks of element records.
+    pub element_blocks: u32,
+    /// Blocks of vertex energies.
+    pub vertex_blocks: u32,
+}
+
+/// Everything a node keeps resident for the whole render.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SceneHeader {
+    /// The camera.
+    pub camera: Camera,
+    /// Render settings.
+    pub settings: RenderSettings,
+    /// Point lights.
+    pub lights: Vec<Light>,
+    /// Materials.
+    pub materials: Vec<Material>,
+    /// The subspace grid.
+    pub grid: GridHeader,
+    /// Where each kind of block starts.
+    pub layout: BlockLayout,
+    /// Entity and block counts.
+    pub counts: Counts,
+    /// Flux of one unit of the fixed-point energy sums, W (see [`crate::energy`]).
+    pub energy_quantum: f64,
+    /// Which passes run.
+    pub plan: EffectsPlan,
+}

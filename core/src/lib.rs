@@ -1,0 +1,43 @@
+//! # magg-core: the rendering library of magg
+//!
+//! Two-pass bidirectional ray tracing after Kawai et al. (1993): light ray tracing (LRT)
+//! from point lights onto triangle *elements*, energy interpolation to vertices, then
+//! viewing ray tracing (VRT) from the eye. Scene data lives in 2 KB *blocks* (subspace,
+//! patch, element and vertex-energy blocks) behind the [`blocks::BlockSource`] trait, and
+//! every access of the kernels goes through an LRU [`blocks::BlockCache`], exactly as a
+//! node processor of the MAGG system reads shared memory through its local cache.
+//!
+//! The crate does no I/O and knows nothing of networking: the embedded renderer
+//! ([`render::render`]) and the cluster processes both drive the same kernels
+//! ([`lrt::trace_pair`], [`vrt::shade_pixel`]).
+//!
+//! ```no_run
+//! use magg_core::{preprocess, render, scene};
+//! let text = std::fs::read_to_string("scenes/cornell.toml").unwrap();
+//! let scene = scene::parse_scene_str("scenes/cornell.toml", &text, "scenes".as_ref(),
+//!     &|p: &std::path::Path| std::fs::read_to_string(p)).unwrap();
+//! let prepared = preprocess::prepare(&scene).unwrap();
+//! let out = render::render(&prepared, &render::RenderOptions::default(), &magg_core::progress::NoProgress).unwrap();
+//! println!("{} x {} pixels", out.frame.width, out.frame.height);
+//! ```
+
+pub mod blocks;
+pub mod camera;
+pub mod energy;
+pub mod frame;
+pub mod geometry;
+pub mod header;
+pub mod lrt;
+pub mod math;
+pub mod optics;
+pub mod plan;
+pub mod preprocess;
+pub mod progress;
+pub mod render;
+pub mod rng;
+pub mod scene;
+pub mod stats;
+pub mod subdivision;
+pub mod trace;
+pub mod view;
+pub mod vrt;

@@ -1,0 +1,396 @@
+//! Light ray tracing (paper §3.2): the work unit is a (light, element) pair.
+//!
+//! `n` primary light rays are cast from the light towards the element, stratified
+//! uniformly over the element's solid angle, so each carries the same flux
+//! `I * Omega / n` (Omega exact). A ray that first hits something else is discarded (the
+//! occluder's own pair accounts for that light). A ray that reaches the element deposits
+//! its flux there and spawns secondary rays: mirror reflection, Fresnel-weighted
+//! reflection and refraction at dielectrics, and (as an extension) cosine-distributed
+//! diffuse bounces carrying `rho_d` times the flux. Secondary rays deposit on every
+//! element they reach, recursively, to the depth limits of the effects plan.
+//!
+//! Every random choice is seeded from (scene seed, light, element), so a pair re-run on
+//! another node deposits exactly the same values.
+
+use crate::blocks::BlockError;
+use crate::energy::{to_fixed, Fixed};
+use crate::geometry::{cosine_hemisphere, sample_spherical_triangle, solid_angle, Ray};
+use crate::math::{Rgb, Vec3};
+use crate::optics::{fresnel_dielectric, reflect, refract};
+use crate::rng::{hammersley, Rng};
+use crate::scene::Light;
+use crate::subdivision::{element_triangle, locate};
+use crate::trace::{cast, TraceScratch};
+use crate::view::SceneView;
+
+/// Secondary rays whose flux falls below this fraction of their primary ray's flux are
+/// cut off (and counted as such in the tally).
+pub const MIN_RELATIVE_FLUX: f64 = 1e-6;
+
+/// Where the flux of a pair went. All fields in W per channel.
+#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
+pub struct LrtTally {
+    /// Flux of primary rays that reached their element (`I * Omega` when unoccluded).
+    pub reached: Rgb,
+    /// Flux of primary rays blocked before their element.
+    pub occluded: Rgb,
+    /// Absorbed at surfaces (`1 - diffuse - mirror - transmit`).
+    pub absorbed: Rgb,
+    /// Diffusely reflected but not followed (no diffuse bounce left): the paper's end of
+    /// a light path, shown in VRT through the element's energy.
+    pub diffuse_end: Rgb,
+    /// Carried by secondary rays that left the scene.
+    pub escaped: Rgb,
+    /// Carried by rays stopped by a depth limit or the minimum-flux cut.
+    pub cut: Rgb,
+}
+
+impl LrtTally {
+    /// Sum of two tallies.
+    pub fn add(self, o: LrtTally) -> LrtTally {
+        LrtTally {
+            reached: self.reached.add(o.reached),
+            occluded: self.occluded.add(o.occluded),
+            absorbed: self.absorbed.add(o.absorbed),
+            diffuse_end: self.diffuse_end.add(o.diffuse_end),
+            escaped: self.escaped.add(o.escaped),
+            cut: self.cut.add(o.cut),
+        }
+    }
+}
+
+/// The deposits and tally of one pair.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct PairResult {
+    /// (element id, flux) sorted by element id, one entry per element.
+    pub deposits: Vec<(u32, Fixed)>,
+    /// Where the flux went.
+    pub tally: LrtTally,
+}
+
+/// Radiant intensity of `light` in unit direction `w`.
+pub fn intensity_towards(light: &Light, w: Vec3) -> Rgb {
+    match &light.spot {
+        None => light.intensity,
+        Some(s) => {
+            let angle = w.dot(s.direction).clamp(-1.0, 1.0).acos().to_degrees();
+            let f = if angle <= s.half_angle_deg {
+                1.0
+            } else if s.falloff_deg > 0.0 && angle < s.half_angle_deg + s.falloff_deg {
+                let x = 1.0 - (angle - s.half_angle_deg) / s.falloff_deg;
+                x * x * (3.0 - 2.0 * x)
+            } else {
+                0.0
+            };
+            light.intensity.scale(f)
+        }
+    }
+}
+
+/// True when no direction from `light` towards triangle `tri` can carry light (outside
+/// a spot cone, with a margin for the triangle's angular size).
+fn outside_cone(light: &Light, tri: &[Vec3; 3]) -> bool {
+    let Some(s) = &light.spot else { return false };
+    let c = (tri[0] + tri[1] + tri[2]) / 3.0 - light.position;
+    let dist = c.length();
+    if dist == 0.0 {
+        return false;
+    }
+    let radius = tri
+        .iter()
+        .map(|v| (*v - (tri[0] + tri[1] + tri[2]) / 3.0).length())
+        .fold(0.0, f64::max);
+    if radius >= dist {
+        return false;
+    }
+    let spread = (radius / dist).asin().to_degrees();
+    let angle = (c / dist)
+        .dot(s.direction)
+        .clamp(-1.0, 1.0)
+        .acos()
+        .to_degrees();
+    angle - spread > s.half_angle_deg + s.falloff_deg
+}
+
+/// Offset from a surface point for a new ray, scaled to the coordinates' magnitude.
+pub(crate) fn offset_scale(p: Vec3) -> f64 {
+    1e-9 * (1.0 + p.abs().max_component())
+}
+
+struct Pending {
+    ray: Ray,
+    flux: Rgb,
+    from_patch: u32,
+    specular: u32,
+    diffuse: u32,
+    floor: f64,
+}
+
+/// Traces the pair (`light`, `element`).
+pub fn trace_pair(
+    view: &mut SceneView,
+    scratch: &mut TraceScratch,
+    light: u32,
+    element: u32,
+) -> Result<PairResult, BlockError> {
+    let header = view.header.clone();
+    let Some(l) = header.lights.get(light as usize) else {
+        return Err(BlockError::BadId {
+            kind: "light",
+            id: light as u64,
+            count: header.lights.len() as u64,
+        });
+    };
+    let plan = &header.plan;
+    let mut out = PairResult::default();
+    if !plan.lrt {
+        return Ok(out);
+    }
+    let erec = view.element(element)?;
+    let prec = view.patch(erec.patch)?;
+    let tri = element_triangle(&prec.v, prec.subdivisions, erec.local);
+    let omega = solid_angle(l.position, &tri);
+    if !(omega > 0.0) || outside_cone(l, &tri) {
+        return Ok(out);
+    }
+    let normal = (prec.v[1] - prec.v[0])
+        .cross(prec.v[2] - prec.v[0])
+        .normalized();
+    let n = header.settings.light_rays.max(1);
+    let seed = header.settings.seed;
+    let mut rng = Rng::from_words(&[seed, 0x4c5254, light as u64, element as u64]);
+    let (sx, sy) = (rng.next_f64(), rng.next_f64());
+    let per_ray = omega / n as f64;
+    let mut deposits: Vec<(u32, Rgb)> = Vec::new();
+    let mut stack: Vec<Pending> = Vec::new();
+    let eps0 = offset_scale(l.position);
+
+    for k in 0..n {
+        let (u0, u1) = hammersley(k, n, sx, sy);
+        let Some(w) = sample_spherical_triangle(l.position, &tri, u0, u1) else {
+            continue;
+        };
+        let flux = intensity_towards(l, w).scale(per_ray);
+        if flux.is_black() {
+            continue;
+        }
+        view.counters.light_rays += 1;
+        // Distance to the element's plane along w.
+        let denom = normal.dot(w);
+        let t_plane = normal.dot(prec.v[0] - l.position) / denom;
+        if !(t_plane > 0.0) || !t_plane.is_finite() {
+            continue;
+        }
+        let ray = Ray::new(l.position, w);
+        if cast(
+            view,
+            scratch,
+            &ray,
+            eps0,
+            t_plane * (1.0 - 1e-9),
+            erec.patch,
+            true,
+        )?
+        .is_some()
+        {
+            out.tally.occluded = out.tally.occluded.add(flux);
+            continue;
+        }
+        out.tally.reached = out.tally.reached.add(flux);
+        let p = ray.at(t_plane);
+        deposits.push((element, flux));
+        let floor = flux.max_channel() * MIN_RELATIVE_FLUX;
+        scatter(
+            view,
+            &mut rng,
+            &mut stack,
+            &mut out.tally,
+            p,
+            w,
+            normal,
+            prec.material,
+            erec.patch,
+            flux,
+            0,
+            0,
+            floor,
+        );
+        // Follow secondary rays depth-first.
+        while let Some(s) = stack.pop() {
+            view.counters.light_rays += 1;
+            let tmin = offset_scale(s.ray.origin);
+            let Some(hit) = cast(
+                view,
+                scratch,
+                &s.ray,
+                tmin,
+                f64::INFINITY,
+                s.from_patch,
+                false,
+            )?
+            else {
+                out.tally.escaped = out.tally.escaped.add(s.flux);
+                continue;
+            };
+            let hp = view.patch(hit.patch)?;
+            let (local, _) = locate(hp.subdivisions, hit.bary);
+            deposits.push((hp.first_element + local, s.flux));
+            let hn = (hp.v[1] - hp.v[0]).cross(hp.v[2] - hp.v[0]).normalized();
+            let at = s.ray.at(hit.t);
+            scatter(
+                view,
+                &mut rng,
+                &mut stack,
+                &mut out.tally,
+                at,
+                s.ray.direction,
+                hn,
+                hp.material,
+                hit.patch,
+                s.flux,
+                s.specular,
+                s.diffuse,
+                s.floor,
+            );
+        }
+    }
+
+    // One entry per element, summed in generation order (deterministic).
+    deposits.sort_by_key(|d| d.0);
+    let mut merged: Vec<(u32, Rgb)> = Vec::new();
+    for (e, f) in deposits {
+        match merged.last_mut() {
+            Some(last) if last.0 == e => last.1 = last.1.add(f),
+            _ => merged.push((e, f)),
+        }
+    }
+    out.deposits = merged
+        .into_iter()
+        .map(|(e, f)| (e, to_fixed(f, header.energy_quantum)))
+        .collect();
+    Ok(out)
+}
+
+/// Splits the flux arriving at a surface point into absorbed, diffusely ended and
+/// secondary rays, per the material and the effects plan.
+#[allow(clippy::too_many_arguments)]
+fn scatter(
+    view: &SceneView,
+    rng: &mut Rng,
+    stack: &mut Vec<Pending>,
+    tally: &mut LrtTally,
+    p: Vec3,
+    d: Vec3,
+    normal: Vec3,
+    material: u32,
+    patch: u32,
+    flux: Rgb,
+    specular: u32,
+    diffuse: u32,
+    floor: f64,
+) {
+    let header = &view.header;
+    let plan = &header.plan;
+    let Some(m) = header.materials.get(material as usize) else {
+        tally.absorbed = tally.absorbed.add(flux);
+        return;
+    };
+    let front = d.dot(normal) < 0.0;
+    let nf = if front { normal } else { -normal };
+    let absorbed = Rgb([
+        (1.0 - m.diffuse.0[0] - m.mirror.0[0] - m.transmit.0[0]).max(0.0),
+        (1.0 - m.diffuse.0[1] - m.mirror.0[1] - m.transmit.0[1]).max(0.0),
+        (1.0 - m.diffuse.0[2] - m.mirror.0[2] - m.transmit.0[2]).max(0.0),
+    ]);
+    tally.absorbed = tally.absorbed.add(flux.mul(absorbed));
+
+    let mut push = |tally: &mut LrtTally, dir: Vec3, f: Rgb, spec: u32, diff: u32| {
+        if f.is_black() {
+            return;
+        }
+        if f.max_channel() < floor {
+            tally.cut = tally.cut.add(f);
+            return;
+        }
+        let side = if dir.dot(nf) >= 0.0 { nf } else { -nf };
+        let origin = p + side * offset_scale(p);
+        stack.push(Pending {
+            ray: Ray::new(origin, dir),
+            flux: f,
+            from_patch: patch,
+            specular: spec,
+            diffuse: diff,
+            floor,
+        });
+    };
+
+    // Specular parts.
+    let spec_flux_mirror = flux.mul(m.mirror);
+    let spec_flux_transmit = flux.mul(m.transmit);
+    if specular < plan.lrt_depth {
+        if !spec_flux_mirror.is_black() {
+            push(
+                tally,
+                reflect(d, nf),
+                spec_flux_mirror,
+                specular + 1,
+                diffuse,
+            );
+        }
+        if !spec_flux_transmit.is_black() {
+            let eta = if front { 1.0 / m.ior } else { m.ior };
+            let cos_i = -d.dot(nf);
+            let f = fresnel_dielectric(cos_i, eta);
+            let refracted = if plan.refraction {
+                refract(d, nf, eta)
+            } else {
+                None
+            };
+            match refracted {
+                Some(t) if f < 1.0 => {
+                    push(
+                        tally,
+                        reflect(d, nf),
+                        spec_flux_transmit.scale(f),
+                        specular + 1,
+                        diffuse,
+                    );
+                    push(
+                        tally,
+                        t,
+                        spec_flux_transmit.scale(1.0 - f),
+                        specular + 1,
+                        diffuse,
+                    );
+                }
+                _ => push(
+                    tally,
+                    reflect(d, nf),
+                    spec_flux_transmit,
+                    specular + 1,
+                    diffuse,
+                ),
+            }
+        }
+    } else {
+        tally.cut = tally.cut.add(spec_flux_mirror).add(spec_flux_transmit);
+    }
+
+    // Diffuse part.
+    let diff_flux = flux.mul(m.diffuse);
+    if diff_flux.is_black() {
+        return;
+    }
+    if diffuse < plan.diffuse_bounces {
+        let (u0, u1) = (rng.next_f64(), rng.next_f64());
+        let dir = cosine_hemisphere(nf, u0, u1);
+        push(tally, dir, diff_flux, specular, diffuse + 1);
+    } else {
+        tally.diffuse_end = tally.diffuse_end.add(diff_flux);
+    }
+}
+
+/// Pair id of (light, element): pairs are numbered light-major.
+pub fn pair_id(light: u32, element: u32, elements: u32) -> u64 {
+    light as u64 * elements as u64 + element as u64
+}

@@ -1,0 +1,166 @@
+//! The effects plan: simulate only the effects a scene calls for (DESIGN.md §1).
+//!
+//! Before rendering, the scene is analysed and each optional pass or ray kind is switched
+//! on or off with a reason. A pass left out costs nothing, and because every kernel only
+//! spawns rays whose weight is non-zero, forcing it on gives a bitwise-identical image.
+
+use crate::scene::Scene;
+
+/// Which passes and ray kinds run, and why.
+#[derive(Clone, Debug, PartialEq, Eq, serde::Serialize)]
+pub struct EffectsPlan {
+    /// Light ray tracing runs (false only with no light that can reach any element).
+    pub lrt: bool,
+    /// Maximum specular bounces of light rays (0 = secondary light rays off).
+    pub lrt_depth: u32,
+    /// Refracted rays are traced (a dielectric exists).
+    pub refraction: bool,
+    /// Diffuse-to-diffuse bounces of light rays.
+    pub diffuse_bounces: u32,
+    /// Maximum specular bounces of viewing rays (0 = primary viewing rays only).
+    pub vrt_depth: u32,
+    /// The constant ambient term is added (paper's model, when no diffuse bounce runs).
+    pub ambient: bool,
+    /// Viewing rays per pixel.
+    pub pixel_samples: u32,
+    /// One line per decision, for people.
+    pub reasons: Vec<String>,
+}
+
+impl EffectsPlan {
+    /// Analyses `scene` and decides the passes.
+    pub fn for_scene(scene: &Scene) -> EffectsPlan {
+        let s = &scene.settings;
+        let used = |f: &dyn Fn(&crate::scene::Material) -> bool| {
+            scene
+                .patches
+                .iter()
+                .any(|p| scene.materials.get(p.material as usize).is_some_and(f))
+        };
+        let any_specular = used(&|m| m.is_specular());
+        let any_dielectric = used(&|m| m.is_transmissive());
+        let any_diffuse = used(&|m| !m.diffuse.is_black());
+        let any_light = scene.lights.iter().any(|l| !l.intensity.is_black());
+        let mut reasons = Vec::new();
+
+        let lrt = any_light && !scene.patches.is_empty();
+        if !lrt {
+            reasons.push("no light with non-zero intensity: LRT off".to_string());
+        }
+        let lrt_depth = if !lrt {
+            0
+        } else if !any_specular {
+            reasons
+                .push("no specular or transmissive material: secondary light rays off".to_string());
+            0
+        } else if s.lrt_depth == 0 {
+            reasons.push("lrt_depth = 0: secondary light rays off".to_string());
+            0
+        } else {
+            reasons.push(format!(
+                "specular material present: secondary light rays on, depth {}",
+                s.lrt_depth
+            ));
+            s.lrt_depth
+        };
+        let refraction = any_dielectric && (lrt_depth > 0 || s.vrt_depth > 0);
+        if !any_dielectric {
+            reasons.push("no dielectric: refraction off".to_string());
+        } else {
+            reasons.push("dielectric present: refraction on".to_string());
+        }
+        let diffuse_bounces = if !lrt || !any_diffuse {
+            if s.diffuse_bounces > 0 {
+                reasons.push("no diffuse surface lit: diffuse bounces off".to_string());
+            }
+            0
+        } else {
+            if s.diffuse_bounces > 0 {
+                reasons.push(format!(
+                    "diffuse-to-diffuse transport on, {} bounce(s): replaces the ambient term",
+                    s.diffuse_bounces
+                ));
+            }
+            s.diffuse_bounces
+        };
+        let vrt_depth = if !any_specular {
+            reasons.push("no visible mirror or dielectric: VRT depth 0".to_string());
+            0
+        } else {
+            reasons.push(format!(
+                "specular material present: VRT recursion on, depth {}",
+                s.vrt_depth
+            ));
+            s.vrt_depth
+        };
+        let ambient = diffuse_bounces == 0 && !s.ambient.is_black() && any_diffuse;
+        if diffuse_bounces == 0 {
+            reasons.push(if ambient {
+                "ambient term on (no diffuse-to-diffuse transport)".to_string()
+            } else {
+                "ambient term off (zero ambient)".to_string()
+            });
+        }
+        EffectsPlan {
+            lrt,
+            lrt_depth,
+            refraction,
+            diffuse_bounces,
+            vrt_depth,
+            ambient,
+            pixel_samples: s.pixel_samples,
+            reasons,
+        }
+    }
+
+    /// The plan with every optional effect forced on at the scene's settings: used to
+    /// show that leaving passes out changes nothing in the image.
+    pub fn forced_on(scene: &Scene) -> EffectsPlan {
+        let s = &scene.settings;
+        let mut p = EffectsPlan::for_scene(scene);
+        p.lrt = true;
+        p.lrt_depth = s.lrt_depth;
+        p.refraction = true;
+        p.diffuse_bounces = s.diffuse_bounces;
+        p.vrt_depth = s.vrt_depth;
+        p.ambient = s.diffuse_bounces == 0;
+        p.reasons = vec!["every effect forced on (--all-effects)".to_string()];
+        p
+    }
+
+    /// Short names of the passes that run, for the stats file.
+    pub fn passes(&self) -> Vec<&'static str> {
+        let mut v = vec!["preprocess"];
+        if self.lrt {
+            v.push("lrt");
+            if self.lrt_depth > 0 {
+                v.push("lrt_specular");
+            }
+            if self.refraction && self.lrt_depth > 0 {
+                v.push("lrt_refraction");
+            }
+            if self.diffuse_bounces > 0 {
+                v.push("lrt_diffuse");
+            }
+        }
+        v.push("interp");
+        v.push("vrt");
+        if self.vrt_depth > 0 {
+            v.push("vrt_specular");
+        }
+        if self.ambient {
+            v.push("ambient");
+        }
+        v
+    }
+}
+
+impl std::fmt::Display for EffectsPlan {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        writeln!(f, "effects plan: {}", self.passes().join(", "))?;
+        for r in &self.reasons {
+            writeln!(f, "  - {r}")?;
+        }
+        Ok(())
+    }
+}

@@ -1,0 +1,117 @@
+//! Preprocessing (paper §3.1 and §4.3): subdivide patches into elements, weld element
+//! vertices, build the uniform grid of subspaces and pack everything into 2 KB blocks.
+//!
+//! The paper ran this stage on one fork processor and named it the main obstacle to
+//! speed-up; here every step runs in parallel (rayon), and the result does not depend on
+//! the number of threads.
+
+mod grid;
+mod mesh;
+mod pack;
+mod weld;
+
+use crate::blocks::Block;
+use crate::header::SceneHeader;
+use crate::math::Vec3;
+use crate::plan::EffectsPlan;
+use crate::scene::Scene;
+use std::sync::Arc;
+use std::time::Instant;
+
+pub use mesh::subdivisions_of;
+
+/// Why a scene cannot be prepared.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum PrepareError {
+    /// The element count is over the scene's `max_elements`.
+    #[error("{file}: the scene would have {estimate} elements, over the limit of {limit} (render.max_elements); raise element_size or the limit")]
+    TooManyElements {
+        /// Scene label.
+        file: String,
+        /// Elements it would create.
+        estimate: u64,
+        /// The limit.
+        limit: u64,
+    },
+    /// An id space (u32) would overflow.
+    #[error("{file}: the scene is too large: {what}")]
+    TooLarge {
+        /// Scene label.
+        file: String,
+        /// What overflowed.
+        what: String,
+    },
+    /// The scene has nothing to render.
+    #[error("{file}: the scene has no patches")]
+    Empty {
+        /// Scene label.
+        file: String,
+    },
+}
+
+/// An element as the host sees it (for interpolation and the energy file).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ElementInfo {
+    /// Owning patch.
+    pub patch: u32,
+    /// Welded vertex ids.
+    pub vertices: [u32; 3],
+    /// Area.
+    pub area: f64,
+    /// Centroid.
+    pub centroid: Vec3,
+}
+
+/// A scene ready to render: the resident header, every block, and the host-side tables.
+#[derive(Clone, Debug)]
+pub struct PreparedScene {
+    /// Scene label (file name).
+    pub name: String,
+    /// Data every node keeps resident.
+    pub header: Arc<SceneHeader>,
+    /// Every block (vertex-energy blocks zero until interpolation).
+    pub blocks: Vec<Box<Block>>,
+    /// Elements by id.
+    pub elements: Vec<ElementInfo>,
+    /// Welded vertex positions by id.
+    pub vertex_positions: Vec<Vec3>,
+    /// Wall-clock seconds spent preparing.
+    pub preprocess_s: f64,
+}
+
+/// Prepares `scene` with the plan derived from it.
+pub fn prepare(scene: &Scene) -> Result<PreparedScene, PrepareError> {
+    prepare_with_plan(scene, EffectsPlan::for_scene(scene))
+}
+
+/// Prepares `scene` with an explicit effects plan (e.g. [`EffectsPlan::forced_on`]).
+pub fn prepare_with_plan(scene: &Scene, plan: EffectsPlan) -> Result<PreparedScene, PrepareError> {
+    let start = Instant::now();
+    if scene.patches.is_empty() {
+        return Err(PrepareError::Empty {
+            file: scene.name.clone(),
+        });
+    }
+    let mesh = mesh::build(scene)?;
+    let grid = grid::build(scene, &mesh);
+    let packed = pack::pack(&mesh, &grid);
+    let header = SceneHeader {
+        camera: scene.camera.clone(),
+        settings: scene.settings.clone(),
+        lights: scene.lights.clone(),
+        materials: scene.materials.clone(),
+        grid: packed.grid,
+        layout: packed.layout,
+        counts: packed.counts,
+        energy_quantum: crate::energy::quantum_for(&scene.lights),
+        plan,
+    };
+    Ok(PreparedScene {
+        name: scene.name.clone(),
+        header: Arc::new(header),
+        blocks: packed.blocks,
+        elements: mesh.elements,
+        vertex_positions: mesh.vertex_positions,
+        preprocess_s: start.elapsed().as_secs_f64(),
+    })
+}

@@ -1,0 +1,115 @@
+//! Packing of the prepared scene into 2 KB blocks.
+
+use super::grid::Grid;
+use super::mesh::Mesh;
+use crate::blocks::*;
+use crate::header::{Counts, GridHeader};
+
+pub(super) struct Packed {
+    pub blocks: Vec<Box<Block>>,
+    pub layout: BlockLayout,
+    pub grid: GridHeader,
+    pub counts: Counts,
+}
+
+fn zero_block() -> Box<Block> {
+    Box::new([0u8; BLOCK_SIZE])
+}
+
+pub(super) fn pack(mesh: &Mesh, grid: &Grid) -> Packed {
+    let mut blocks: Vec<Box<Block>> = Vec::new();
+    // Subspace blocks: one chain per non-empty cell.
+    let mut cell_first_block = vec![NO_BLOCK; grid.cells.len()];
+    for (c, ids) in grid.cells.iter().enumerate() {
+        if ids.is_empty() {
+            continue;
+        }
+        cell_first_block[c] = blocks.len() as u32;
+        let chunks: Vec<&[u32]> = ids.chunks(SUBSPACE_IDS_PER_BLOCK).collect();
+        let first = blocks.len() as u32;
+        for (k, chunk) in chunks.iter().enumerate() {
+            let mut b = zero_block();
+            let next = if k + 1 < chunks.len() {
+                first + k as u32 + 1
+            } else {
+                NO_BLOCK
+            };
+            encode_subspace_header(&mut b, chunk.len() as u32, next);
+            for (i, &id) in chunk.iter().enumerate() {
+                encode_subspace_id(&mut b, i, id);
+            }
+            blocks.push(b);
+        }
+    }
+    let subspace_blocks = blocks.len() as u32;
+
+    let patch_base = blocks.len() as u32;
+    for chunk in (0..mesh.patches.len())
+        .collect::<Vec<_>>()
+        .chunks(PATCHES_PER_BLOCK)
+    {
+        let mut b = zero_block();
+        for (k, &p) in chunk.iter().enumerate() {
+            PatchRecord {
+                v: mesh.patches[p],
+                material: mesh.materials[p],
+                subdivisions: mesh.subdivisions[p],
+                first_element: mesh.first_element[p],
+            }
+            .encode(&mut b, k * PATCH_RECORD);
+        }
+        blocks.push(b);
+    }
+    let element_base = blocks.len() as u32;
+    for (chunk_idx, chunk) in mesh.elements.chunks(ELEMENTS_PER_BLOCK).enumerate() {
+        let mut b = zero_block();
+        for (k, e) in chunk.iter().enumerate() {
+            let id = (chunk_idx * ELEMENTS_PER_BLOCK + k) as u32;
+            let local = id - mesh.first_element[e.patch as usize];
+            ElementRecord {
+                patch: e.patch,
+                local,
+                vertices: e.vertices,
+                area: e.area,
+            }
+            .encode(&mut b, k * ELEMENT_RECORD);
+        }
+        blocks.push(b);
+    }
+    let vertex_base = blocks.len() as u32;
+    let vertex_blocks = mesh
+        .vertex_positions
+        .len()
+        .div_ceil(VERTICES_PER_BLOCK)
+        .max(1);
+    for _ in 0..vertex_blocks {
+        blocks.push(zero_block());
+    }
+    let layout = BlockLayout {
+        patch_base,
+        element_base,
+        vertex_base,
+        total: blocks.len() as u32,
+    };
+    let counts = Counts {
+        patches: mesh.patches.len() as u32,
+        elements: mesh.elements.len() as u32,
+        vertices: mesh.vertex_positions.len() as u32,
+        subspaces: grid.cells.len() as u32,
+        subspace_blocks,
+        patch_blocks: element_base - patch_base,
+        element_blocks: vertex_base - element_base,
+        vertex_blocks: vertex_blocks as u32,
+    };
+    Packed {
+        blocks,
+        layout,
+        grid: GridHeader {
+            min: grid.min,
+            max: grid.max,
+            dims: grid.dims,
+            cell_first_block,
+        },
+        counts,
+    }
+}

@@ -1,0 +1,359 @@
+//! The embedded renderer: N node workers in this process, each with its own LRU block
+//! cache over an in-memory store, running the phases LRT -> interpolation -> VRT with
+//! barriers. Nodes pull pairs and subscreens from shared queues (dynamic load balancing
+//! as in paper §4.4 and §4.6), so every core is busy; the result does not depend on the
+//! number of nodes, the cache size or the order work completes in.
+
+use crate::blocks::{BlockCache, BlockError, BlockSource, MemStore};
+use crate::camera::CameraRig;
+use crate::energy::{interpolate, vertex_energy_blocks, Fixed};
+use crate::frame::Frame;
+use crate::lrt::{trace_pair, LrtTally};
+use crate::math::Rgb;
+use crate::preprocess::PreparedScene;
+use crate::progress::Progress;
+use crate::stats::*;
+use crate::trace::TraceScratch;
+use crate::view::SceneView;
+use crate::vrt::{shade_pixel, Subscreen};
+use std::sync::atomic::{AtomicI64, AtomicU64, Ordering};
+use std::sync::{Arc, Mutex};
+use std::time::Instant;
+
+/// How to run the embedded renderer.
+#[derive(Clone, Debug, PartialEq)]
+pub struct RenderOptions {
+    /// Node workers (threads); 0 = one per core.
+    pub nodes: u32,
+    /// Forks the blocks are interleaved over (for traffic accounting).
+    pub forks: u32,
+    /// Cache blocks per node; `None` = unlimited.
+    pub cache_blocks: Option<u64>,
+    /// Subscreen edge in pixels.
+    pub subscreen: u32,
+}
+
+impl Default for RenderOptions {
+    fn default() -> Self {
+        RenderOptions {
+            nodes: 0,
+            forks: 5,
+            cache_blocks: None,
+            subscreen: 16,
+        }
+    }
+}
+
+impl RenderOptions {
+    /// The node count to use (resolving 0 to the core count).
+    pub fn node_count(&self) -> u32 {
+        if self.nodes > 0 {
+            self.nodes
+        } else {
+            std::thread::available_parallelism()
+                .map(|n| n.get() as u32)
+                .unwrap_or(1)
+        }
+    }
+}
+
+/// Why a render failed.
+#[derive(Debug, thiserror::Error)]
+pub enum RenderError {
+    /// A block could not be read.
+    #[error(transparent)]
+    Block(#[from] BlockError),
+    /// A worker thread died.
+    #[error("a node worker panicked: {0}")]
+    Worker(String),
+}
+
+/// What a render produces.
+#[derive(Clone, Debug)]
+pub struct RenderOutput {
+    /// Linear image.
+    pub frame: Frame,
+    /// Flux per element, fixed point.
+    pub element_flux: Vec<Fixed>,
+    /// Irradiance per vertex.
+    pub vertex_irradiance: Vec<Rgb>,
+    /// Figures of the run.
+    pub stats: RenderStats,
+}
+
+/// Splits the screen into subscreens of `edge` pixels, row by row.
+pub fn subscreens(width: u32, height: u32, edge: u32) -> Vec<Subscreen> {
+    let edge = edge.max(1);
+    let mut v = Vec::new();
+    let mut y = 0;
+    while y < height {
+        let mut x = 0;
+        while x < width {
+            v.push(Subscreen {
+                x,
+                y,
+                w: edge.min(width - x),
+                h: edge.min(height - y),
+            });
+            x += edge;
+        }
+        y += edge;
+    }
+    v
+}
+
+struct NodeOut {
+    stats: NodeStats,
+    tally: LrtTally,
+    tiles: Vec<(Subscreen, Vec<Rgb>)>,
+}
+
+/// Renders a prepared scene in this process.
+pub fn render(
+    prepared: &PreparedScene,
+    opts: &RenderOptions,
+    progress: &dyn Progress,
+) -> Result<RenderOutput, RenderError> {
+    let t_start = Instant::now();
+    let header = prepared.header.clone();
+    let nodes = opts.node_count();
+    let forks = opts.forks.max(1);
+    let store = Arc::new(MemStore::new(prepared.blocks.clone()));
+    let n_el = header.counts.elements;
+    let n_lights = header.lights.len() as u32;
+    let make_view = |node: u32| {
+        let source: Arc<dyn BlockSource> = store.clone();
+        let cache = BlockCache::new(source, opts.cache_blocks.map(|c| c as usize))
+            .with_home(node % forks, forks);
+        SceneView::new(header.clone(), cache)
+    };
+    let mut views: Vec<SceneView> = (0..nodes).map(make_view).collect();
+
+    // --- LRT: nodes pull (light, element) pairs.
+    let t_lrt = Instant::now();
+    let flux: Vec<[AtomicI64; 3]> = (0..n_el)
+        .map(|_| [AtomicI64::new(0), AtomicI64::new(0), AtomicI64::new(0)])
+        .collect();
+    let total_pairs = if header.plan.lrt {
+        n_lights as u64 * n_el as u64
+    } else {
+        0
+    };
+    let next_pair = AtomicU64::new(0);
+    const PAIR_BATCH: u64 = 8;
+    progress.begin("light ray tracing", total_pairs);
+    let lrt_results: Vec<Result<(u64, LrtTally), BlockError>> = std::thread::scope(|s| {
+        let handles: Vec<_> = views
+            .iter_mut()
+            .map(|view| {
+                let (flux, next_pair) = (&flux, &next_pair);
+                s.spawn(move || -> Result<(u64, LrtTally), BlockError> {
+                    let mut scratch = TraceScratch::default();
+                    let mut tally = LrtTally::default();
+                    let mut pairs = 0;
+                    loop {
+                        let start = next_pair.fetch_add(PAIR_BATCH, Ordering::Relaxed);
+                        if start >= total_pairs {
+                            break;
+                        }
+                        let end = (start + PAIR_BATCH).min(total_pairs);
+                        for k in start..end {
+                            let (light, element) =
+                                ((k / n_el as u64) as u32, (k % n_el as u64) as u32);
+                            let r = trace_pair(view, &mut scratch, light, element)?;
+                            for (e, f) in r.deposits {
+                                if let Some(slot) = flux.get(e as usize) {
+                                    for c in 0..3 {
+                                        slot[c].fetch_add(f[c], Ordering::Relaxed);
+                                    }
+                                }
+                            }
+                            tally = tally.add(r.tally);
+                            pairs += 1;
+                        }
+                        progress.advance(end - start);
+                    }
+                    Ok((pairs, tally))
+                })
+            })
+            .collect();
+        handles
+            .into_iter()
+            .map(|h| {
+                h.join().unwrap_or_else(|_| {
+                    Err(BlockError::Unavailable {
+                        id: 0,
+                        reason: "node worker panicked".into(),
+                    })
+                })
+            })
+            .collect()
+    });
+    progress.end();
+    let mut node_pairs = Vec::with_capacity(nodes as usize);
+    let mut tally = LrtTally::default();
+    for r in lrt_results {
+        let (p, t) = r?;
+        node_pairs.push(p);
+        tally = tally.add(t);
+    }
+    let lrt_s = t_lrt.elapsed().as_secs_f64();
+
+    // --- Energy interpolation.
+    let t_interp = Instant::now();
+    let element_flux: Vec<Fixed> = flux
+        .iter()
+        .map(|a| {
+            [
+                a[0].load(Ordering::Relaxed),
+                a[1].load(Ordering::Relaxed),
+                a[2].load(Ordering::Relaxed),
+            ]
+        })
+        .collect();
+    let vertex_irradiance = interpolate(
+        &prepared.elements,
+        &element_flux,
+        header.counts.vertices as usize,
+        header.energy_quantum,
+    );
+    for (id, block) in vertex_energy_blocks(&vertex_irradiance, &header.layout) {
+        store.replace(id, block)?;
+    }
+    for v in views.iter_mut() {
+        v.invalidate_vertex_energy();
+    }
+    let interp_s = t_interp.elapsed().as_secs_f64();
+
+    // --- VRT: nodes pull subscreens.
+    let t_vrt = Instant::now();
+    let s = &header.settings;
+    let rig = CameraRig::new(&header.camera, s.width, s.height);
+    let tiles = subscreens(s.width, s.height, opts.subscreen);
+    let queue = Mutex::new(tiles.iter().copied().rev().collect::<Vec<_>>());
+    progress.begin("viewing ray tracing", s.width as u64 * s.height as u64);
+    let vrt_results: Vec<Result<Vec<(Subscreen, Vec<Rgb>)>, BlockError>> =
+        std::thread::scope(|sc| {
+            let handles: Vec<_> = views
+                .iter_mut()
+                .map(|view| {
+                    let (queue, rig) = (&queue, &rig);
+                    sc.spawn(move || -> Result<Vec<(Subscreen, Vec<Rgb>)>, BlockError> {
+                        let mut scratch = TraceScratch::default();
+                        let mut done = Vec::new();
+                        loop {
+                            let tile = match queue.lock() {
+                                Ok(mut q) => q.pop(),
+                                Err(_) => None,
+                            };
+                            let Some(t) = tile else { break };
+                            let mut px = Vec::with_capacity(t.pixels() as usize);
+                            for y in t.y..t.y + t.h {
+                                for x in t.x..t.x + t.w {
+                                    px.push(shade_pixel(view, &mut scratch, rig, x, y)?);
+                                }
+                            }
+                            progress.advance(t.pixels());
+                            done.push((t, px));
+                        }
+                        Ok(done)
+                    })
+                })
+                .collect();
+            handles
+                .into_iter()
+                .map(|h| {
+                    h.join().unwrap_or_else(|_| {
+                        Err(BlockError::Unavailable {
+                            id: 0,
+                            reason: "node worker panicked".into(),
+                        })
+                    })
+                })
+                .collect()
+        });
+    progress.end();
+    let mut frame = Frame::new(s.width, s.height);
+    let mut outs = Vec::with_capacity(nodes as usize);
+    for (node, r) in vrt_results.into_iter().enumerate() {
+        let done = r?;
+        let view = &views[node];
+        outs.push(NodeOut {
+            stats: NodeStats {
+                node: node as u32,
+                home_fork: node as u32 % forks,
+                pairs: node_pairs[node],
+                tiles: done.len() as u64,
+                cache: view.cache_stats().into(),
+                ops: view.counters,
+            },
+            tally: LrtTally::default(),
+            tiles: done,
+        });
+    }
+    for o in &outs {
+        for (t, px) in &o.tiles {
+            let mut it = px.iter();
+            for y in t.y..t.y + t.h {
+                for x in t.x..t.x + t.w {
+                    if let Some(v) = it.next() {
+                        frame.set(x, y, *v);
+                    }
+                }
+            }
+        }
+    }
+    let vrt_s = t_vrt.elapsed().as_secs_f64();
+
+    let cache_total = views
+        .iter()
+        .fold(crate::blocks::CacheStats::default(), |a, v| {
+            a.add(v.cache_stats())
+        });
+    let ops = views
+        .iter()
+        .fold(crate::view::OpCounters::default(), |a, v| a.add(v.counters));
+    let _ = outs.iter().map(|o| o.tally).count();
+    let stats = RenderStats {
+        scene: prepared.name.clone(),
+        mode: "embedded".into(),
+        nodes,
+        forks,
+        cache_blocks: opts.cache_blocks,
+        profile: "native".into(),
+        stages: Stages {
+            preprocess_s: prepared.preprocess_s,
+            lrt_s,
+            interp_s,
+            vrt_s,
+            total_s: prepared.preprocess_s + t_start.elapsed().as_secs_f64(),
+        },
+        cache: cache_total.into(),
+        traffic: Traffic {
+            link_bytes: 0,
+            dma_bytes: cache_total.misses * crate::blocks::BLOCK_SIZE as u64,
+            gbus_bytes: cache_total.remote_misses * crate::blocks::BLOCK_SIZE as u64,
+            rpcs: 0,
+        },
+        work: Work {
+            pairs: total_pairs,
+            tiles: tiles.len() as u64,
+            redivisions: 0,
+            light_rays: ops.light_rays,
+            view_rays: ops.view_rays,
+        },
+        plan: PlanSummary {
+            passes: header.plan.passes(),
+            plan: header.plan.clone(),
+        },
+        counts: header.counts,
+        light: tally,
+        per_node: outs.into_iter().map(|o| o.stats).collect(),
+    };
+    Ok(RenderOutput {
+        frame,
+        element_flux,
+        vertex_irradiance,
+        stats,
+    })
+}

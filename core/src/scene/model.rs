@@ -1,0 +1,202 @@
+//! The parsed scene: camera, render settings, lights, materials and triangle patches.
+//!
+//! This is the form every front end (TOML files, OBJ/MTL meshes, tests building scenes
+//! in code) produces and preprocessing consumes. All values here have been validated:
+//! finite, in range, references resolved.
+
+use crate::math::{Rgb, Vec3};
+
+/// Where an entity came from, so that later errors can name the file and line.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct SourceLoc {
+    /// File name as the user gave it (or a label such as `<inline>`).
+    pub file: String,
+    /// 1-based line number, 0 when unknown.
+    pub line: u32,
+}
+
+impl std::fmt::Display for SourceLoc {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        if self.line > 0 {
+            write!(f, "{}:{}", self.file, self.line)
+        } else {
+            write!(f, "{}", self.file)
+        }
+    }
+}
+
+/// A pinhole camera.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Camera {
+    /// Eye position.
+    pub eye: Vec3,
+    /// Point the camera looks at.
+    pub look_at: Vec3,
+    /// Up direction (need not be orthogonal to the view direction).
+    pub up: Vec3,
+    /// Vertical field of view in degrees.
+    pub fov_y_deg: f64,
+}
+
+/// Uniform grid resolution: explicit, or chosen from the patch count.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum GridSpec {
+    /// About `k * cbrt(patches)` cells along the longest axis, cells near cubic.
+    Auto,
+    /// Exactly these many subspaces along x, y, z.
+    Fixed([u32; 3]),
+}
+
+/// Tone-mapping exposure for the PNG output.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Exposure {
+    /// Scale so that the 99th percentile of pixel luminance maps to 0.8.
+    Auto,
+    /// Multiply linear radiance by this factor before tone mapping.
+    Fixed(f64),
+}
+
+/// Every accuracy knob and output setting of a render.
+#[derive(Clone, Debug, PartialEq)]
+pub struct RenderSettings {
+    /// Image width in pixels.
+    pub width: u32,
+    /// Image height in pixels.
+    pub height: u32,
+    /// Viewing rays per pixel (stratified, anti-aliasing).
+    pub pixel_samples: u32,
+    /// Target element edge length (scene units); a patch is split into n*n elements
+    /// with n = ceil(longest edge / element_size) unless the patch fixes n itself.
+    pub element_size: f64,
+    /// Primary light rays per (light, element) pair.
+    pub light_rays: u32,
+    /// Maximum specular bounces of light rays (mirror, refraction) after the first hit.
+    pub lrt_depth: u32,
+    /// Maximum specular bounces of viewing rays.
+    pub vrt_depth: u32,
+    /// Diffuse-to-diffuse bounces of light rays (0 = paper's ambient term instead).
+    pub diffuse_bounces: u32,
+    /// Constant ambient irradiance-like term, used only when `diffuse_bounces == 0`.
+    pub ambient: Rgb,
+    /// Subspace grid resolution.
+    pub grid: GridSpec,
+    /// Seed of every random choice (rays are seeded from it, the pair and the pixel).
+    pub seed: u64,
+    /// Tone-mapping exposure.
+    pub exposure: Exposure,
+    /// Radiance of rays that leave the scene.
+    pub background: Rgb,
+    /// Refuse scenes whose preprocessing would create more elements than this.
+    pub max_elements: u64,
+}
+
+impl Default for RenderSettings {
+    fn default() -> Self {
+        RenderSettings {
+            width: 400,
+            height: 400,
+            pixel_samples: 4,
+            element_size: 0.1,
+            light_rays: 64,
+            lrt_depth: 4,
+            vrt_depth: 4,
+            diffuse_bounces: 0,
+            ambient: Rgb::splat(0.0),
+            grid: GridSpec::Auto,
+            seed: 1,
+            exposure: Exposure::Auto,
+            background: Rgb::BLACK,
+            max_elements: 20_000_000,
+        }
+    }
+}
+
+/// Spot-light cone: full intensity inside `half_angle_deg`, falling smoothly to zero
+/// over a further `falloff_deg`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Spot {
+    /// Unit axis of the cone.
+    pub direction: Vec3,
+    /// Half-angle of the fully lit cone, degrees.
+    pub half_angle_deg: f64,
+    /// Width of the smooth edge, degrees (0 = hard edge).
+    pub falloff_deg: f64,
+}
+
+/// A point light source (paper §3: ideal point lights; spot cones are our extension).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Light {
+    /// Position.
+    pub position: Vec3,
+    /// Radiant intensity per channel, W/sr.
+    pub intensity: Rgb,
+    /// Optional cone; `None` is isotropic.
+    pub spot: Option<Spot>,
+    /// Where it was defined.
+    pub loc: SourceLoc,
+}
+
+/// Surface material: fractions of incident light per channel that are reflected
+/// diffusely, reflected as by a mirror, and transmitted (refracted with `ior`).
+/// `diffuse + mirror + transmit <= 1` per channel; the rest is absorbed.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Material {
+    /// Name used by patches.
+    pub name: String,
+    /// Diffuse reflectance rho_d.
+    pub diffuse: Rgb,
+    /// Ideal mirror reflectance.
+    pub mirror: Rgb,
+    /// Dielectric part: split by Fresnel into reflection and refraction.
+    pub transmit: Rgb,
+    /// Index of refraction of the inside (the side the normal points away from).
+    pub ior: f64,
+    /// Where it was defined.
+    pub loc: SourceLoc,
+}
+
+impl Material {
+    /// True when the material has an ideal-mirror part.
+    pub fn is_mirror(&self) -> bool {
+        !self.mirror.is_black()
+    }
+    /// True when the material has a transmissive (dielectric) part.
+    pub fn is_transmissive(&self) -> bool {
+        !self.transmit.is_black()
+    }
+    /// True when the material has a specular part of either kind.
+    pub fn is_specular(&self) -> bool {
+        self.is_mirror() || self.is_transmissive()
+    }
+}
+
+/// A triangle patch after transforms. Its normal follows the winding
+/// (counter-clockwise seen from the front).
+#[derive(Clone, Debug, PartialEq)]
+pub struct PatchDef {
+    /// Corner positions.
+    pub vertices: [Vec3; 3],
+    /// Index into `Scene::materials`.
+    pub material: u32,
+    /// Fixed subdivision count n (n*n elements), overriding `element_size`.
+    pub subdivisions: Option<u32>,
+    /// Where it was defined (the `[[quad]]`, `[[triangle]]` or `[[mesh]]` entry).
+    pub loc: SourceLoc,
+}
+
+/// A complete, validated scene.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Scene {
+    /// Label of the scene (file name).
+    pub name: String,
+    /// The camera.
+    pub camera: Camera,
+    /// Render settings.
+    pub settings: RenderSettings,
+    /// Point lights.
+    pub lights: Vec<Light>,
+    /// Materials, referenced by index.
+    pub materials: Vec<Material>,
+    /// Triangle patches.
+    pub patches: Vec<PatchDef>,
+}

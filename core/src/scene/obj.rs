@@ -1,0 +1,816 @@
+//! Wavefront OBJ and MTL import for `[[mesh]]` entries, and the mesh transform.
+//!
+//! Only what a triangle-patch renderer needs is read:
+//! - OBJ: `v` (x y z; an optional w or vertex colour after them is ignored), `f` with
+//!   `v`, `v/vt`, `v//vn` or `v/vt/vn` corners and negative (relative) indices, polygons
+//!   fan-triangulated as (0,1,2), (0,2,3), ...; `usemtl`, `mtllib`. `o`, `g`, `s`, `vt`,
+//!   `vn`, `vp`, `l`, `p` and the other display statements are ignored; free-form
+//!   geometry (`cstype`, `curv`, `surf`, ...) and unknown statements are errors.
+//! - MTL: `newmtl`, `Kd` (diffuse), `Ks` (ideal mirror), `Tf`, `d`, `Tr` (transmission),
+//!   `Ni` (index of refraction); every other statement is ignored. See [`parse_mtl`] for
+//!   how these become a valid material.
+//!
+//! Errors name the OBJ or MTL file and its line. Nothing here does I/O.
+
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+
+use super::error::SceneError;
+use super::model::{Material, SourceLoc};
+use super::parse::is_degenerate;
+use crate::math::{Rgb, Vec3};
+
+/// The scene's materials, which meshes extend with the MTL materials they use.
+pub(super) struct MaterialTable {
+    /// Every material, referenced by index (`[[material]]` tables first).
+    pub list: Vec<Material>,
+    /// Index of each `[[material]]` by name.
+    pub toml: HashMap<String, u32>,
+    /// Index of each MTL material already added, by its scene name `objfile:mtlname`.
+    pub from_mtl: HashMap<String, u32>,
+}
+
+/// A `[[mesh]]` entry, already checked by the TOML front end.
+pub(super) struct MeshEntry<'a> {
+    /// The `obj =` path as written in the scene, relative to its directory.
+    pub obj: &'a str,
+    /// Scene file and line of the `obj =` key.
+    pub at: SourceLoc,
+    /// Field prefix for errors (`mesh[2]`).
+    pub field: String,
+    /// Placement of the mesh.
+    pub transform: Transform,
+    /// Material overriding every `usemtl` (the MTL files are then not read).
+    pub material: Option<u32>,
+}
+
+/// Reads a mesh's OBJ file (and its MTL files) through `read` and returns its triangles
+/// after the transform, with their material indices. Zero-area faces are skipped; an OBJ
+/// without any other face is an error.
+///
+/// A `usemtl` name is looked up first in the OBJ's own MTL files, whose materials are added
+/// to `materials` (once, in order of first use) as `objfile:mtlname` (e.g.
+/// `meshes/sphere.obj:glass`), then among the `[[material]]` tables by plain name.
+pub(super) fn load_mesh(
+    entry: &MeshEntry<'_>,
+    base_dir: &Path,
+    read: &dyn Fn(&Path) -> std::io::Result<String>,
+    materials: &mut MaterialTable,
+) -> Result<Vec<([Vec3; 3], u32)>, SceneError> {
+    let scene_err = |name: &str, msg: String| {
+        SceneError::new(entry.at.clone(), format!("{}.{name}", entry.field), msg)
+    };
+    let obj_path = base_dir.join(entry.obj);
+    let obj_label = obj_path.display().to_string();
+    let text = read(&obj_path)
+        .map_err(|e| scene_err("obj", format!("cannot read OBJ file '{obj_label}': {e}")))?;
+    let mesh = parse_obj(&obj_label, &text)?;
+
+    // Material of each `usemtl` name (None: defined nowhere, reported at its first face).
+    let mut usemtl_ids = Vec::new();
+    if entry.material.is_none() {
+        let mtl = load_mtllibs(&mesh, &obj_path, &obj_label, read)?;
+        for name in &mesh.usemtl_names {
+            let id = match mtl.iter().find(|mm| mm.name == *name) {
+                Some(mm) => Some(
+                    materials
+                        .add_mtl(entry, mm)
+                        .map_err(|m| scene_err("obj", m))?,
+                ),
+                None => materials.toml.get(name).copied(),
+            };
+            usemtl_ids.push(id);
+        }
+    }
+
+    let flip = entry.transform.flips_winding();
+    let mut out = Vec::with_capacity(mesh.faces.len());
+    for face in &mesh.faces {
+        let material = match (entry.material, face.usemtl) {
+            (Some(id), _) => id,
+            (None, Some(u)) => match usemtl_ids.get(u).copied().flatten() {
+                Some(id) => id,
+                None => {
+                    let name = mesh.usemtl_names.get(u).map_or("", String::as_str);
+                    let msg = format!(
+                        "{obj_label}:{}: material '{name}' is not defined (neither in the OBJ's MTL files nor a [[material]])",
+                        face.line
+                    );
+                    return Err(scene_err("obj", msg));
+                }
+            },
+            (None, None) => {
+                let msg = format!(
+                    "{obj_label}:{}: face has no material: add `material = ...` to the [[mesh]] or a `usemtl` to the OBJ",
+                    face.line
+                );
+                return Err(scene_err("material", msg));
+            }
+        };
+        let mut v = [Vec3::ZERO; 3];
+        for (o, &k) in v.iter_mut().zip(&face.corners) {
+            // parse_obj checked every index; stay safe anyway.
+            let p = mesh
+                .positions
+                .get(k)
+                .copied()
+                .ok_or_else(|| scene_err("obj", "face index out of range".into()))?;
+            *o = entry.transform.apply(p);
+        }
+        if flip {
+            v.swap(1, 2);
+        }
+        if !v.iter().all(|p| p.is_finite()) {
+            return Err(scene_err(
+                "scale",
+                "the transform sends a vertex to infinity".into(),
+            ));
+        }
+        if !is_degenerate(&v) {
+            out.push((v, material));
+        }
+    }
+    if out.is_empty() {
+        return Err(scene_err(
+            "obj",
+            format!("OBJ file '{obj_label}' has no faces of non-zero area"),
+        ));
+    }
+    Ok(out)
+}
+
+impl MaterialTable {
+    /// Adds an MTL material of a mesh (once) and returns its index, or why it clashes.
+    fn add_mtl(&mut self, entry: &MeshEntry<'_>, mm: &MtlMaterial) -> Result<u32, String> {
+        let name = format!("{}:{}", entry.obj, mm.name);
+        if let Some(&id) = self.from_mtl.get(&name) {
+            return Ok(id);
+        }
+        if self.toml.contains_key(&name) {
+            return Err(format!(
+                "MTL material '{name}' clashes with a [[material]] of the same name"
+            ));
+        }
+        let id = u32::try_from(self.list.len()).map_err(|_| "too many materials".to_string())?;
+        self.list.push(Material {
+            name: name.clone(),
+            diffuse: mm.diffuse,
+            mirror: mm.mirror,
+            transmit: mm.transmit,
+            ior: mm.ior,
+            loc: mm.loc.clone(),
+        });
+        self.from_mtl.insert(name, id);
+        Ok(id)
+    }
+}
+
+/// Reads and parses every `mtllib` of an OBJ, relative to the OBJ's directory; a name
+/// defined in two of them is an error.
+fn load_mtllibs(
+    mesh: &ObjMesh,
+    obj_path: &Path,
+    obj_label: &str,
+    read: &dyn Fn(&Path) -> std::io::Result<String>,
+) -> Result<Vec<MtlMaterial>, SceneError> {
+    let dir = obj_path
+        .parent()
+        .map_or_else(PathBuf::new, Path::to_path_buf);
+    let mut out: Vec<MtlMaterial> = Vec::new();
+    for lib in &mesh.mtllibs {
+        let path = dir.join(&lib.file);
+        let label = path.display().to_string();
+        let text = read(&path).map_err(|e| {
+            let at = SourceLoc {
+                file: obj_label.to_string(),
+                line: lib.line,
+            };
+            SceneError::new(at, "mtllib", format!("cannot read MTL file '{label}': {e}"))
+        })?;
+        for mm in parse_mtl(&label, &text)? {
+            if let Some(first) = out.iter().find(|o| o.name == mm.name) {
+                let msg = format!("material '{}' is already defined at {}", mm.name, first.loc);
+                return Err(SceneError::new(mm.loc.clone(), "newmtl", msg));
+            }
+            out.push(mm);
+        }
+    }
+    Ok(out)
+}
+
+/// An OBJ file's geometry: positions and triangles (after fan triangulation).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub(super) struct ObjMesh {
+    /// `v` positions, in file order.
+    pub positions: Vec<Vec3>,
+    /// Triangles, in file order.
+    pub faces: Vec<ObjFace>,
+    /// `mtllib` files, in file order.
+    pub mtllibs: Vec<MtlLib>,
+    /// Distinct `usemtl` names, in order of first use.
+    pub usemtl_names: Vec<String>,
+}
+
+/// One triangle of an OBJ face.
+#[derive(Clone, Debug, PartialEq)]
+pub(super) struct ObjFace {
+    /// Indices into [`ObjMesh::positions`] (checked in range).
+    pub corners: [usize; 3],
+    /// Index into [`ObjMesh::usemtl_names`] of the `usemtl` in force, if any.
+    pub usemtl: Option<usize>,
+    /// 1-based line of the `f` statement.
+    pub line: u32,
+}
+
+/// An `mtllib` file name and the line that named it.
+#[derive(Clone, Debug, PartialEq)]
+pub(super) struct MtlLib {
+    /// File name, relative to the OBJ file's directory.
+    pub file: String,
+    /// 1-based line of the `mtllib` statement.
+    pub line: u32,
+}
+
+/// OBJ statements that do not describe triangle surfaces and are skipped.
+const OBJ_IGNORED: &[&str] = &[
+    "o",
+    "g",
+    "s",
+    "vt",
+    "vn",
+    "vp",
+    "l",
+    "p",
+    "mg",
+    "usemap",
+    "maplib",
+    "shadow_obj",
+    "trace_obj",
+    "lod",
+    "bevel",
+    "c_interp",
+    "d_interp",
+    "call",
+    "csh",
+];
+/// OBJ free-form statements, which are refused rather than silently dropped.
+const OBJ_FREEFORM: &[&str] = &[
+    "cstype", "deg", "bmat", "step", "curv", "curv2", "surf", "parm", "trim", "hole", "scrv", "sp",
+    "end", "con",
+];
+
+/// Parses an OBJ file; `label` names it in errors.
+pub(super) fn parse_obj(label: &str, text: &str) -> Result<ObjMesh, SceneError> {
+    let mut mesh = ObjMesh::default();
+    let mut current: Option<usize> = None;
+    for (n, raw_line) in text.lines().enumerate() {
+        let line = u32::try_from(n + 1).unwrap_or(u32::MAX);
+        let err = |msg: String| {
+            SceneError::new(
+                SourceLoc {
+                    file: label.to_string(),
+                    line,
+                },
+                "obj",
+                msg,
+            )
+        };
+        let content = raw_line.split('#').next().unwrap_or("").trim();
+        let mut tokens = content.split_whitespace();
+        let Some(keyword) = tokens.next() else {
+            continue;
+        };
+        match keyword {
+            "v" => {
+                let mut xyz = [0.0; 3];
+                let mut count = 0;
+                for tok in tokens {
+                    let x = parse_number(tok).map_err(|m| err(format!("v: {m}")))?;
+                    if let Some(slot) = xyz.get_mut(count) {
+                        *slot = x;
+                    }
+                    count += 1;
+                }
+                if !(3..=7).contains(&count) {
+                    return Err(err(format!("v needs 3 coordinates, found {count} numbers")));
+                }
+                mesh.positions.push(Vec3::from_array(xyz));
+            }
+            "f" => {
+                let corners = tokens
+                    .map(|tok| resolve_corner(tok, mesh.positions.len()))
+                    .collect::<Result<Vec<_>, _>>()
+                    .map_err(|m| err(format!("f: {m}")))?;
+                if corners.len() < 3 {
+                    return Err(err(format!(
+                        "f needs at least 3 vertices, found {}",
+                        corners.len()
+                    )));
+                }
+                let first = corners[0];
+                for pair in corners[1..].windows(2) {
+                    if let [b, c] = pair {
+                        mesh.faces.push(ObjFace {
+                            corners: [first, *b, *c],
+                            usemtl: current,
+                            line,
+                        });
+                    }
+                }
+            }
+            "usemtl" => {
+                let name = rest_after_keyword(content, keyword);
+                if name.is_empty() {
+                    return Err(err("usemtl needs a material name".to_string()));
+                }
+                current = Some(match mesh.usemtl_names.iter().position(|m| m == name) {
+                    Some(k) => k,
+                    None => {
+                        mesh.usemtl_names.push(name.to_string());
+                        mesh.usemtl_names.len() - 1
+                    }
+                });
+            }
+            "mtllib" => {
+                let before = mesh.mtllibs.len();
+                mesh.mtllibs.extend(tokens.map(|t| MtlLib {
+                    file: t.to_string(),
+                    line,
+                }));
+                if mesh.mtllibs.len() == before {
+                    return Err(err("mtllib needs a file name".to_string()));
+                }
+            }
+            k if OBJ_IGNORED.contains(&k) => {}
+            k if OBJ_FREEFORM.contains(&k) => {
+                return Err(err(format!(
+                    "free-form geometry ('{k}') is not supported: export triangles or polygons"
+                )));
+            }
+            k => return Err(err(format!("unknown statement '{}'", truncate(k)))),
+        }
+    }
+    Ok(mesh)
+}
+
+/// Resolves one face corner (`v`, `v/vt`, `v//vn`, `v/vt/vn`) to a 0-based position index.
+fn resolve_corner(tok: &str, count: usize) -> Result<usize, String> {
+    let mut parts = tok.split('/');
+    let v = parts.next().unwrap_or("");
+    let mut extra = 0;
+    for p in parts {
+        extra += 1;
+        if extra > 2 || (!p.is_empty() && p.parse::<i64>().is_err()) {
+            return Err(format!(
+                "'{}' is not a vertex reference (v, v/vt, v//vn or v/vt/vn)",
+                truncate(tok)
+            ));
+        }
+    }
+    let i: i64 = v
+        .parse()
+        .map_err(|_| format!("'{}' is not a vertex index", truncate(tok)))?;
+    let count_i = i64::try_from(count).unwrap_or(i64::MAX);
+    let index = match i {
+        0 => return Err("vertex index 0 is not valid (OBJ indices start at 1)".to_string()),
+        i if i > 0 => i - 1,
+        i => count_i.saturating_add(i),
+    };
+    if index < 0 || index >= count_i {
+        return Err(format!(
+            "vertex index {i} is out of range: {count} vertices defined so far"
+        ));
+    }
+    usize::try_from(index).map_err(|_| format!("vertex index {i} is out of range"))
+}
+
+/// A finite number, or why not.
+fn parse_number(tok: &str) -> Result<f64, String> {
+    match tok.parse::<f64>() {
+        Ok(x) if x.is_finite() => Ok(x),
+        Ok(x) => Err(format!("{x} is not a finite number")),
+        Err(_) => Err(format!("'{}' is not a number", truncate(tok))),
+    }
+}
+
+/// The rest of a statement after its keyword, trimmed (names may contain spaces).
+fn rest_after_keyword<'t>(content: &'t str, keyword: &str) -> &'t str {
+    content.strip_prefix(keyword).unwrap_or("").trim()
+}
+
+/// A token shortened for an error message.
+fn truncate(s: &str) -> String {
+    if s.chars().count() > 40 {
+        format!("{}...", s.chars().take(40).collect::<String>())
+    } else {
+        s.to_string()
+    }
+}
+
+/// A material read from an MTL file, already made valid.
+#[derive(Clone, Debug, PartialEq)]
+pub(super) struct MtlMaterial {
+    /// The `newmtl` name.
+    pub name: String,
+    /// Diffuse reflectance.
+    pub diffuse: Rgb,
+    /// Ideal mirror reflectance.
+    pub mirror: Rgb,
+    /// Dielectric part.
+    pub transmit: Rgb,
+    /// Index of refraction.
+    pub ior: f64,
+    /// The MTL file and line of `newmtl`.
+    pub loc: SourceLoc,
+}
+
+/// The statements of one `newmtl` block, before they are made valid.
+#[derive(Default)]
+struct MtlPending {
+    name: String,
+    line: u32,
+    kd: Option<Rgb>,
+    ks: Option<Rgb>,
+    tf: Option<Rgb>,
+    d: Option<f64>,
+    tr: Option<f64>,
+    ni: Option<f64>,
+}
+
+impl MtlPending {
+    /// Makes the material valid with a fixed rule (no warnings, same result every time):
+    /// 1. `diffuse = Kd`, `mirror = Ks` (0 when absent).
+    /// 2. Opacity is `d`, else `1 - Tr`. With an opacity, `transmit = (1 - opacity) * Tf`
+    ///    (`Tf` defaulting to white); without one, `transmit = Tf` (0 when absent). So an
+    ///    exporter's `Tf 1 1 1` beside `d 1` stays opaque.
+    /// 3. Every channel of every part is clamped to `[0, 1]`; where a channel's
+    ///    `diffuse + mirror + transmit` is still above 1, the three are divided by that sum
+    ///    (keeping their ratio).
+    /// 4. `ior = Ni` clamped to `[1, 4]`, 1.5 when absent.
+    fn finish(self, label: &str) -> MtlMaterial {
+        let clamp = |c: Rgb| Rgb(c.0.map(|x| x.clamp(0.0, 1.0)));
+        let opacity = self
+            .d
+            .or(self.tr.map(|t| 1.0 - t))
+            .map(|o| o.clamp(0.0, 1.0));
+        let transmit = match (opacity, self.tf) {
+            (Some(o), tf) => clamp(tf.unwrap_or(Rgb::splat(1.0))).scale(1.0 - o),
+            (None, Some(tf)) => tf,
+            (None, None) => Rgb::BLACK,
+        };
+        let mut diffuse = clamp(self.kd.unwrap_or(Rgb::BLACK));
+        let mut mirror = clamp(self.ks.unwrap_or(Rgb::BLACK));
+        let mut transmit = clamp(transmit);
+        for k in 0..3 {
+            let sum = diffuse.0[k] + mirror.0[k] + transmit.0[k];
+            if sum > 1.0 {
+                diffuse.0[k] /= sum;
+                mirror.0[k] /= sum;
+                transmit.0[k] /= sum;
+            }
+        }
+        MtlMaterial {
+            name: self.name,
+            diffuse,
+            mirror,
+            transmit,
+            ior: self.ni.map_or(1.5, |n| n.clamp(1.0, 4.0)),
+            loc: SourceLoc {
+                file: label.to_string(),
+                line: self.line,
+            },
+        }
+    }
+}
+
+/// Parses an MTL file; `label` names it in errors. Unknown statements (`Ka`, `Ns`,
+/// `illum`, texture maps, ...) are ignored; a name defined twice is an error.
+pub(super) fn parse_mtl(label: &str, text: &str) -> Result<Vec<MtlMaterial>, SceneError> {
+    let mut done: Vec<MtlMaterial> = Vec::new();
+    let mut pending: Option<MtlPending> = None;
+    for (n, raw_line) in text.lines().enumerate() {
+        let line = u32::try_from(n + 1).unwrap_or(u32::MAX);
+        let err = |msg: String| {
+            SceneError::new(
+                SourceLoc {
+                    file: label.to_string(),
+                    line,
+                },
+                "mtl",
+                msg,
+            )
+        };
+        let content = raw_line.split('#').next().unwrap_or("").trim();
+        let mut tokens = content.split_whitespace();
+        let Some(keyword) = tokens.next() else {
+            continue;
+        };
+        if keyword == "newmtl" {
+            let name = rest_after_keyword(content, keyword);
+            if name.is_empty() {
+                return Err(err("newmtl needs a material name".to_string()));
+            }
+            if let Some(p) = pending.take() {
+                done.push(p.finish(label));
+            }
+            if let Some(first) = done.iter().find(|m| m.name == name) {
+                return Err(err(format!(
+                    "material '{name}' is already defined at line {}",
+                    first.loc.line
+                )));
+            }
+            pending = Some(MtlPending {
+                name: name.to_string(),
+                line,
+                ..MtlPending::default()
+            });
+            continue;
+        }
+        let known = matches!(keyword, "Kd" | "Ks" | "Tf" | "d" | "Tr" | "Ni");
+        let Some(p) = pending.as_mut() else {
+            if known {
+                return Err(err(format!("'{keyword}' before any newmtl")));
+            }
+            continue;
+        };
+        let args: Vec<&str> = tokens.collect();
+        match keyword {
+            "Kd" => p.kd = Some(parse_colour(&args).map_err(|m| err(format!("Kd: {m}")))?),
+            "Ks" => p.ks = Some(parse_colour(&args).map_err(|m| err(format!("Ks: {m}")))?),
+            "Tf" => p.tf = Some(parse_colour(&args).map_err(|m| err(format!("Tf: {m}")))?),
+            "d" | "Tr" | "Ni" => {
+                let args: Vec<&str> = args.into_iter().filter(|a| *a != "-halo").collect();
+                let [a] = args.as_slice() else {
+                    return Err(err(format!(
+                        "{keyword} needs one number, found {}",
+                        args.len()
+                    )));
+                };
+                let x = parse_number(a).map_err(|m| err(format!("{keyword}: {m}")))?;
+                match keyword {
+                    "d" => p.d = Some(x),
+                    "Tr" => p.tr = Some(x),
+                    _ => p.ni = Some(x),
+                }
+            }
+            _ => {}
+        }
+    }
+    if let Some(p) = pending.take() {
+        done.push(p.finish(label));
+    }
+    Ok(done)
+}
+
+/// An MTL colour: `r g b` or a single value for all three.
+fn parse_colour(args: &[&str]) -> Result<Rgb, String> {
+    match args {
+        [first, ..] if *first == "spectral" || *first == "xyz" => {
+            Err(format!("'{first}' colours are not supported"))
+        }
+        [v] => parse_number(v).map(Rgb::splat),
+        [r, g, b] => Ok(Rgb::new(
+            parse_number(r)?,
+            parse_number(g)?,
+            parse_number(b)?,
+        )),
+        _ => Err(format!("expected 1 or 3 numbers, found {}", args.len())),
+    }
+}
+
+/// A mesh placement: scale, then rotate (Euler degrees about X, then Y, then Z), then
+/// translate.
+#[derive(Clone, Debug, PartialEq)]
+pub(super) struct Transform {
+    scale: Vec3,
+    /// Rows of the rotation matrix `Rz * Ry * Rx`.
+    rotation: [Vec3; 3],
+    translate: Vec3,
+}
+
+impl Transform {
+    /// Builds a transform from scale factors, Euler angles in degrees and a translation.
+    pub(super) fn new(scale: Vec3, rotate_deg: Vec3, translate: Vec3) -> Self {
+        let (sx, cx) = rotate_deg.x.to_radians().sin_cos();
+        let (sy, cy) = rotate_deg.y.to_radians().sin_cos();
+        let (sz, cz) = rotate_deg.z.to_radians().sin_cos();
+        let rx = [
+            Vec3::new(1.0, 0.0, 0.0),
+            Vec3::new(0.0, cx, -sx),
+            Vec3::new(0.0, sx, cx),
+        ];
+        let ry = [
+            Vec3::new(cy, 0.0, sy),
+            Vec3::new(0.0, 1.0, 0.0),
+            Vec3::new(-sy, 0.0, cy),
+        ];
+        let rz = [
+            Vec3::new(cz, -sz, 0.0),
+            Vec3::new(sz, cz, 0.0),
+            Vec3::new(0.0, 0.0, 1.0),
+        ];
+        let rotation = mat_mul(&rz, &mat_mul(&ry, &rx));
+        Transform {
+            scale,
+            rotation,
+            translate,
+        }
+    }
+
+    /// Applies the transform to a point.
+    pub(super) fn apply(&self, p: Vec3) -> Vec3 {
+        let s = Vec3::new(p.x * self.scale.x, p.y * self.scale.y, p.z * self.scale.z);
+        let [r0, r1, r2] = &self.rotation;
+        Vec3::new(r0.dot(s), r1.dot(s), r2.dot(s)) + self.translate
+    }
+
+    /// True when the transform mirrors space (negative determinant), so that triangles
+    /// must have two corners swapped to keep their normals pointing the same way.
+    pub(super) fn flips_winding(&self) -> bool {
+        self.scale.x * self.scale.y * self.scale.z < 0.0
+    }
+}
+
+/// Product of two 3x3 matrices given as rows.
+fn mat_mul(a: &[Vec3; 3], b: &[Vec3; 3]) -> [Vec3; 3] {
+    let col = |j: usize| Vec3::new(b[0][j], b[1][j], b[2][j]);
+    let row = |r: &Vec3| Vec3::new(r.dot(col(0)), r.dot(col(1)), r.dot(col(2)));
+    [row(&a[0]), row(&a[1]), row(&a[2])]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn obj(text: &str) -> ObjMesh {
+        parse_obj("m.obj", text).unwrap()
+    }
+
+    fn obj_err(text: &str) -> String {
+        parse_obj("m.obj", text).unwrap_err().to_string()
+    }
+
+    #[test]
+    fn polygons_are_fan_triangulated() {
+        let m = obj("v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0.5 1.5 0\nv 0 1 0\nf 1 2 3 4 5\n");
+        let tris: Vec<[usize; 3]> = m.faces.iter().map(|f| f.corners).collect();
+        assert_eq!(tris, [[0, 1, 2], [0, 2, 3], [0, 3, 4]]);
+        assert!(m.faces.iter().all(|f| f.line == 6 && f.usemtl.is_none()));
+    }
+
+    #[test]
+    fn negative_indices_count_back_from_the_last_vertex() {
+        let m = obj("v 0 0 0\nv 1 0 0\nv 0 1 0\nf -3 -2 -1\nv 5 5 5\nf -4 -1 -2\n");
+        assert_eq!(m.faces[0].corners, [0, 1, 2]);
+        assert_eq!(m.faces[1].corners, [0, 3, 2]);
+    }
+
+    #[test]
+    fn corner_forms_and_ignored_statements() {
+        let text = "# a comment\no thing\ng group\ns 1\nv 0 0 0 1\nv 1 0 0 0.5 0.5 0.5\nv 0 1 0\n\
+                    vt 0 0\nvn 0 0 1\nf 1/1 2//1 3/1/1 # trailing comment\nl 1 2\n";
+        let m = obj(text);
+        assert_eq!(m.positions.len(), 3);
+        assert_eq!(m.faces.len(), 1);
+        assert_eq!(m.faces[0].corners, [0, 1, 2]);
+    }
+
+    #[test]
+    fn usemtl_and_mtllib_are_recorded() {
+        let m = obj("mtllib a.mtl b.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl red\nf 1 2 3\nusemtl blue\nf 1 2 3\nusemtl red\nf 1 2 3\n");
+        assert_eq!(
+            m.mtllibs
+                .iter()
+                .map(|l| (l.file.as_str(), l.line))
+                .collect::<Vec<_>>(),
+            [("a.mtl", 1), ("b.mtl", 1)]
+        );
+        assert_eq!(m.usemtl_names, ["red", "blue"]);
+        assert_eq!(
+            m.faces.iter().map(|f| f.usemtl).collect::<Vec<_>>(),
+            [Some(0), Some(1), Some(0)]
+        );
+    }
+
+    #[test]
+    fn obj_errors_name_file_and_line() {
+        let base = "v 0 0 0\nv 1 0 0\nv 0 1 0\n";
+        assert_eq!(
+            obj_err(&format!("{base}f 1 2 4\n")),
+            "m.obj:4: obj: f: vertex index 4 is out of range: 3 vertices defined so far"
+        );
+        assert!(obj_err(&format!("{base}f 1 2 -4\n"))
+            .starts_with("m.obj:4: obj: f: vertex index -4 is out of range"));
+        assert!(obj_err(&format!("{base}f 0 1 2\n")).contains("index 0 is not valid"));
+        assert!(obj_err(&format!("{base}f 1 2\n"))
+            .starts_with("m.obj:4: obj: f needs at least 3 vertices"));
+        assert!(obj_err(&format!("{base}f 1 2 x\n")).contains("'x' is not a vertex index"));
+        assert!(obj_err(&format!("{base}f 1 2 3/1/1/1\n")).contains("not a vertex reference"));
+        assert!(obj_err("v 0 0\n").starts_with("m.obj:1: obj: v needs 3 coordinates"));
+        assert!(obj_err("v 0 nan 0\n").contains("NaN is not a finite number"));
+        assert!(
+            obj_err("v 0 0 0\nbogus 1\n").starts_with("m.obj:2: obj: unknown statement 'bogus'")
+        );
+        assert!(obj_err("cstype bspline\n").contains("free-form geometry"));
+        assert!(obj_err("usemtl\n").contains("usemtl needs a material name"));
+        assert!(obj_err("\u{0}\u{1}garbage\n").starts_with("m.obj:1:"));
+    }
+
+    fn mtl(text: &str) -> Vec<MtlMaterial> {
+        parse_mtl("m.mtl", text).unwrap()
+    }
+
+    #[test]
+    fn mtl_maps_kd_ks_tf_d_ni() {
+        let m = mtl("newmtl a\nKd 0.5 0.25 0.1\nKs 0.2\nNi 1.33\nKa 1 1 1\nillum 2\nmap_Kd x.png\n\nnewmtl glass pane\nTf 0.9 0.9 0.9\nKd 0 0 0\n");
+        assert_eq!(m.len(), 2);
+        assert_eq!(m[0].name, "a");
+        assert_eq!(m[0].diffuse, Rgb::new(0.5, 0.25, 0.1));
+        assert_eq!(m[0].mirror, Rgb::splat(0.2));
+        assert_eq!(m[0].transmit, Rgb::BLACK);
+        assert_eq!(m[0].ior, 1.33);
+        assert_eq!(
+            m[0].loc,
+            SourceLoc {
+                file: "m.mtl".into(),
+                line: 1
+            }
+        );
+        assert_eq!(m[1].name, "glass pane");
+        assert_eq!(m[1].transmit, Rgb::splat(0.9));
+        assert_eq!(m[1].ior, 1.5);
+    }
+
+    #[test]
+    fn mtl_transmission_from_dissolve() {
+        let m = mtl("newmtl a\nd 0.25\nnewmtl b\nTr 0.5\nnewmtl opaque\nTf 1 1 1\nd 1\nnewmtl tinted\nTf 1 0.5 0\nd -halo 0.5\n");
+        assert_eq!(m[0].transmit, Rgb::splat(0.75));
+        assert_eq!(m[1].transmit, Rgb::splat(0.5));
+        assert_eq!(m[2].transmit, Rgb::BLACK);
+        assert_eq!(m[3].transmit, Rgb::new(0.5, 0.25, 0.0));
+    }
+
+    #[test]
+    fn mtl_is_clamped_then_scaled_to_conserve_energy() {
+        let m = mtl("newmtl a\nKd 0.8 1.5 -0.2\nKs 0.4 0.5 0.1\nd 0.8\nNi 9\n");
+        let a = &m[0];
+        // red: 0.8 + 0.4 + 0.2 = 1.4 -> scaled by 1/1.4; green: clamp 1, 1 + 0.5 + 0.2 = 1.7;
+        // blue: clamp 0, 0 + 0.1 + 0.2 = 0.3 -> unchanged.
+        let close = |x: f64, y: f64| (x - y).abs() < 1e-12;
+        assert!(close(a.diffuse.0[0], 0.8 / 1.4) && close(a.mirror.0[0], 0.4 / 1.4));
+        assert!(close(a.diffuse.0[1], 1.0 / 1.7) && close(a.transmit.0[1], 0.2 / 1.7));
+        assert!(
+            close(a.diffuse.0[2], 0.0) && close(a.mirror.0[2], 0.1) && close(a.transmit.0[2], 0.2)
+        );
+        for k in 0..3 {
+            assert!(a.diffuse.0[k] + a.mirror.0[k] + a.transmit.0[k] <= 1.0 + 1e-12);
+        }
+        assert_eq!(a.ior, 4.0);
+    }
+
+    #[test]
+    fn mtl_errors_name_file_and_line() {
+        let e = parse_mtl("m.mtl", "newmtl a\nKd 0.5 x 0.5\n")
+            .unwrap_err()
+            .to_string();
+        assert_eq!(e, "m.mtl:2: mtl: Kd: 'x' is not a number");
+        let e = parse_mtl("m.mtl", "Kd 1 1 1\n").unwrap_err().to_string();
+        assert!(e.starts_with("m.mtl:1: mtl: 'Kd' before any newmtl"), "{e}");
+        let e = parse_mtl("m.mtl", "newmtl a\nnewmtl a\n")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.starts_with("m.mtl:2: mtl: material 'a' is already defined at line 1"),
+            "{e}"
+        );
+        let e = parse_mtl("m.mtl", "newmtl a\nKd spectral file.rfl\n")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("not supported"), "{e}");
+    }
+
+    #[test]
+    fn rotation_is_x_then_y_then_z() {
+        let t = Transform::new(
+            Vec3::new(1.0, 1.0, 1.0),
+            Vec3::new(90.0, 90.0, 0.0),
+            Vec3::ZERO,
+        );
+        // (0,1,0) --X 90--> (0,0,1) --Y 90--> (1,0,0).
+        let p = t.apply(Vec3::new(0.0, 1.0, 0.0));
+        assert!((p - Vec3::new(1.0, 0.0, 0.0)).length() < 1e-12, "{p:?}");
+        let t = Transform::new(
+            Vec3::new(2.0, 3.0, 4.0),
+            Vec3::new(0.0, 0.0, 90.0),
+            Vec3::new(1.0, 1.0, 1.0),
+        );
+        // (1,1,1) --scale--> (2,3,4) --Z 90--> (-3,2,4) --translate--> (-2,3,5).
+        let p = t.apply(Vec3::new(1.0, 1.0, 1.0));
+        assert!((p - Vec3::new(-2.0, 3.0, 5.0)).length() < 1e-12, "{p:?}");
+        assert!(!t.flips_winding());
+        assert!(Transform::new(Vec3::new(-1.0, 1.0, 1.0), Vec3::ZERO, Vec3::ZERO).flips_winding());
+        assert!(
+            !Transform::new(Vec3::new(-1.0, -1.0, 1.0), Vec3::ZERO, Vec3::ZERO).flips_winding()
+        );
+    }
+}

@@ -1,0 +1,132 @@
+//! The stats of a render, serialised as the JSON that scripts rely on (DESIGN.md §5).
+
+use crate::blocks::CacheStats;
+use crate::header::Counts;
+use crate::lrt::LrtTally;
+use crate::plan::EffectsPlan;
+use crate::view::OpCounters;
+use serde::Serialize;
+
+/// Seconds per stage.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
+pub struct Stages {
+    /// Preprocessing.
+    pub preprocess_s: f64,
+    /// Light ray tracing.
+    pub lrt_s: f64,
+    /// Energy interpolation.
+    pub interp_s: f64,
+    /// Viewing ray tracing.
+    pub vrt_s: f64,
+    /// Everything, including assembly.
+    pub total_s: f64,
+}
+
+/// Cache totals.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
+pub struct CacheSummary {
+    /// Hits.
+    pub hits: u64,
+    /// Misses.
+    pub misses: u64,
+    /// hits / (hits + misses).
+    pub hit_ratio: f64,
+}
+
+impl From<CacheStats> for CacheSummary {
+    fn from(c: CacheStats) -> Self {
+        CacheSummary {
+            hits: c.hits,
+            misses: c.misses,
+            hit_ratio: c.hit_ratio(),
+        }
+    }
+}
+
+/// Bytes per path of DESIGN.md §4 and RPC count.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
+pub struct Traffic {
+    /// Serial-link bytes (control, pairs, deposits, pixel rows).
+    pub link_bytes: u64,
+    /// DMA bytes (blocks fork -> node).
+    pub dma_bytes: u64,
+    /// G-bus bytes (blocks fetched from another fork).
+    pub gbus_bytes: u64,
+    /// Remote procedure calls.
+    pub rpcs: u64,
+}
+
+/// Work done.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
+pub struct Work {
+    /// (light, element) pairs traced.
+    pub pairs: u64,
+    /// Subscreens traced.
+    pub tiles: u64,
+    /// Adaptive redivisions of subscreens.
+    pub redivisions: u64,
+    /// Light rays (primary and secondary).
+    pub light_rays: u64,
+    /// Viewing rays (primary and secondary).
+    pub view_rays: u64,
+}
+
+/// One node's share.
+#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+pub struct NodeStats {
+    /// Node index.
+    pub node: u32,
+    /// Its home fork.
+    pub home_fork: u32,
+    /// Pairs it traced.
+    pub pairs: u64,
+    /// Subscreens it traced.
+    pub tiles: u64,
+    /// Its cache.
+    pub cache: CacheSummary,
+    /// Its kernel operation counts.
+    pub ops: OpCounters,
+}
+
+/// The plan as written to the stats file.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct PlanSummary {
+    /// Passes that ran.
+    pub passes: Vec<&'static str>,
+    /// The decisions.
+    #[serde(flatten)]
+    pub plan: EffectsPlan,
+}
+
+/// Everything a run reports.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct RenderStats {
+    /// Scene label.
+    pub scene: String,
+    /// `embedded` (core driven directly) or `cluster`.
+    pub mode: String,
+    /// Node count.
+    pub nodes: u32,
+    /// Fork count (block b lives on fork b mod forks).
+    pub forks: u32,
+    /// Cache blocks per node; `null` for unlimited.
+    pub cache_blocks: Option<u64>,
+    /// Hardware profile.
+    pub profile: String,
+    /// Stage times.
+    pub stages: Stages,
+    /// Cache totals over all nodes.
+    pub cache: CacheSummary,
+    /// Traffic per path.
+    pub traffic: Traffic,
+    /// Work counts.
+    pub work: Work,
+    /// Passes run and why.
+    pub plan: PlanSummary,
+    /// Scene counts.
+    pub counts: Counts,
+    /// Where the light went (W per channel).
+    pub light: LrtTally,
+    /// Per-node figures.
+    pub per_node: Vec<NodeStats>,
+}

@@ -1,0 +1,215 @@
+//! Ray casting through the subspace grid: 3D-DDA traversal (Amanatides and Woo 1987)
+//! with watertight patch tests.
+//!
+//! A hit found in one subspace may lie beyond it (the patch spans several subspaces);
+//! it is kept as a candidate and only accepted once traversal has passed its distance,
+//! so a nearer patch in a later subspace still wins. Ties in distance go to the lower
+//! patch id, so a ray through an edge shared by two patches hits exactly one of them.
+
+use crate::blocks::BlockError;
+use crate::geometry::{intersect_watertight, Ray};
+use crate::view::SceneView;
+
+/// Marks "exclude no patch".
+pub const NO_PATCH: u32 = u32::MAX;
+
+/// The nearest patch a ray hits.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Hit {
+    /// Distance along the ray (unit direction).
+    pub t: f64,
+    /// Patch id.
+    pub patch: u32,
+    /// Barycentric weights of the patch corners.
+    pub bary: [f64; 3],
+}
+
+/// Scratch buffers reused across rays.
+#[derive(Default)]
+pub struct TraceScratch {
+    ids: Vec<u32>,
+    recent: [u32; 16],
+    recent_len: usize,
+    recent_pos: usize,
+}
+
+impl TraceScratch {
+    fn reset(&mut self) {
+        self.recent_len = 0;
+        self.recent_pos = 0;
+    }
+    fn seen(&mut self, id: u32) -> bool {
+        if self.recent[..self.recent_len].contains(&id) {
+            return true;
+        }
+        self.recent[self.recent_pos] = id;
+        self.recent_pos = (self.recent_pos + 1) % self.recent.len();
+        self.recent_len = (self.recent_len + 1).min(self.recent.len());
+        false
+    }
+}
+
+/// Nearest hit of `ray` with `tmin < t < tmax`, skipping patch `exclude`. With `any`, the
+/// first hit found is returned (shadow rays). Non-finite or zero directions hit nothing.
+pub fn cast(
+    view: &mut SceneView,
+    scratch: &mut TraceScratch,
+    ray: &Ray,
+    tmin: f64,
+    tmax: f64,
+    exclude: u32,
+    any: bool,
+) -> Result<Option<Hit>, BlockError> {
+    let o = ray.origin;
+    let d = ray.direction;
+    if !o.is_finite()
+        || !d.is_finite()
+        || d.length_squared() == 0.0
+        || tmin.is_nan()
+        || tmax.is_nan()
+    {
+        return Ok(None);
+    }
+    let (gmin, gmax, dims, cs) = {
+        let g = &view.header.grid;
+        (g.min, g.max, g.dims, g.cell_size())
+    };
+    // Clip to the grid box.
+    let (mut t0, mut t1) = (tmin.max(0.0), tmax);
+    for a in 0..3 {
+        if d[a] == 0.0 {
+            if o[a] < gmin[a] || o[a] > gmax[a] {
+                return Ok(None);
+            }
+            continue;
+        }
+        let inv = 1.0 / d[a];
+        let (mut ta, mut tb) = ((gmin[a] - o[a]) * inv, (gmax[a] - o[a]) * inv);
+        if ta > tb {
+            std::mem::swap(&mut ta, &mut tb);
+        }
+        t0 = t0.max(ta);
+        t1 = t1.min(tb);
+    }
+    if !(t0 <= t1) {
+        return Ok(None);
+    }
+    let p = ray.at(t0);
+    let mut cell = [0i64; 3];
+    let mut step = [0i64; 3];
+    let mut next_t = [f64::INFINITY; 3];
+    let mut delta = [f64::INFINITY; 3];
+    for a in 0..3 {
+        let c = ((p[a] - gmin[a]) / cs[a]).floor();
+        let c = if c.is_finite() {
+            c.clamp(0.0, (dims[a] - 1) as f64) as i64
+        } else {
+            0
+        };
+        cell[a] = c;
+        if d[a] > 0.0 {
+            step[a] = 1;
+            next_t[a] = (gmin[a] + (c + 1) as f64 * cs[a] - o[a]) / d[a];
+            delta[a] = cs[a] / d[a];
+        } else if d[a] < 0.0 {
+            step[a] = -1;
+            next_t[a] = (gmin[a] + c as f64 * cs[a] - o[a]) / d[a];
+            delta[a] = -cs[a] / d[a];
+        }
+    }
+    scratch.reset();
+    let mut best: Option<Hit> = None;
+    let mut ids = std::mem::take(&mut scratch.ids);
+    let result = loop {
+        view.counters.grid_steps += 1;
+        let idx = (cell[2] as usize * dims[1] as usize + cell[1] as usize) * dims[0] as usize
+            + cell[0] as usize;
+        if let Err(e) = view.subspace(idx, &mut ids) {
+            break Err(e);
+        }
+        let limit = best.map_or(t1, |b| b.t);
+        let mut failed = None;
+        for &pid in &ids {
+            if pid == exclude || scratch.seen(pid) {
+                continue;
+            }
+            view.counters.patch_tests += 1;
+            let rec = match view.patch(pid) {
+                Ok(r) => r,
+                Err(e) => {
+                    failed = Some(e);
+                    break;
+                }
+            };
+            let bound = best.map_or(limit, |b| b.t);
+            // Allow equal distance so that ties can go to the lower id.
+            if let Some(h) = intersect_watertight(ray, &rec.v, tmin, bound.next_up_or(bound)) {
+                let better = match best {
+                    None => true,
+                    Some(b) => h.t < b.t || (h.t == b.t && pid < b.patch),
+                };
+                if better {
+                    best = Some(Hit {
+                        t: h.t,
+                        patch: pid,
+                        bary: h.bary,
+                    });
+                    if any {
+                        break;
+                    }
+                }
+            }
+        }
+        if let Some(e) = failed {
+            break Err(e);
+        }
+        if any && best.is_some() {
+            break Ok(best);
+        }
+        let exit = next_t[0].min(next_t[1]).min(next_t[2]);
+        if let Some(b) = best {
+            if b.t <= exit {
+                break Ok(best);
+            }
+        }
+        if exit > t1 {
+            break Ok(best);
+        }
+        let axis = if next_t[0] <= next_t[1] && next_t[0] <= next_t[2] {
+            0
+        } else if next_t[1] <= next_t[2] {
+            1
+        } else {
+            2
+        };
+        cell[axis] += step[axis];
+        if cell[axis] < 0 || cell[axis] >= dims[axis] as i64 {
+            break Ok(best);
+        }
+        next_t[axis] += delta[axis];
+    };
+    scratch.ids = ids;
+    result
+}
+
+/// `next_up` for finite values; infinities stay.
+trait NextUp {
+    fn next_up_or(self, fallback: f64) -> f64;
+}
+impl NextUp for f64 {
+    fn next_up_or(self, fallback: f64) -> f64 {
+        if self.is_finite() {
+            let bits = self.to_bits();
+            let up = if self > 0.0 {
+                f64::from_bits(bits + 1)
+            } else if self == 0.0 {
+                f64::from_bits(1)
+            } else {
+                f64::from_bits(bits - 1)
+            };
+            up
+        } else {
+            fallback
+        }
+    }
+}

@@ -1,0 +1,139 @@
+//! A node's view of the scene: the resident header plus every block read through the
+//! node's LRU cache. All scene access of the kernels goes through here, so the cache's
+//! hit ratio is the real one.
+
+use crate::blocks::*;
+use crate::header::SceneHeader;
+use crate::math::Rgb;
+use std::sync::Arc;
+
+/// Operation counts of the kernels (the basis of the compute cost model).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
+pub struct OpCounters {
+    /// Subspaces entered by rays.
+    pub grid_steps: u64,
+    /// Ray/patch intersection tests.
+    pub patch_tests: u64,
+    /// Light rays traced (primary and secondary).
+    pub light_rays: u64,
+    /// Viewing rays traced (primary and secondary).
+    pub view_rays: u64,
+    /// Shading evaluations at diffuse hits.
+    pub shades: u64,
+}
+
+impl OpCounters {
+    /// Sum of two counts.
+    pub fn add(self, o: OpCounters) -> OpCounters {
+        OpCounters {
+            grid_steps: self.grid_steps + o.grid_steps,
+            patch_tests: self.patch_tests + o.patch_tests,
+            light_rays: self.light_rays + o.light_rays,
+            view_rays: self.view_rays + o.view_rays,
+            shades: self.shades + o.shades,
+        }
+    }
+}
+
+/// The scene as one node sees it.
+pub struct SceneView {
+    /// Resident data.
+    pub header: Arc<SceneHeader>,
+    cache: BlockCache,
+    /// Operation counts so far.
+    pub counters: OpCounters,
+}
+
+impl SceneView {
+    /// A view reading blocks through `cache`.
+    pub fn new(header: Arc<SceneHeader>, cache: BlockCache) -> Self {
+        SceneView {
+            header,
+            cache,
+            counters: OpCounters::default(),
+        }
+    }
+
+    /// Cache hit and miss counts.
+    pub fn cache_stats(&self) -> CacheStats {
+        self.cache.stats()
+    }
+
+    /// Forgets cached vertex-energy blocks (they are rewritten after interpolation).
+    pub fn invalidate_vertex_energy(&mut self) {
+        let l = self.header.layout;
+        self.cache.invalidate_range(l.vertex_base..l.total);
+    }
+
+    /// Patch record `id`.
+    pub fn patch(&mut self, id: u32) -> Result<PatchRecord, BlockError> {
+        let count = self.header.counts.patches;
+        if id >= count {
+            return Err(BlockError::BadId {
+                kind: "patch",
+                id: id as u64,
+                count: count as u64,
+            });
+        }
+        let (b, at) = self.header.layout.patch_slot(id);
+        Ok(PatchRecord::decode(self.cache.get(b)?, at))
+    }
+
+    /// Element record `id`.
+    pub fn element(&mut self, id: u32) -> Result<ElementRecord, BlockError> {
+        let count = self.header.counts.elements;
+        if id >= count {
+            return Err(BlockError::BadId {
+                kind: "element",
+                id: id as u64,
+                count: count as u64,
+            });
+        }
+        let (b, at) = self.header.layout.element_slot(id);
+        Ok(ElementRecord::decode(self.cache.get(b)?, at))
+    }
+
+    /// Irradiance of vertex `id` (valid after energy interpolation).
+    pub fn vertex_energy(&mut self, id: u32) -> Result<Rgb, BlockError> {
+        let count = self.header.counts.vertices;
+        if id >= count {
+            return Err(BlockError::BadId {
+                kind: "vertex",
+                id: id as u64,
+                count: count as u64,
+            });
+        }
+        let (b, at) = self.header.layout.vertex_slot(id);
+        Ok(decode_vertex_energy(self.cache.get(b)?, at))
+    }
+
+    /// Replaces `out` with the patch ids of subspace `cell`, following its block chain.
+    pub fn subspace(&mut self, cell: usize, out: &mut Vec<u32>) -> Result<(), BlockError> {
+        out.clear();
+        let cells = self.header.grid.cell_first_block.len();
+        let mut b = match self.header.grid.cell_first_block.get(cell) {
+            Some(&b) => b,
+            None => {
+                return Err(BlockError::BadId {
+                    kind: "subspace",
+                    id: cell as u64,
+                    count: cells as u64,
+                })
+            }
+        };
+        let mut guard = 0u32;
+        while b != NO_BLOCK {
+            if self.header.layout.kind(b) != Some(BlockKind::Subspace)
+                || guard > self.header.layout.patch_base
+            {
+                return Err(BlockError::Unavailable {
+                    id: b,
+                    reason: "corrupt subspace chain".into(),
+                });
+            }
+            b = decode_subspace(self.cache.get(b)?, out);
+            guard += 1;
+        }
+        Ok(())
+    }
+}

@@ -1,0 +1,145 @@
+//! Viewing ray tracing (paper §3.4): rays from the eye through each pixel.
+//!
+//! At a diffuse hit the irradiance is interpolated from the hit element's vertices and
+//! radiance is `rho_d / pi * E + rho_d * ambient` (the ambient term only when the plan
+//! keeps it). Mirror and dielectric parts recurse with Fresnel weights to the plan's VRT
+//! depth. Each pixel is seeded from (scene seed, pixel), so the image does not depend on
+//! which node traced which subscreen.
+
+use crate::blocks::BlockError;
+use crate::camera::CameraRig;
+use crate::geometry::Ray;
+use crate::lrt::offset_scale;
+use crate::math::{Rgb, Vec3};
+use crate::optics::{fresnel_dielectric, reflect, refract};
+use crate::rng::{hammersley, Rng};
+use crate::subdivision::locate;
+use crate::trace::{cast, TraceScratch, NO_PATCH};
+use crate::view::SceneView;
+use std::f64::consts::PI;
+
+/// A rectangle of pixels: the paper's subscreen.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct Subscreen {
+    /// Left column.
+    pub x: u32,
+    /// Top row.
+    pub y: u32,
+    /// Width in pixels.
+    pub w: u32,
+    /// Height in pixels.
+    pub h: u32,
+}
+
+impl Subscreen {
+    /// Number of pixels.
+    pub fn pixels(&self) -> u64 {
+        self.w as u64 * self.h as u64
+    }
+}
+
+/// Linear radiance of pixel (x, y): the mean of its viewing rays.
+pub fn shade_pixel(
+    view: &mut SceneView,
+    scratch: &mut TraceScratch,
+    rig: &CameraRig,
+    x: u32,
+    y: u32,
+) -> Result<Rgb, BlockError> {
+    let header = view.header.clone();
+    let n = header.plan.pixel_samples.max(1);
+    let (sx, sy) = if n > 1 {
+        let mut rng = Rng::from_words(&[header.settings.seed, 0x565254, x as u64, y as u64]);
+        (rng.next_f64(), rng.next_f64())
+    } else {
+        (0.0, 0.0)
+    };
+    let mut sum = Rgb::BLACK;
+    for i in 0..n {
+        let (u, v) = if n > 1 {
+            hammersley(i, n, sx, sy)
+        } else {
+            (0.5, 0.5)
+        };
+        let ray = rig.ray(x as f64 + u, y as f64 + v);
+        sum = sum.add(radiance(view, scratch, &ray, 0, NO_PATCH)?);
+    }
+    Ok(sum.scale(1.0 / n as f64))
+}
+
+/// Radiance arriving along `ray`.
+fn radiance(
+    view: &mut SceneView,
+    scratch: &mut TraceScratch,
+    ray: &Ray,
+    depth: u32,
+    exclude: u32,
+) -> Result<Rgb, BlockError> {
+    view.counters.view_rays += 1;
+    let header = view.header.clone();
+    let tmin = if exclude == NO_PATCH {
+        0.0
+    } else {
+        offset_scale(ray.origin)
+    };
+    let Some(hit) = cast(view, scratch, ray, tmin, f64::INFINITY, exclude, false)? else {
+        return Ok(header.settings.background);
+    };
+    let prec = view.patch(hit.patch)?;
+    let Some(m) = header.materials.get(prec.material as usize) else {
+        return Ok(Rgb::BLACK);
+    };
+    let mut l = Rgb::BLACK;
+    if !m.diffuse.is_black() {
+        view.counters.shades += 1;
+        let (local, w) = locate(prec.subdivisions, hit.bary);
+        let e = view.element(prec.first_element + local)?;
+        let mut irr = Rgb::BLACK;
+        for k in 0..3 {
+            irr = irr.add(view.vertex_energy(e.vertices[k])?.scale(w[k]));
+        }
+        l = l.add(m.diffuse.mul(irr).scale(1.0 / PI));
+        if header.plan.ambient {
+            l = l.add(m.diffuse.mul(header.settings.ambient));
+        }
+    }
+    if depth >= header.plan.vrt_depth || (!m.is_specular()) {
+        return Ok(l);
+    }
+    let p = ray.at(hit.t);
+    let normal = (prec.v[1] - prec.v[0])
+        .cross(prec.v[2] - prec.v[0])
+        .normalized();
+    let d = ray.direction;
+    let front = d.dot(normal) < 0.0;
+    let nf = if front { normal } else { -normal };
+    let spawn = |dir: Vec3| {
+        let side = if dir.dot(nf) >= 0.0 { nf } else { -nf };
+        Ray::new(p + side * offset_scale(p), dir)
+    };
+    if m.is_mirror() {
+        let r = radiance(view, scratch, &spawn(reflect(d, nf)), depth + 1, hit.patch)?;
+        l = l.add(m.mirror.mul(r));
+    }
+    if m.is_transmissive() {
+        let eta = if front { 1.0 / m.ior } else { m.ior };
+        let f = fresnel_dielectric(-d.dot(nf), eta);
+        let refracted = if header.plan.refraction {
+            refract(d, nf, eta)
+        } else {
+            None
+        };
+        let reflected = radiance(view, scratch, &spawn(reflect(d, nf)), depth + 1, hit.patch)?;
+        match refracted {
+            Some(t) if f < 1.0 => {
+                let through = radiance(view, scratch, &spawn(t), depth + 1, hit.patch)?;
+                l = l.add(
+                    m.transmit
+                        .mul(reflected.scale(f).add(through.scale(1.0 - f))),
+                );
+            }
+            _ => l = l.add(m.transmit.mul(reflected)),
+        }
+    }
+    Ok(l)
+}

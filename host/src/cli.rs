@@ -1,0 +1,305 @@
+//! Command-line interface of `magg-host` (clap derive), and its validation into a
+//! [`RenderConfig`] before anything runs.
+
+use anyhow::{bail, Context};
+use clap::{Args, Parser, Subcommand};
+use std::path::PathBuf;
+
+/// magg: a parallel bidirectional ray tracer after the MAGG transputer system (1993).
+#[derive(Debug, Parser)]
+#[command(name = "magg-host", version, about, long_about = None)]
+pub struct Cli {
+    /// More log output (-v info, -vv debug); RUST_LOG overrides.
+    #[arg(short, long, action = clap::ArgAction::Count, global = true)]
+    pub verbose: u8,
+    /// What to do.
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+/// Subcommands.
+#[derive(Debug, Subcommand)]
+pub enum Command {
+    /// Render a scene to an image (PNG tone-mapped; EXR or PFM linear, by extension).
+    ///
+    /// Runs the light pass (LRT), energy interpolation and the viewing pass (VRT) on an
+    /// embedded cluster of node workers in this process.
+    Render(RenderArgs),
+    /// Print a scene's counts (patches, elements, vertices, subspaces, blocks of each
+    /// kind) and its effects plan, without rendering.
+    Info(InfoArgs),
+}
+
+/// Arguments of `render`.
+#[derive(Debug, Args)]
+pub struct RenderArgs {
+    /// Scene file (TOML), e.g. scenes/cornell.toml.
+    pub scene: PathBuf,
+    /// Output image: .png (tone-mapped sRGB), .exr or .pfm (linear radiance).
+    #[arg(short, long)]
+    pub out: PathBuf,
+    /// Also write the linear image to this .exr or .pfm file.
+    #[arg(long)]
+    pub linear: Option<PathBuf>,
+    /// Node workers (0 = one per core).
+    #[arg(long, default_value_t = 0)]
+    pub nodes: u32,
+    /// Forks the 2 KB blocks are interleaved over (block b on fork b mod F).
+    #[arg(long, default_value_t = 5)]
+    pub forks: u32,
+    /// LRU cache size per node, in 2 KB blocks, or "unlimited".
+    #[arg(long, default_value = "unlimited")]
+    pub cache_blocks: String,
+    /// Hardware profile (only "native" until the throttling layer lands).
+    #[arg(long, default_value = "native")]
+    pub profile: String,
+    /// Write run statistics (JSON) here.
+    #[arg(long)]
+    pub stats: Option<PathBuf>,
+    /// Write element and vertex energies (CSV) here.
+    #[arg(long)]
+    pub energy: Option<PathBuf>,
+    /// Force every optional effect on, whatever the scene needs (the image is identical;
+    /// only the time differs).
+    #[arg(long)]
+    pub all_effects: bool,
+    /// Subscreen edge in pixels (VRT work unit).
+    #[arg(long, default_value_t = 16)]
+    pub subscreen: u32,
+    /// No progress bars or summary.
+    #[arg(short, long)]
+    pub quiet: bool,
+    /// Scene overrides: accuracy knobs and output size.
+    #[command(flatten)]
+    pub knobs: Knobs,
+}
+
+/// Overrides of the scene's `[render]` settings.
+#[derive(Debug, Default, Args)]
+pub struct Knobs {
+    /// Image width in pixels.
+    #[arg(long)]
+    pub width: Option<u32>,
+    /// Image height in pixels.
+    #[arg(long)]
+    pub height: Option<u32>,
+    /// Viewing rays per pixel.
+    #[arg(long)]
+    pub pixel_samples: Option<u32>,
+    /// Light rays per (light, element) pair.
+    #[arg(long)]
+    pub light_rays: Option<u32>,
+    /// Target element edge length (patches with fixed subdivisions keep theirs).
+    #[arg(long)]
+    pub element_size: Option<f64>,
+    /// Specular bounces of light rays.
+    #[arg(long)]
+    pub lrt_depth: Option<u32>,
+    /// Specular bounces of viewing rays.
+    #[arg(long)]
+    pub vrt_depth: Option<u32>,
+    /// Diffuse-to-diffuse bounces of light rays (0 = ambient term).
+    #[arg(long)]
+    pub diffuse_bounces: Option<u32>,
+    /// Seed of every random choice.
+    #[arg(long)]
+    pub seed: Option<u64>,
+}
+
+/// Arguments of `info`.
+#[derive(Debug, Args)]
+pub struct InfoArgs {
+    /// Scene file (TOML).
+    pub scene: PathBuf,
+    /// Print as JSON.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// Image formats by extension.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ImageFormat {
+    /// Tone-mapped 8-bit sRGB.
+    Png,
+    /// OpenEXR, linear f32.
+    Exr,
+    /// Portable float map, linear f32.
+    Pfm,
+}
+
+impl ImageFormat {
+    /// The format of `path`, from its extension.
+    pub fn of(path: &std::path::Path) -> anyhow::Result<ImageFormat> {
+        let ext = path
+            .extension()
+            .and_then(|e| e.to_str())
+            .map(|e| e.to_ascii_lowercase());
+        match ext.as_deref() {
+            Some("png") => Ok(ImageFormat::Png),
+            Some("exr") => Ok(ImageFormat::Exr),
+            Some("pfm") => Ok(ImageFormat::Pfm),
+            _ => bail!(
+                "{}: unknown image format (use .png, .exr or .pfm)",
+                path.display()
+            ),
+        }
+    }
+}
+
+/// A validated render command.
+#[derive(Debug)]
+pub struct RenderConfig {
+    /// Scene file.
+    pub scene: PathBuf,
+    /// Main output and its format.
+    pub out: (PathBuf, ImageFormat),
+    /// Extra linear output.
+    pub linear: Option<(PathBuf, ImageFormat)>,
+    /// Node workers (0 = cores).
+    pub nodes: u32,
+    /// Forks.
+    pub forks: u32,
+    /// Cache blocks per node (`None` = unlimited).
+    pub cache_blocks: Option<u64>,
+    /// Profile name.
+    pub profile: String,
+    /// Stats file.
+    pub stats: Option<PathBuf>,
+    /// Energy file.
+    pub energy: Option<PathBuf>,
+    /// Force every effect on.
+    pub all_effects: bool,
+    /// Subscreen edge.
+    pub subscreen: u32,
+    /// No bars or summary.
+    pub quiet: bool,
+    /// Scene overrides.
+    pub knobs: Knobs,
+}
+
+/// Parses a cache size: a positive block count or "unlimited".
+pub fn parse_cache_blocks(s: &str) -> anyhow::Result<Option<u64>> {
+    if s.eq_ignore_ascii_case("unlimited") {
+        return Ok(None);
+    }
+    let n: u64 = s.parse().with_context(|| {
+        format!("--cache-blocks {s:?}: expected a block count or \"unlimited\"")
+    })?;
+    if n == 0 {
+        bail!("--cache-blocks 0: a node needs at least one cache block");
+    }
+    Ok(Some(n))
+}
+
+impl RenderArgs {
+    /// Checks every flag before anything runs.
+    pub fn validate(self) -> anyhow::Result<RenderConfig> {
+        let out_fmt = ImageFormat::of(&self.out)?;
+        let linear = match self.linear {
+            Some(p) => {
+                let f = ImageFormat::of(&p)?;
+                if f == ImageFormat::Png {
+                    bail!("--linear {}: must be .exr or .pfm", p.display());
+                }
+                Some((p, f))
+            }
+            None => None,
+        };
+        if self.nodes > 4096 {
+            bail!("--nodes {}: at most 4096", self.nodes);
+        }
+        if self.forks == 0 || self.forks > 256 {
+            bail!("--forks {}: must be 1..=256", self.forks);
+        }
+        if self.subscreen == 0 || self.subscreen > 4096 {
+            bail!("--subscreen {}: must be 1..=4096", self.subscreen);
+        }
+        if self.profile != "native" {
+            bail!(
+                "--profile {}: only the \"native\" profile exists in this build",
+                self.profile
+            );
+        }
+        Ok(RenderConfig {
+            scene: self.scene,
+            out: (self.out, out_fmt),
+            linear,
+            nodes: self.nodes,
+            forks: self.forks,
+            cache_blocks: parse_cache_blocks(&self.cache_blocks)?,
+            profile: self.profile,
+            stats: self.stats,
+            energy: self.energy,
+            all_effects: self.all_effects,
+            subscreen: self.subscreen,
+            quiet: self.quiet,
+            knobs: self.knobs,
+        })
+    }
+}
+
+impl Knobs {
+    /// Applies the overrides to `s`, refusing out-of-range values.
+    pub fn apply(&self, s: &mut magg_core::scene::RenderSettings) -> anyhow::Result<()> {
+        fn range(name: &str, v: u32, lo: u32, hi: u32) -> anyhow::Result<u32> {
+            if v < lo || v > hi {
+                bail!("--{name} {v}: must be {lo}..={hi}");
+            }
+            Ok(v)
+        }
+        if let Some(v) = self.width {
+            s.width = range("width", v, 1, 16384)?;
+        }
+        if let Some(v) = self.height {
+            s.height = range("height", v, 1, 16384)?;
+        }
+        if let Some(v) = self.pixel_samples {
+            s.pixel_samples = range("pixel-samples", v, 1, 4096)?;
+        }
+        if let Some(v) = self.light_rays {
+            s.light_rays = range("light-rays", v, 1, 1_000_000)?;
+        }
+        if let Some(v) = self.lrt_depth {
+            s.lrt_depth = range("lrt-depth", v, 0, 32)?;
+        }
+        if let Some(v) = self.vrt_depth {
+            s.vrt_depth = range("vrt-depth", v, 0, 32)?;
+        }
+        if let Some(v) = self.diffuse_bounces {
+            s.diffuse_bounces = range("diffuse-bounces", v, 0, 16)?;
+        }
+        if let Some(v) = self.element_size {
+            if !(v.is_finite() && v > 0.0) {
+                bail!("--element-size {v}: must be a positive finite length");
+            }
+            s.element_size = v;
+        }
+        if let Some(v) = self.seed {
+            s.seed = v;
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn cache_blocks_parse() {
+        assert_eq!(parse_cache_blocks("unlimited").unwrap(), None);
+        assert_eq!(parse_cache_blocks("40").unwrap(), Some(40));
+        assert!(parse_cache_blocks("0").is_err());
+        assert!(parse_cache_blocks("-3").is_err());
+    }
+
+    #[test]
+    fn formats_by_extension() {
+        assert_eq!(
+            ImageFormat::of("a/b.PNG".as_ref()).unwrap(),
+            ImageFormat::Png
+        );
+        assert_eq!(ImageFormat::of("x.exr".as_ref()).unwrap(), ImageFormat::Exr);
+        assert!(ImageFormat::of("x.jpg".as_ref()).is_err());
+    }
+}

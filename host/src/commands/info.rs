@@ -1,0 +1,59 @@
+//! `magg-host info SCENE`: counts and the effects plan.
+
+use crate::cli::InfoArgs;
+use crate::scene_file;
+use magg_core::preprocess;
+
+/// Prints the counts of the prepared scene and its plan.
+pub fn run(args: &InfoArgs) -> anyhow::Result<()> {
+    let scene = scene_file::load(&args.scene)?;
+    let p = preprocess::prepare(&scene)?;
+    let h = &p.header;
+    let c = h.counts;
+    if args.json {
+        let v = serde_json::json!({
+            "scene": p.name,
+            "lights": h.lights.len(),
+            "materials": h.materials.len(),
+            "counts": c,
+            "grid": h.grid.dims,
+            "blocks": h.layout.total,
+            "plan": { "passes": h.plan.passes(), "reasons": h.plan.reasons },
+            "preprocess_s": p.preprocess_s,
+        });
+        println!("{}", serde_json::to_string_pretty(&v)?);
+        return Ok(());
+    }
+    println!("scene      {}", p.name);
+    println!("lights     {}", h.lights.len());
+    println!("materials  {}", h.materials.len());
+    println!(
+        "patches    {:>9}  in {:>6} patch blocks",
+        c.patches, c.patch_blocks
+    );
+    println!(
+        "elements   {:>9}  in {:>6} element blocks",
+        c.elements, c.element_blocks
+    );
+    println!(
+        "vertices   {:>9}  in {:>6} vertex-energy blocks",
+        c.vertices, c.vertex_blocks
+    );
+    let g = h.grid.dims;
+    println!(
+        "subspaces  {:>9}  in {:>6} subspace blocks (grid {}x{}x{})",
+        c.subspaces, c.subspace_blocks, g[0], g[1], g[2]
+    );
+    println!(
+        "blocks     {:>9}  (2 KB each, {:.1} MB)",
+        h.layout.total,
+        h.layout.total as f64 * 2048.0 / 1e6
+    );
+    println!(
+        "image      {}x{}, {} samples/pixel, {} light rays/pair",
+        h.settings.width, h.settings.height, h.settings.pixel_samples, h.settings.light_rays
+    );
+    println!("preprocess {:.3} s", p.preprocess_s);
+    print!("{}", h.plan);
+    Ok(())
+}

@@ -1,0 +1,4 @@
+//! The subcommands of `magg-host`.
+
+pub mod info;
+pub mod render;

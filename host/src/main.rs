@@ -1,0 +1,21 @@
+//! `magg-host`: render a scene (embedded cluster in one process), or describe it.
+//!
+//! ```text
+//! magg-host render scenes/cornell.toml --out cornell.png
+//! magg-host info scenes/magg-paper.toml
+//! ```
+
+use clap::Parser;
+use std::process::ExitCode;
+
+fn main() -> ExitCode {
+    let cli = magg_host::cli::Cli::parse();
+    magg_host::logging::init(cli.verbose);
+    match magg_host::run(cli) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("magg-host: error: {e:#}");
+            ExitCode::FAILURE
+        }
+    }
+}
