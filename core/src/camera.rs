@@ -28,25 +28,13 @@ impl CameraRig {
         let up = right.cross(forward);
         let half_h = (c.fov_y_deg.to_radians() * 0.5).tan();
         let half_w = half_h * width as f64 / height as f64;
-        CameraRig {
-            eye: c.eye,
-            forward,
-            right,
-            up,
-            half_w,
-            half_h,
-            width: width as f64,
-            height: height as f64,
-        }
+        CameraRig { eye: c.eye, forward, right, up, half_w, half_h, width: width as f64, height: height as f64 }
     }
 
     /// The ray through image position (x, y) in pixels, (0, 0) the top-left corner.
     pub fn ray(&self, x: f64, y: f64) -> Ray {
         let sx = (2.0 * x / self.width - 1.0) * self.half_w;
         let sy = (1.0 - 2.0 * y / self.height) * self.half_h;
-        Ray::new(
-            self.eye,
-            (self.forward + self.right * sx + self.up * sy).normalized(),
-        )
+        Ray::new(self.eye, (self.forward + self.right * sx + self.up * sy).normalized())
     }
 }

@@ -16,10 +16,7 @@ pub type Fixed = [i64; 3];
 
 /// The energy quantum (W per unit) for a set of lights.
 pub fn quantum_for(lights: &[Light]) -> f64 {
-    let total: f64 = lights
-        .iter()
-        .map(|l| 4.0 * std::f64::consts::PI * l.intensity.max_channel())
-        .sum();
+    let total: f64 = lights.iter().map(|l| 4.0 * std::f64::consts::PI * l.intensity.max_channel()).sum();
     if total > 0.0 && total.is_finite() {
         total / (1u64 << 52) as f64
     } else {
@@ -42,22 +39,13 @@ pub fn to_fixed(flux: Rgb, quantum: f64) -> Fixed {
 
 /// Fixed point to flux.
 pub fn from_fixed(f: Fixed, quantum: f64) -> Rgb {
-    Rgb([
-        f[0] as f64 * quantum,
-        f[1] as f64 * quantum,
-        f[2] as f64 * quantum,
-    ])
+    Rgb([f[0] as f64 * quantum, f[1] as f64 * quantum, f[2] as f64 * quantum])
 }
 
 /// Vertex irradiance: the area-weighted mean of the irradiance (flux / area) of the
 /// elements sharing the vertex, i.e. `sum(flux) / sum(area)`. Deterministic: integer
 /// flux sums, area sums in element order.
-pub fn interpolate(
-    elements: &[ElementInfo],
-    flux: &[Fixed],
-    vertices: usize,
-    quantum: f64,
-) -> Vec<Rgb> {
+pub fn interpolate(elements: &[ElementInfo], flux: &[Fixed], vertices: usize, quantum: f64) -> Vec<Rgb> {
     let mut sum = vec![[0i128; 3]; vertices];
     let mut area = vec![0.0f64; vertices];
     for (e, f) in elements.iter().zip(flux) {
@@ -74,11 +62,7 @@ pub fn interpolate(
         .zip(&area)
         .map(|(s, &a)| {
             if a > 0.0 {
-                Rgb([
-                    s[0] as f64 * quantum / a,
-                    s[1] as f64 * quantum / a,
-                    s[2] as f64 * quantum / a,
-                ])
+                Rgb([s[0] as f64 * quantum / a, s[1] as f64 * quantum / a, s[2] as f64 * quantum / a])
             } else {
                 Rgb::BLACK
             }
@@ -91,13 +75,7 @@ pub fn element_irradiance(elements: &[ElementInfo], flux: &[Fixed], quantum: f64
     elements
         .iter()
         .zip(flux)
-        .map(|(e, f)| {
-            if e.area > 0.0 {
-                from_fixed(*f, quantum).scale(1.0 / e.area)
-            } else {
-                Rgb::BLACK
-            }
-        })
+        .map(|(e, f)| if e.area > 0.0 { from_fixed(*f, quantum).scale(1.0 / e.area) } else { Rgb::BLACK })
         .collect()
 }
 
@@ -107,12 +85,7 @@ pub fn vertex_energy_blocks(irradiance: &[Rgb], layout: &BlockLayout) -> Vec<(u3
     (0..n)
         .map(|k| {
             let mut b = Box::new([0u8; BLOCK_SIZE]);
-            for (i, e) in irradiance
-                .iter()
-                .skip(k * VERTICES_PER_BLOCK)
-                .take(VERTICES_PER_BLOCK)
-                .enumerate()
-            {
+            for (i, e) in irradiance.iter().skip(k * VERTICES_PER_BLOCK).take(VERTICES_PER_BLOCK).enumerate() {
                 encode_vertex_energy(&mut b, i * 12, *e);
             }
             (layout.vertex_base + k as u32, b)
@@ -137,12 +110,7 @@ mod tests {
 
     #[test]
     fn interpolation_is_area_weighted() {
-        let e = |v: [u32; 3], area: f64| ElementInfo {
-            patch: 0,
-            vertices: v,
-            area,
-            centroid: Vec3::ZERO,
-        };
+        let e = |v: [u32; 3], area: f64| ElementInfo { patch: 0, vertices: v, area, centroid: Vec3::ZERO };
         let elements = [e([0, 1, 2], 1.0), e([1, 2, 3], 3.0)];
         let flux = [[10, 10, 10], [60, 60, 60]]; // irradiance 10 and 20
         let v = interpolate(&elements, &flux, 4, 1.0);

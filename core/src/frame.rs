@@ -17,18 +17,13 @@ pub struct Frame {
 impl Frame {
     /// A black frame.
     pub fn new(width: u32, height: u32) -> Self {
-        Frame {
-            width,
-            height,
-            pixels: vec![[0.0; 3]; width as usize * height as usize],
-        }
+        Frame { width, height, pixels: vec![[0.0; 3]; width as usize * height as usize] }
     }
 
     /// Sets pixel (x, y).
     pub fn set(&mut self, x: u32, y: u32, v: Rgb) {
         if x < self.width && y < self.height {
-            self.pixels[(y * self.width + x) as usize] =
-                [v.0[0] as f32, v.0[1] as f32, v.0[2] as f32];
+            self.pixels[(y * self.width + x) as usize] = [v.0[0] as f32, v.0[1] as f32, v.0[2] as f32];
         }
     }
 
@@ -61,25 +56,14 @@ impl Frame {
 
     /// 8-bit sRGB pixels (RGB, row-major): `scale` times radiance, clamped, sRGB-encoded.
     pub fn to_srgb8(&self, scale: f64) -> Vec<u8> {
-        self.pixels
-            .iter()
-            .flat_map(|p| p.map(|c| encode_srgb(c as f64 * scale)))
-            .collect()
+        self.pixels.iter().flat_map(|p| p.map(|c| encode_srgb(c as f64 * scale))).collect()
     }
 }
 
 /// sRGB transfer function of a linear value, clamped to [0, 1], to 8 bits.
 pub fn encode_srgb(x: f64) -> u8 {
-    let x = if x.is_finite() {
-        x.clamp(0.0, 1.0)
-    } else {
-        0.0
-    };
-    let v = if x <= 0.003_130_8 {
-        12.92 * x
-    } else {
-        1.055 * x.powf(1.0 / 2.4) - 0.055
-    };
+    let x = if x.is_finite() { x.clamp(0.0, 1.0) } else { 0.0 };
+    let v = if x <= 0.003_130_8 { 12.92 * x } else { 1.055 * x.powf(1.0 / 2.4) - 0.055 };
     (v * 255.0 + 0.5).floor().clamp(0.0, 255.0) as u8
 }
 

@@ -24,11 +24,7 @@ impl GridHeader {
     /// Size of one subspace.
     pub fn cell_size(&self) -> Vec3 {
         let e = self.max - self.min;
-        Vec3::new(
-            e.x / self.dims[0] as f64,
-            e.y / self.dims[1] as f64,
-            e.z / self.dims[2] as f64,
-        )
+        Vec3::new(e.x / self.dims[0] as f64, e.y / self.dims[1] as f64, e.z / self.dims[2] as f64)
     }
     /// Number of subspaces.
     pub fn cells(&self) -> usize {
@@ -36,8 +32,7 @@ impl GridHeader {
     }
     /// Linear index of cell (x, y, z).
     pub fn cell_index(&self, c: [u32; 3]) -> usize {
-        (c[2] as usize * self.dims[1] as usize + c[1] as usize) * self.dims[0] as usize
-            + c[0] as usize
+        (c[2] as usize * self.dims[1] as usize + c[1] as usize) * self.dims[0] as usize + c[0] as usize
     }
 }
 

@@ -96,19 +96,12 @@ fn outside_cone(light: &Light, tri: &[Vec3; 3]) -> bool {
     if dist == 0.0 {
         return false;
     }
-    let radius = tri
-        .iter()
-        .map(|v| (*v - (tri[0] + tri[1] + tri[2]) / 3.0).length())
-        .fold(0.0, f64::max);
+    let radius = tri.iter().map(|v| (*v - (tri[0] + tri[1] + tri[2]) / 3.0).length()).fold(0.0, f64::max);
     if radius >= dist {
         return false;
     }
     let spread = (radius / dist).asin().to_degrees();
-    let angle = (c / dist)
-        .dot(s.direction)
-        .clamp(-1.0, 1.0)
-        .acos()
-        .to_degrees();
+    let angle = (c / dist).dot(s.direction).clamp(-1.0, 1.0).acos().to_degrees();
     angle - spread > s.half_angle_deg + s.falloff_deg
 }
 
@@ -135,11 +128,7 @@ pub fn trace_pair(
 ) -> Result<PairResult, BlockError> {
     let header = view.header.clone();
     let Some(l) = header.lights.get(light as usize) else {
-        return Err(BlockError::BadId {
-            kind: "light",
-            id: light as u64,
-            count: header.lights.len() as u64,
-        });
+        return Err(BlockError::BadId { kind: "light", id: light as u64, count: header.lights.len() as u64 });
     };
     let plan = &header.plan;
     let mut out = PairResult::default();
@@ -153,9 +142,7 @@ pub fn trace_pair(
     if !(omega > 0.0) || outside_cone(l, &tri) {
         return Ok(out);
     }
-    let normal = (prec.v[1] - prec.v[0])
-        .cross(prec.v[2] - prec.v[0])
-        .normalized();
+    let normal = (prec.v[1] - prec.v[0]).cross(prec.v[2] - prec.v[0]).normalized();
     let n = header.settings.light_rays.max(1);
     let seed = header.settings.seed;
     let mut rng = Rng::from_words(&[seed, 0x4c5254, light as u64, element as u64]);
@@ -182,17 +169,7 @@ pub fn trace_pair(
             continue;
         }
         let ray = Ray::new(l.position, w);
-        if cast(
-            view,
-            scratch,
-            &ray,
-            eps0,
-            t_plane * (1.0 - 1e-9),
-            erec.patch,
-            true,
-        )?
-        .is_some()
-        {
+        if cast(view, scratch, &ray, eps0, t_plane * (1.0 - 1e-9), erec.patch, true)?.is_some() {
             out.tally.occluded = out.tally.occluded.add(flux);
             continue;
         }
@@ -200,35 +177,12 @@ pub fn trace_pair(
         let p = ray.at(t_plane);
         deposits.push((element, flux));
         let floor = flux.max_channel() * MIN_RELATIVE_FLUX;
-        scatter(
-            view,
-            &mut rng,
-            &mut stack,
-            &mut out.tally,
-            p,
-            w,
-            normal,
-            prec.material,
-            erec.patch,
-            flux,
-            0,
-            0,
-            floor,
-        );
+        scatter(view, &mut rng, &mut stack, &mut out.tally, p, w, normal, prec.material, erec.patch, flux, 0, 0, floor);
         // Follow secondary rays depth-first.
         while let Some(s) = stack.pop() {
             view.counters.light_rays += 1;
             let tmin = offset_scale(s.ray.origin);
-            let Some(hit) = cast(
-                view,
-                scratch,
-                &s.ray,
-                tmin,
-                f64::INFINITY,
-                s.from_patch,
-                false,
-            )?
-            else {
+            let Some(hit) = cast(view, scratch, &s.ray, tmin, f64::INFINITY, s.from_patch, false)? else {
                 out.tally.escaped = out.tally.escaped.add(s.flux);
                 continue;
             };
@@ -264,10 +218,7 @@ pub fn trace_pair(
             _ => merged.push((e, f)),
         }
     }
-    out.deposits = merged
-        .into_iter()
-        .map(|(e, f)| (e, to_fixed(f, header.energy_quantum)))
-        .collect();
+    out.deposits = merged.into_iter().map(|(e, f)| (e, to_fixed(f, header.energy_quantum))).collect();
     Ok(out)
 }
 
@@ -329,47 +280,19 @@ fn scatter(
     let spec_flux_transmit = flux.mul(m.transmit);
     if specular < plan.lrt_depth {
         if !spec_flux_mirror.is_black() {
-            push(
-                tally,
-                reflect(d, nf),
-                spec_flux_mirror,
-                specular + 1,
-                diffuse,
-            );
+            push(tally, reflect(d, nf), spec_flux_mirror, specular + 1, diffuse);
         }
         if !spec_flux_transmit.is_black() {
             let eta = if front { 1.0 / m.ior } else { m.ior };
             let cos_i = -d.dot(nf);
             let f = fresnel_dielectric(cos_i, eta);
-            let refracted = if plan.refraction {
-                refract(d, nf, eta)
-            } else {
-                None
-            };
+            let refracted = if plan.refraction { refract(d, nf, eta) } else { None };
             match refracted {
                 Some(t) if f < 1.0 => {
-                    push(
-                        tally,
-                        reflect(d, nf),
-                        spec_flux_transmit.scale(f),
-                        specular + 1,
-                        diffuse,
-                    );
-                    push(
-                        tally,
-                        t,
-                        spec_flux_transmit.scale(1.0 - f),
-                        specular + 1,
-                        diffuse,
-                    );
+                    push(tally, reflect(d, nf), spec_flux_transmit.scale(f), specular + 1, diffuse);
+                    push(tally, t, spec_flux_transmit.scale(1.0 - f), specular + 1, diffuse);
                 }
-                _ => push(
-                    tally,
-                    reflect(d, nf),
-                    spec_flux_transmit,
-                    specular + 1,
-                    diffuse,
-                ),
+                _ => push(tally, reflect(d, nf), spec_flux_transmit, specular + 1, diffuse),
             }
         }
     } else {

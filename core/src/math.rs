@@ -16,11 +16,7 @@ pub struct Vec3 {
 
 impl Vec3 {
     /// The zero vector.
-    pub const ZERO: Vec3 = Vec3 {
-        x: 0.0,
-        y: 0.0,
-        z: 0.0,
-    };
+    pub const ZERO: Vec3 = Vec3 { x: 0.0, y: 0.0, z: 0.0 };
 
     /// Builds a vector from its components.
     pub const fn new(x: f64, y: f64, z: f64) -> Self {
@@ -28,11 +24,7 @@ impl Vec3 {
     }
     /// Builds a vector from an array.
     pub const fn from_array(a: [f64; 3]) -> Self {
-        Vec3 {
-            x: a[0],
-            y: a[1],
-            z: a[2],
-        }
+        Vec3 { x: a[0], y: a[1], z: a[2] }
     }
     /// The components as an array.
     pub const fn to_array(self) -> [f64; 3] {
@@ -44,11 +36,7 @@ impl Vec3 {
     }
     /// Cross product.
     pub fn cross(self, o: Vec3) -> Vec3 {
-        Vec3::new(
-            self.y * o.z - self.z * o.y,
-            self.z * o.x - self.x * o.z,
-            self.x * o.y - self.y * o.x,
-        )
+        Vec3::new(self.y * o.z - self.z * o.y, self.z * o.x - self.x * o.z, self.x * o.y - self.y * o.x)
     }
     /// Euclidean length.
     pub fn length(self) -> f64 {
@@ -193,10 +181,7 @@ pub fn orthonormal_basis(n: Vec3) -> (Vec3, Vec3) {
     let sign = 1.0f64.copysign(n.z);
     let a = -1.0 / (sign + n.z);
     let b = n.x * n.y * a;
-    (
-        Vec3::new(1.0 + sign * n.x * n.x * a, sign * b, -sign * n.x),
-        Vec3::new(b, sign + n.y * n.y * a, -n.y),
-    )
+    (Vec3::new(1.0 + sign * n.x * n.x * a, sign * b, -sign * n.x), Vec3::new(b, sign + n.y * n.y * a, -n.y))
 }
 
 #[cfg(test)]
@@ -205,11 +190,7 @@ mod tests {
 
     #[test]
     fn basis_is_orthonormal() {
-        for n in [
-            Vec3::new(0.0, 0.0, 1.0),
-            Vec3::new(0.0, 0.0, -1.0),
-            Vec3::new(1.0, 2.0, -3.0).normalized(),
-        ] {
+        for n in [Vec3::new(0.0, 0.0, 1.0), Vec3::new(0.0, 0.0, -1.0), Vec3::new(1.0, 2.0, -3.0).normalized()] {
             let (t, b) = orthonormal_basis(n);
             assert!(t.dot(n).abs() < 1e-12 && b.dot(n).abs() < 1e-12 && t.dot(b).abs() < 1e-12);
             assert!((t.length() - 1.0).abs() < 1e-12 && (b.length() - 1.0).abs() < 1e-12);

@@ -32,10 +32,7 @@ impl EffectsPlan {
     pub fn for_scene(scene: &Scene) -> EffectsPlan {
         let s = &scene.settings;
         let used = |f: &dyn Fn(&crate::scene::Material) -> bool| {
-            scene
-                .patches
-                .iter()
-                .any(|p| scene.materials.get(p.material as usize).is_some_and(f))
+            scene.patches.iter().any(|p| scene.materials.get(p.material as usize).is_some_and(f))
         };
         let any_specular = used(&|m| m.is_specular());
         let any_dielectric = used(&|m| m.is_transmissive());
@@ -50,17 +47,13 @@ impl EffectsPlan {
         let lrt_depth = if !lrt {
             0
         } else if !any_specular {
-            reasons
-                .push("no specular or transmissive material: secondary light rays off".to_string());
+            reasons.push("no specular or transmissive material: secondary light rays off".to_string());
             0
         } else if s.lrt_depth == 0 {
             reasons.push("lrt_depth = 0: secondary light rays off".to_string());
             0
         } else {
-            reasons.push(format!(
-                "specular material present: secondary light rays on, depth {}",
-                s.lrt_depth
-            ));
+            reasons.push(format!("specular material present: secondary light rays on, depth {}", s.lrt_depth));
             s.lrt_depth
         };
         let refraction = any_dielectric && (lrt_depth > 0 || s.vrt_depth > 0);
@@ -87,10 +80,7 @@ impl EffectsPlan {
             reasons.push("no visible mirror or dielectric: VRT depth 0".to_string());
             0
         } else {
-            reasons.push(format!(
-                "specular material present: VRT recursion on, depth {}",
-                s.vrt_depth
-            ));
+            reasons.push(format!("specular material present: VRT recursion on, depth {}", s.vrt_depth));
             s.vrt_depth
         };
         let ambient = diffuse_bounces == 0 && !s.ambient.is_black() && any_diffuse;

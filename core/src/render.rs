@@ -35,12 +35,7 @@ pub struct RenderOptions {
 
 impl Default for RenderOptions {
     fn default() -> Self {
-        RenderOptions {
-            nodes: 0,
-            forks: 5,
-            cache_blocks: None,
-            subscreen: 16,
-        }
+        RenderOptions { nodes: 0, forks: 5, cache_blocks: None, subscreen: 16 }
     }
 }
 
@@ -50,9 +45,7 @@ impl RenderOptions {
         if self.nodes > 0 {
             self.nodes
         } else {
-            std::thread::available_parallelism()
-                .map(|n| n.get() as u32)
-                .unwrap_or(1)
+            std::thread::available_parallelism().map(|n| n.get() as u32).unwrap_or(1)
         }
     }
 }
@@ -89,12 +82,7 @@ pub fn subscreens(width: u32, height: u32, edge: u32) -> Vec<Subscreen> {
     while y < height {
         let mut x = 0;
         while x < width {
-            v.push(Subscreen {
-                x,
-                y,
-                w: edge.min(width - x),
-                h: edge.min(height - y),
-            });
+            v.push(Subscreen { x, y, w: edge.min(width - x), h: edge.min(height - y) });
             x += edge;
         }
         y += edge;
@@ -123,22 +111,16 @@ pub fn render(
     let n_lights = header.lights.len() as u32;
     let make_view = |node: u32| {
         let source: Arc<dyn BlockSource> = store.clone();
-        let cache = BlockCache::new(source, opts.cache_blocks.map(|c| c as usize))
-            .with_home(node % forks, forks);
+        let cache = BlockCache::new(source, opts.cache_blocks.map(|c| c as usize)).with_home(node % forks, forks);
         SceneView::new(header.clone(), cache)
     };
     let mut views: Vec<SceneView> = (0..nodes).map(make_view).collect();
 
     // --- LRT: nodes pull (light, element) pairs.
     let t_lrt = Instant::now();
-    let flux: Vec<[AtomicI64; 3]> = (0..n_el)
-        .map(|_| [AtomicI64::new(0), AtomicI64::new(0), AtomicI64::new(0)])
-        .collect();
-    let total_pairs = if header.plan.lrt {
-        n_lights as u64 * n_el as u64
-    } else {
-        0
-    };
+    let flux: Vec<[AtomicI64; 3]> =
+        (0..n_el).map(|_| [AtomicI64::new(0), AtomicI64::new(0), AtomicI64::new(0)]).collect();
+    let total_pairs = if header.plan.lrt { n_lights as u64 * n_el as u64 } else { 0 };
     let next_pair = AtomicU64::new(0);
     const PAIR_BATCH: u64 = 8;
     progress.begin("light ray tracing", total_pairs);
@@ -158,8 +140,7 @@ pub fn render(
                         }
                         let end = (start + PAIR_BATCH).min(total_pairs);
                         for k in start..end {
-                            let (light, element) =
-                                ((k / n_el as u64) as u32, (k % n_el as u64) as u32);
+                            let (light, element) = ((k / n_el as u64) as u32, (k % n_el as u64) as u32);
                             let r = trace_pair(view, &mut scratch, light, element)?;
                             for (e, f) in r.deposits {
                                 if let Some(slot) = flux.get(e as usize) {
@@ -180,12 +161,8 @@ pub fn render(
         handles
             .into_iter()
             .map(|h| {
-                h.join().unwrap_or_else(|_| {
-                    Err(BlockError::Unavailable {
-                        id: 0,
-                        reason: "node worker panicked".into(),
-                    })
-                })
+                h.join()
+                    .unwrap_or_else(|_| Err(BlockError::Unavailable { id: 0, reason: "node worker panicked".into() }))
             })
             .collect()
     });
@@ -203,20 +180,10 @@ pub fn render(
     let t_interp = Instant::now();
     let element_flux: Vec<Fixed> = flux
         .iter()
-        .map(|a| {
-            [
-                a[0].load(Ordering::Relaxed),
-                a[1].load(Ordering::Relaxed),
-                a[2].load(Ordering::Relaxed),
-            ]
-        })
+        .map(|a| [a[0].load(Ordering::Relaxed), a[1].load(Ordering::Relaxed), a[2].load(Ordering::Relaxed)])
         .collect();
-    let vertex_irradiance = interpolate(
-        &prepared.elements,
-        &element_flux,
-        header.counts.vertices as usize,
-        header.energy_quantum,
-    );
+    let vertex_irradiance =
+        interpolate(&prepared.elements, &element_flux, header.counts.vertices as usize, header.energy_quantum);
     for (id, block) in vertex_energy_blocks(&vertex_irradiance, &header.layout) {
         store.replace(id, block)?;
     }
@@ -232,46 +199,41 @@ pub fn render(
     let tiles = subscreens(s.width, s.height, opts.subscreen);
     let queue = Mutex::new(tiles.iter().copied().rev().collect::<Vec<_>>());
     progress.begin("viewing ray tracing", s.width as u64 * s.height as u64);
-    let vrt_results: Vec<Result<Vec<(Subscreen, Vec<Rgb>)>, BlockError>> =
-        std::thread::scope(|sc| {
-            let handles: Vec<_> = views
-                .iter_mut()
-                .map(|view| {
-                    let (queue, rig) = (&queue, &rig);
-                    sc.spawn(move || -> Result<Vec<(Subscreen, Vec<Rgb>)>, BlockError> {
-                        let mut scratch = TraceScratch::default();
-                        let mut done = Vec::new();
-                        loop {
-                            let tile = match queue.lock() {
-                                Ok(mut q) => q.pop(),
-                                Err(_) => None,
-                            };
-                            let Some(t) = tile else { break };
-                            let mut px = Vec::with_capacity(t.pixels() as usize);
-                            for y in t.y..t.y + t.h {
-                                for x in t.x..t.x + t.w {
-                                    px.push(shade_pixel(view, &mut scratch, rig, x, y)?);
-                                }
+    let vrt_results: Vec<Result<Vec<(Subscreen, Vec<Rgb>)>, BlockError>> = std::thread::scope(|sc| {
+        let handles: Vec<_> = views
+            .iter_mut()
+            .map(|view| {
+                let (queue, rig) = (&queue, &rig);
+                sc.spawn(move || -> Result<Vec<(Subscreen, Vec<Rgb>)>, BlockError> {
+                    let mut scratch = TraceScratch::default();
+                    let mut done = Vec::new();
+                    loop {
+                        let tile = match queue.lock() {
+                            Ok(mut q) => q.pop(),
+                            Err(_) => None,
+                        };
+                        let Some(t) = tile else { break };
+                        let mut px = Vec::with_capacity(t.pixels() as usize);
+                        for y in t.y..t.y + t.h {
+                            for x in t.x..t.x + t.w {
+                                px.push(shade_pixel(view, &mut scratch, rig, x, y)?);
                             }
-                            progress.advance(t.pixels());
-                            done.push((t, px));
                         }
-                        Ok(done)
-                    })
+                        progress.advance(t.pixels());
+                        done.push((t, px));
+                    }
+                    Ok(done)
                 })
-                .collect();
-            handles
-                .into_iter()
-                .map(|h| {
-                    h.join().unwrap_or_else(|_| {
-                        Err(BlockError::Unavailable {
-                            id: 0,
-                            reason: "node worker panicked".into(),
-                        })
-                    })
-                })
-                .collect()
-        });
+            })
+            .collect();
+        handles
+            .into_iter()
+            .map(|h| {
+                h.join()
+                    .unwrap_or_else(|_| Err(BlockError::Unavailable { id: 0, reason: "node worker panicked".into() }))
+            })
+            .collect()
+    });
     progress.end();
     let mut frame = Frame::new(s.width, s.height);
     let mut outs = Vec::with_capacity(nodes as usize);
@@ -305,14 +267,8 @@ pub fn render(
     }
     let vrt_s = t_vrt.elapsed().as_secs_f64();
 
-    let cache_total = views
-        .iter()
-        .fold(crate::blocks::CacheStats::default(), |a, v| {
-            a.add(v.cache_stats())
-        });
-    let ops = views
-        .iter()
-        .fold(crate::view::OpCounters::default(), |a, v| a.add(v.counters));
+    let cache_total = views.iter().fold(crate::blocks::CacheStats::default(), |a, v| a.add(v.cache_stats()));
+    let ops = views.iter().fold(crate::view::OpCounters::default(), |a, v| a.add(v.counters));
     let _ = outs.iter().map(|o| o.tally).count();
     let stats = RenderStats {
         scene: prepared.name.clone(),
@@ -342,18 +298,10 @@ pub fn render(
             light_rays: ops.light_rays,
             view_rays: ops.view_rays,
         },
-        plan: PlanSummary {
-            passes: header.plan.passes(),
-            plan: header.plan.clone(),
-        },
+        plan: PlanSummary { passes: header.plan.passes(), plan: header.plan.clone() },
         counts: header.counts,
         light: tally,
         per_node: outs.into_iter().map(|o| o.stats).collect(),
     };
-    Ok(RenderOutput {
-        frame,
-        element_flux,
-        vertex_irradiance,
-        stats,
-    })
+    Ok(RenderOutput { frame, element_flux, vertex_irradiance, stats })
 }

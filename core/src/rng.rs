@@ -29,9 +29,7 @@ pub struct Rng {
 impl Rng {
     /// A generator seeded from `words` (see [`seed_of`]).
     pub fn from_words(words: &[u64]) -> Self {
-        Rng {
-            state: seed_of(words),
-        }
+        Rng { state: seed_of(words) }
     }
     /// Next 64 random bits.
     pub fn next_u64(&mut self) -> u64 {

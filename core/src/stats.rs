@@ -35,11 +35,7 @@ pub struct CacheSummary {
 
 impl From<CacheStats> for CacheSummary {
     fn from(c: CacheStats) -> Self {
-        CacheSummary {
-            hits: c.hits,
-            misses: c.misses,
-            hit_ratio: c.hit_ratio(),
-        }
+        CacheSummary { hits: c.hits, misses: c.misses, hit_ratio: c.hit_ratio() }
     }
 }
 

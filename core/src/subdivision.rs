@@ -26,9 +26,7 @@ pub fn lattice_index(n: u32, i: u32, j: u32) -> u32 {
 }
 
 fn lex(a: Vec3, b: Vec3) -> Ordering {
-    a.x.total_cmp(&b.x)
-        .then(a.y.total_cmp(&b.y))
-        .then(a.z.total_cmp(&b.z))
+    a.x.total_cmp(&b.x).then(a.y.total_cmp(&b.y)).then(a.z.total_cmp(&b.z))
 }
 
 /// Point `m / n` of the way along the edge (a, b), computed from the lexicographically
@@ -105,11 +103,7 @@ fn isqrt(x: u64) -> u64 {
 /// Corner positions of element `local` of patch `v` subdivided n times.
 pub fn element_triangle(v: &[Vec3; 3], n: u32, local: u32) -> [Vec3; 3] {
     let c = element_corners(n, local);
-    [
-        lattice_point(v, n, c[0].0, c[0].1),
-        lattice_point(v, n, c[1].0, c[1].1),
-        lattice_point(v, n, c[2].0, c[2].1),
-    ]
+    [lattice_point(v, n, c[0].0, c[0].1), lattice_point(v, n, c[1].0, c[1].1), lattice_point(v, n, c[2].0, c[2].1)]
 }
 
 /// The element a point with patch barycentrics `bary` falls in, and the point's
@@ -177,13 +171,7 @@ mod tests {
     #[test]
     fn locate_handles_corners_and_edges() {
         for n in [1, 2, 5] {
-            for bary in [
-                [1.0, 0.0, 0.0],
-                [0.0, 1.0, 0.0],
-                [0.0, 0.0, 1.0],
-                [0.5, 0.5, 0.0],
-                [0.0, 0.5, 0.5],
-            ] {
+            for bary in [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0], [0.5, 0.5, 0.0], [0.0, 0.5, 0.5]] {
                 let (l, w) = locate(n, bary);
                 assert!(l < n * n);
                 assert!((w.iter().sum::<f64>() - 1.0).abs() < 1e-12);
@@ -213,9 +201,7 @@ mod tests {
     #[test]
     fn lattice_index_is_dense() {
         let n = 6;
-        let mut ids: Vec<u32> = (0..=n)
-            .flat_map(|j| (0..=n - j).map(move |i| lattice_index(n, i, j)))
-            .collect();
+        let mut ids: Vec<u32> = (0..=n).flat_map(|j| (0..=n - j).map(move |i| lattice_index(n, i, j))).collect();
         ids.sort();
         assert_eq!(ids, (0..lattice_count(n) as u32).collect::<Vec<_>>());
     }

@@ -62,12 +62,7 @@ pub fn cast(
 ) -> Result<Option<Hit>, BlockError> {
     let o = ray.origin;
     let d = ray.direction;
-    if !o.is_finite()
-        || !d.is_finite()
-        || d.length_squared() == 0.0
-        || tmin.is_nan()
-        || tmax.is_nan()
-    {
+    if !o.is_finite() || !d.is_finite() || d.length_squared() == 0.0 || tmin.is_nan() || tmax.is_nan() {
         return Ok(None);
     }
     let (gmin, gmax, dims, cs) = {
@@ -101,11 +96,7 @@ pub fn cast(
     let mut delta = [f64::INFINITY; 3];
     for a in 0..3 {
         let c = ((p[a] - gmin[a]) / cs[a]).floor();
-        let c = if c.is_finite() {
-            c.clamp(0.0, (dims[a] - 1) as f64) as i64
-        } else {
-            0
-        };
+        let c = if c.is_finite() { c.clamp(0.0, (dims[a] - 1) as f64) as i64 } else { 0 };
         cell[a] = c;
         if d[a] > 0.0 {
             step[a] = 1;
@@ -122,8 +113,7 @@ pub fn cast(
     let mut ids = std::mem::take(&mut scratch.ids);
     let result = loop {
         view.counters.grid_steps += 1;
-        let idx = (cell[2] as usize * dims[1] as usize + cell[1] as usize) * dims[0] as usize
-            + cell[0] as usize;
+        let idx = (cell[2] as usize * dims[1] as usize + cell[1] as usize) * dims[0] as usize + cell[0] as usize;
         if let Err(e) = view.subspace(idx, &mut ids) {
             break Err(e);
         }
@@ -149,11 +139,7 @@ pub fn cast(
                     Some(b) => h.t < b.t || (h.t == b.t && pid < b.patch),
                 };
                 if better {
-                    best = Some(Hit {
-                        t: h.t,
-                        patch: pid,
-                        bary: h.bary,
-                    });
+                    best = Some(Hit { t: h.t, patch: pid, bary: h.bary });
                     if any {
                         break;
                     }

@@ -47,11 +47,7 @@ pub struct SceneView {
 impl SceneView {
     /// A view reading blocks through `cache`.
     pub fn new(header: Arc<SceneHeader>, cache: BlockCache) -> Self {
-        SceneView {
-            header,
-            cache,
-            counters: OpCounters::default(),
-        }
+        SceneView { header, cache, counters: OpCounters::default() }
     }
 
     /// Cache hit and miss counts.
@@ -69,11 +65,7 @@ impl SceneView {
     pub fn patch(&mut self, id: u32) -> Result<PatchRecord, BlockError> {
         let count = self.header.counts.patches;
         if id >= count {
-            return Err(BlockError::BadId {
-                kind: "patch",
-                id: id as u64,
-                count: count as u64,
-            });
+            return Err(BlockError::BadId { kind: "patch", id: id as u64, count: count as u64 });
         }
         let (b, at) = self.header.layout.patch_slot(id);
         Ok(PatchRecord::decode(self.cache.get(b)?, at))
@@ -83,11 +75,7 @@ impl SceneView {
     pub fn element(&mut self, id: u32) -> Result<ElementRecord, BlockError> {
         let count = self.header.counts.elements;
         if id >= count {
-            return Err(BlockError::BadId {
-                kind: "element",
-                id: id as u64,
-                count: count as u64,
-            });
+            return Err(BlockError::BadId { kind: "element", id: id as u64, count: count as u64 });
         }
         let (b, at) = self.header.layout.element_slot(id);
         Ok(ElementRecord::decode(self.cache.get(b)?, at))
@@ -97,11 +85,7 @@ impl SceneView {
     pub fn vertex_energy(&mut self, id: u32) -> Result<Rgb, BlockError> {
         let count = self.header.counts.vertices;
         if id >= count {
-            return Err(BlockError::BadId {
-                kind: "vertex",
-                id: id as u64,
-                count: count as u64,
-            });
+            return Err(BlockError::BadId { kind: "vertex", id: id as u64, count: count as u64 });
         }
         let (b, at) = self.header.layout.vertex_slot(id);
         Ok(decode_vertex_energy(self.cache.get(b)?, at))
@@ -113,23 +97,12 @@ impl SceneView {
         let cells = self.header.grid.cell_first_block.len();
         let mut b = match self.header.grid.cell_first_block.get(cell) {
             Some(&b) => b,
-            None => {
-                return Err(BlockError::BadId {
-                    kind: "subspace",
-                    id: cell as u64,
-                    count: cells as u64,
-                })
-            }
+            None => return Err(BlockError::BadId { kind: "subspace", id: cell as u64, count: cells as u64 }),
         };
         let mut guard = 0u32;
         while b != NO_BLOCK {
-            if self.header.layout.kind(b) != Some(BlockKind::Subspace)
-                || guard > self.header.layout.patch_base
-            {
-                return Err(BlockError::Unavailable {
-                    id: b,
-                    reason: "corrupt subspace chain".into(),
-                });
+            if self.header.layout.kind(b) != Some(BlockKind::Subspace) || guard > self.header.layout.patch_base {
+                return Err(BlockError::Unavailable { id: b, reason: "corrupt subspace chain".into() });
             }
             b = decode_subspace(self.cache.get(b)?, out);
             guard += 1;

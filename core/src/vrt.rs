@@ -56,11 +56,7 @@ pub fn shade_pixel(
     };
     let mut sum = Rgb::BLACK;
     for i in 0..n {
-        let (u, v) = if n > 1 {
-            hammersley(i, n, sx, sy)
-        } else {
-            (0.5, 0.5)
-        };
+        let (u, v) = if n > 1 { hammersley(i, n, sx, sy) } else { (0.5, 0.5) };
         let ray = rig.ray(x as f64 + u, y as f64 + v);
         sum = sum.add(radiance(view, scratch, &ray, 0, NO_PATCH)?);
     }
@@ -77,11 +73,7 @@ fn radiance(
 ) -> Result<Rgb, BlockError> {
     view.counters.view_rays += 1;
     let header = view.header.clone();
-    let tmin = if exclude == NO_PATCH {
-        0.0
-    } else {
-        offset_scale(ray.origin)
-    };
+    let tmin = if exclude == NO_PATCH { 0.0 } else { offset_scale(ray.origin) };
     let Some(hit) = cast(view, scratch, ray, tmin, f64::INFINITY, exclude, false)? else {
         return Ok(header.settings.background);
     };
@@ -107,9 +99,7 @@ fn radiance(
         return Ok(l);
     }
     let p = ray.at(hit.t);
-    let normal = (prec.v[1] - prec.v[0])
-        .cross(prec.v[2] - prec.v[0])
-        .normalized();
+    let normal = (prec.v[1] - prec.v[0]).cross(prec.v[2] - prec.v[0]).normalized();
     let d = ray.direction;
     let front = d.dot(normal) < 0.0;
     let nf = if front { normal } else { -normal };
@@ -124,19 +114,12 @@ fn radiance(
     if m.is_transmissive() {
         let eta = if front { 1.0 / m.ior } else { m.ior };
         let f = fresnel_dielectric(-d.dot(nf), eta);
-        let refracted = if header.plan.refraction {
-            refract(d, nf, eta)
-        } else {
-            None
-        };
+        let refracted = if header.plan.refraction { refract(d, nf, eta) } else { None };
         let reflected = radiance(view, scratch, &spawn(reflect(d, nf)), depth + 1, hit.patch)?;
         match refracted {
             Some(t) if f < 1.0 => {
                 let through = radiance(view, scratch, &spawn(t), depth + 1, hit.patch)?;
-                l = l.add(
-                    m.transmit
-                        .mul(reflected.scale(f).add(through.scale(1.0 - f))),
-                );
+                l = l.add(m.transmit.mul(reflected.scale(f).add(through.scale(1.0 - f))));
             }
             _ => l = l.add(m.transmit.mul(reflected)),
         }

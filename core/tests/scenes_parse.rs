@@ -7,17 +7,14 @@ use magg_core::math::Vec3;
 use magg_core::scene::{parse_scene_str, GridSpec, PatchDef, Scene};
 
 fn scenes_dir() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("..")
-        .join("scenes")
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("..").join("scenes")
 }
 
 fn load(name: &str) -> Scene {
     let dir = scenes_dir();
     let path = dir.join(name);
     let text = std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
-    parse_scene_str(name, &text, &dir, &|p: &Path| std::fs::read_to_string(p))
-        .unwrap_or_else(|e| panic!("{e}"))
+    parse_scene_str(name, &text, &dir, &|p: &Path| std::fs::read_to_string(p)).unwrap_or_else(|e| panic!("{e}"))
 }
 
 fn normal(p: &PatchDef) -> Vec3 {
@@ -39,18 +36,12 @@ fn every_scene_file_parses() {
         .filter(|n| n.ends_with(".toml"))
         .collect();
     names.sort();
-    assert!(
-        names.len() >= 5,
-        "expected the shipped scenes, found {names:?}"
-    );
+    assert!(names.len() >= 5, "expected the shipped scenes, found {names:?}");
     for name in &names {
         let s = load(name);
         assert!(!s.patches.is_empty() && !s.lights.is_empty(), "{name}");
         for p in &s.patches {
-            assert!(
-                (p.material as usize) < s.materials.len(),
-                "{name}: patch material out of range"
-            );
+            assert!((p.material as usize) < s.materials.len(), "{name}: patch material out of range");
         }
     }
 }
@@ -63,11 +54,7 @@ fn magg_paper_matches_section_5_1() {
     assert_eq!(s.settings.grid, GridSpec::Fixed([8, 7, 6]));
     assert_eq!((s.settings.width, s.settings.height), (400, 400));
     assert_eq!((s.settings.lrt_depth, s.settings.vrt_depth), (1, 1));
-    let elements: u32 = s
-        .patches
-        .iter()
-        .map(|p| p.subdivisions.expect("explicit subdivisions").pow(2))
-        .sum();
+    let elements: u32 = s.patches.iter().map(|p| p.subdivisions.expect("explicit subdivisions").pow(2)).sum();
     assert_eq!(elements, 1664);
     assert!(s.materials.iter().any(|m| m.is_mirror()));
 }
@@ -75,14 +62,8 @@ fn magg_paper_matches_section_5_1() {
 #[test]
 fn cornell_has_mirror_glass_and_inward_walls() {
     let s = load("cornell.toml");
-    assert!(
-        s.materials.iter().any(|m| m.is_mirror()),
-        "no mirror material"
-    );
-    assert!(
-        s.materials.iter().any(|m| m.is_transmissive()),
-        "no transmissive material"
-    );
+    assert!(s.materials.iter().any(|m| m.is_mirror()), "no mirror material");
+    assert!(s.materials.iter().any(|m| m.is_transmissive()), "no transmissive material");
     let centre = Vec3::new(0.0, 1.0, 0.0);
     let glass = s.materials.iter().position(|m| m.name == "glass").unwrap() as u32;
     let sphere_centre = Vec3::new(0.45, 0.351, 0.35);
@@ -90,22 +71,12 @@ fn cornell_has_mirror_glass_and_inward_walls() {
     for p in &s.patches {
         let name = &s.materials[p.material as usize].name;
         if ["white", "red", "green"].contains(&name.as_str()) {
-            assert!(
-                normal(p).dot(centre - centroid(p)) > 0.0,
-                "wall at line {} faces out",
-                p.loc.line
-            );
+            assert!(normal(p).dot(centre - centroid(p)) > 0.0, "wall at line {} faces out", p.loc.line);
         }
         if p.material == glass {
             sphere_faces += 1;
-            assert!(
-                normal(p).dot(centroid(p) - sphere_centre) > 0.0,
-                "sphere face wound inwards"
-            );
-            assert!(
-                p.vertices.iter().all(|v| v.y >= 0.0),
-                "sphere below the floor"
-            );
+            assert!(normal(p).dot(centroid(p) - sphere_centre) > 0.0, "sphere face wound inwards");
+            assert!(p.vertices.iter().all(|v| v.y >= 0.0), "sphere below the floor");
         }
     }
     assert_eq!(sphere_faces, 1280);
@@ -132,21 +103,9 @@ fn large_scene_reads_tens_of_thousands_of_triangles_with_mtl_materials() {
     assert_eq!(s.lights.len(), 2);
     assert_eq!((s.settings.width, s.settings.height), (640, 480));
     let names: Vec<&str> = s.materials.iter().map(|m| m.name.as_str()).collect();
-    assert!(
-        names.contains(&"meshes/terrain.obj:ground") && names.contains(&"meshes/terrain.obj:stone"),
-        "{names:?}"
-    );
-    let ground = names
-        .iter()
-        .position(|n| *n == "meshes/terrain.obj:ground")
-        .unwrap() as u32;
-    assert!(
-        s.patches
-            .iter()
-            .filter(|p| p.material == ground)
-            .all(|p| normal(p).y > 0.0),
-        "terrain faces down"
-    );
+    assert!(names.contains(&"meshes/terrain.obj:ground") && names.contains(&"meshes/terrain.obj:stone"), "{names:?}");
+    let ground = names.iter().position(|n| *n == "meshes/terrain.obj:ground").unwrap() as u32;
+    assert!(s.patches.iter().filter(|p| p.material == ground).all(|p| normal(p).y > 0.0), "terrain faces down");
 }
 
 #[test]
@@ -155,21 +114,11 @@ fn readme_example_parses() {
     let readme = std::fs::read_to_string(dir.join("README.md")).unwrap();
     let start = readme.find("```toml\n").expect("a ```toml block") + "```toml\n".len();
     let len = readme[start..].find("```").unwrap();
-    let s = parse_scene_str(
-        "README.md",
-        &readme[start..start + len],
-        &dir,
-        &|p: &Path| std::fs::read_to_string(p),
-    )
-    .unwrap_or_else(|e| panic!("{e}"));
+    let s = parse_scene_str("README.md", &readme[start..start + len], &dir, &|p: &Path| std::fs::read_to_string(p))
+        .unwrap_or_else(|e| panic!("{e}"));
     assert_eq!(s.patches.len(), 2 + 1280);
     // An unknown key is reported as the README says.
     let bad = readme[start..start + len].replace("ior = 1.5", "ior = 1.5\ncolour = [1, 1, 1]");
-    let e = parse_scene_str("x.toml", &bad, &dir, &|p: &Path| std::fs::read_to_string(p))
-        .unwrap_err()
-        .to_string();
-    assert!(
-        e.contains("material[1].colour: unknown field `colour`, expected one of `name`, `diffuse`"),
-        "{e}"
-    );
+    let e = parse_scene_str("x.toml", &bad, &dir, &|p: &Path| std::fs::read_to_string(p)).unwrap_err().to_string();
+    assert!(e.contains("material[1].colour: unknown field `colour`, expected one of `name`, `diffuse`"), "{e}");
 }

@@ -39,10 +39,17 @@ impl CacheStats {
     }
 }
 
+/// Storage of the cached blocks: an LRU list when bounded; a table indexed by block id
+/// when unlimited (nothing is ever evicted, so no recency needs tracking).
+enum Slots {
+    Bounded(LruCache<u32, Box<Block>>),
+    Unlimited { table: Vec<Option<Box<Block>>>, held: usize },
+}
+
 /// An LRU cache of blocks in front of a [`BlockSource`]. Capacity `None` is unlimited.
 pub struct BlockCache {
     source: Arc<dyn BlockSource>,
-    lru: LruCache<u32, Box<Block>>,
+    slots: Slots,
     stats: CacheStats,
     /// (home fork, number of forks), to count remote misses.
     home: (u32, u32),
@@ -51,16 +58,11 @@ pub struct BlockCache {
 impl BlockCache {
     /// A cache of `capacity` blocks (at least 1), or unlimited for `None`.
     pub fn new(source: Arc<dyn BlockSource>, capacity: Option<usize>) -> Self {
-        let lru = match capacity {
-            Some(c) => LruCache::new(NonZeroUsize::new(c.max(1)).unwrap_or(NonZeroUsize::MIN)),
-            None => LruCache::unbounded(),
+        let slots = match capacity {
+            Some(c) => Slots::Bounded(LruCache::new(NonZeroUsize::new(c.max(1)).unwrap_or(NonZeroUsize::MIN))),
+            None => Slots::Unlimited { table: Vec::new(), held: 0 },
         };
-        BlockCache {
-            source,
-            lru,
-            stats: CacheStats::default(),
-            home: (0, 1),
-        }
+        BlockCache { source, slots, stats: CacheStats::default(), home: (0, 1) }
     }
 
     /// Declares the node's home fork among `forks` (block `b` lives on fork `b mod forks`),
@@ -73,39 +75,69 @@ impl BlockCache {
     /// Block `id`, from the cache or fetched from the source (evicting the least
     /// recently used block when full).
     pub fn get(&mut self, id: u32) -> Result<&Block, BlockError> {
-        if self.lru.contains(&id) {
-            self.stats.hits += 1;
-        } else {
-            self.stats.misses += 1;
-            if id % self.home.1 != self.home.0 {
-                self.stats.remote_misses += 1;
+        let remote = id % self.home.1 != self.home.0;
+        match &mut self.slots {
+            Slots::Bounded(lru) => {
+                if lru.contains(&id) {
+                    self.stats.hits += 1;
+                } else {
+                    self.stats.misses += 1;
+                    self.stats.remote_misses += remote as u64;
+                    // Reuse the evicted block's memory when the cache is full.
+                    let mut buf = if lru.len() == lru.cap().get() {
+                        lru.pop_lru().map(|(_, b)| b).unwrap_or_else(|| Box::new([0u8; BLOCK_SIZE]))
+                    } else {
+                        Box::new([0u8; BLOCK_SIZE])
+                    };
+                    self.source.fetch(id, &mut buf)?;
+                    lru.put(id, buf);
+                }
+                match lru.get(&id) {
+                    Some(b) => Ok(&**b),
+                    None => Err(BlockError::Unavailable { id, reason: "cache lost a block it just stored".into() }),
+                }
             }
-            // Reuse the evicted block's memory when the cache is full.
-            let mut buf = if self.lru.len() == self.lru.cap().get() {
-                self.lru
-                    .pop_lru()
-                    .map(|(_, b)| b)
-                    .unwrap_or_else(|| Box::new([0u8; BLOCK_SIZE]))
-            } else {
-                Box::new([0u8; BLOCK_SIZE])
-            };
-            self.source.fetch(id, &mut buf)?;
-            self.lru.put(id, buf);
-        }
-        match self.lru.get(&id) {
-            Some(b) => Ok(&**b),
-            None => Err(BlockError::Unavailable {
-                id,
-                reason: "cache lost a block it just stored".into(),
-            }),
+            Slots::Unlimited { table, held } => {
+                let i = id as usize;
+                if table.get(i).is_some_and(|s| s.is_some()) {
+                    self.stats.hits += 1;
+                } else {
+                    let mut buf = Box::new([0u8; BLOCK_SIZE]);
+                    self.source.fetch(id, &mut buf)?;
+                    self.stats.misses += 1;
+                    self.stats.remote_misses += remote as u64;
+                    if table.len() <= i {
+                        table.resize_with(i + 1, || None);
+                    }
+                    table[i] = Some(buf);
+                    *held += 1;
+                }
+                match table.get(i) {
+                    Some(Some(b)) => Ok(&**b),
+                    _ => Err(BlockError::Unavailable { id, reason: "cache lost a block it just stored".into() }),
+                }
+            }
         }
     }
 
     /// Drops every cached block of the given ids range (used when a phase rewrites
     /// blocks, e.g. vertex energies).
     pub fn invalidate_range(&mut self, ids: std::ops::Range<u32>) {
-        for id in ids {
-            self.lru.pop(&id);
+        match &mut self.slots {
+            Slots::Bounded(lru) => {
+                for id in ids {
+                    lru.pop(&id);
+                }
+            }
+            Slots::Unlimited { table, held } => {
+                for id in ids {
+                    if let Some(slot) = table.get_mut(id as usize) {
+                        if slot.take().is_some() {
+                            *held -= 1;
+                        }
+                    }
+                }
+            }
         }
     }
 
@@ -116,12 +148,15 @@ impl BlockCache {
 
     /// Blocks currently held.
     pub fn len(&self) -> usize {
-        self.lru.len()
+        match &self.slots {
+            Slots::Bounded(lru) => lru.len(),
+            Slots::Unlimited { held, .. } => *held,
+        }
     }
 
     /// True when no block is held.
     pub fn is_empty(&self) -> bool {
-        self.lru.is_empty()
+        self.len() == 0
     }
 }
 
@@ -169,9 +204,6 @@ mod tests {
     #[test]
     fn out_of_range_is_an_error() {
         let mut c = BlockCache::new(store(2), Some(2));
-        assert_eq!(
-            c.get(5).unwrap_err(),
-            BlockError::OutOfRange { id: 5, total: 2 }
-        );
+        assert_eq!(c.get(5).unwrap_err(), BlockError::OutOfRange { id: 5, total: 2 });
     }
 }

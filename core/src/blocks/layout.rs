@@ -72,26 +72,17 @@ impl BlockLayout {
     /// Block and byte offset of patch `p`.
     pub fn patch_slot(&self, p: u32) -> (u32, usize) {
         let p = p as usize;
-        (
-            self.patch_base + (p / PATCHES_PER_BLOCK) as u32,
-            (p % PATCHES_PER_BLOCK) * PATCH_RECORD,
-        )
+        (self.patch_base + (p / PATCHES_PER_BLOCK) as u32, (p % PATCHES_PER_BLOCK) * PATCH_RECORD)
     }
     /// Block and byte offset of element `e`.
     pub fn element_slot(&self, e: u32) -> (u32, usize) {
         let e = e as usize;
-        (
-            self.element_base + (e / ELEMENTS_PER_BLOCK) as u32,
-            (e % ELEMENTS_PER_BLOCK) * ELEMENT_RECORD,
-        )
+        (self.element_base + (e / ELEMENTS_PER_BLOCK) as u32, (e % ELEMENTS_PER_BLOCK) * ELEMENT_RECORD)
     }
     /// Block and byte offset of vertex `v`.
     pub fn vertex_slot(&self, v: u32) -> (u32, usize) {
         let v = v as usize;
-        (
-            self.vertex_base + (v / VERTICES_PER_BLOCK) as u32,
-            (v % VERTICES_PER_BLOCK) * VERTEX_RECORD,
-        )
+        (self.vertex_base + (v / VERTICES_PER_BLOCK) as u32, (v % VERTICES_PER_BLOCK) * VERTEX_RECORD)
     }
     /// Number of vertex-energy blocks.
     pub fn vertex_blocks(&self) -> u32 {
@@ -161,13 +152,8 @@ impl PatchRecord {
     }
     /// Reads the record at byte offset `at`.
     pub fn decode(b: &Block, at: usize) -> PatchRecord {
-        let p = |i: usize| {
-            Vec3::new(
-                get_f64(b, at + 24 * i),
-                get_f64(b, at + 24 * i + 8),
-                get_f64(b, at + 24 * i + 16),
-            )
-        };
+        let p =
+            |i: usize| Vec3::new(get_f64(b, at + 24 * i), get_f64(b, at + 24 * i + 8), get_f64(b, at + 24 * i + 16));
         PatchRecord {
             v: [p(0), p(1), p(2)],
             material: get_u32(b, at + 72),
@@ -207,11 +193,7 @@ pub fn encode_vertex_energy(b: &mut Block, at: usize, e: Rgb) {
 
 /// Reads a vertex irradiance at byte offset `at`.
 pub fn decode_vertex_energy(b: &Block, at: usize) -> Rgb {
-    Rgb([
-        get_f32(b, at) as f64,
-        get_f32(b, at + 4) as f64,
-        get_f32(b, at + 8) as f64,
-    ])
+    Rgb([get_f32(b, at) as f64, get_f32(b, at + 4) as f64, get_f32(b, at + 8) as f64])
 }
 
 /// Writes the header of a subspace block: number of ids in it, next block of the chain.
@@ -241,26 +223,14 @@ mod tests {
     fn records_round_trip() {
         let mut b = [0u8; BLOCK_SIZE];
         let p = PatchRecord {
-            v: [
-                Vec3::new(1.0, 2.0, 3.0),
-                Vec3::new(-4.0, 5.5, 6.0),
-                Vec3::new(1e5, 0.1, -0.0),
-            ],
+            v: [Vec3::new(1.0, 2.0, 3.0), Vec3::new(-4.0, 5.5, 6.0), Vec3::new(1e5, 0.1, -0.0)],
             material: 7,
             subdivisions: 20,
             first_element: 12345,
         };
         p.encode(&mut b, PATCH_RECORD * (PATCHES_PER_BLOCK - 1));
-        assert_eq!(
-            PatchRecord::decode(&b, PATCH_RECORD * (PATCHES_PER_BLOCK - 1)),
-            p
-        );
-        let e = ElementRecord {
-            patch: 3,
-            local: 9,
-            vertices: [1, 2, 3],
-            area: 0.25,
-        };
+        assert_eq!(PatchRecord::decode(&b, PATCH_RECORD * (PATCHES_PER_BLOCK - 1)), p);
+        let e = ElementRecord { patch: 3, local: 9, vertices: [1, 2, 3], area: 0.25 };
         e.encode(&mut b, 0);
         assert_eq!(ElementRecord::decode(&b, 0), e);
         encode_vertex_energy(&mut b, 24, Rgb::new(1.5, 2.0, 0.25));

@@ -53,9 +53,7 @@ pub struct MemStore {
 impl MemStore {
     /// A store holding `blocks` (block id = index).
     pub fn new(blocks: Vec<Box<Block>>) -> Self {
-        MemStore {
-            blocks: RwLock::new(blocks),
-        }
+        MemStore { blocks: RwLock::new(blocks) }
     }
     /// Number of blocks.
     pub fn len(&self) -> u32 {
@@ -93,10 +91,7 @@ impl BlockSource for MemStore {
                 out.copy_from_slice(&b[..]);
                 Ok(())
             }
-            None => Err(BlockError::OutOfRange {
-                id,
-                total: g.len() as u32,
-            }),
+            None => Err(BlockError::OutOfRange { id, total: g.len() as u32 }),
         }
     }
 }

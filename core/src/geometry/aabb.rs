@@ -19,17 +19,11 @@ impl Aabb {
     };
     /// Smallest box holding `self` and `p`.
     pub fn grow(self, p: Vec3) -> Aabb {
-        Aabb {
-            min: self.min.min(p),
-            max: self.max.max(p),
-        }
+        Aabb { min: self.min.min(p), max: self.max.max(p) }
     }
     /// Smallest box holding both.
     pub fn union(self, o: Aabb) -> Aabb {
-        Aabb {
-            min: self.min.min(o.min),
-            max: self.max.max(o.max),
-        }
+        Aabb { min: self.min.min(o.min), max: self.max.max(o.max) }
     }
     /// Box of a triangle.
     pub fn of_triangle(v: &[Vec3; 3]) -> Aabb {
@@ -66,13 +60,7 @@ pub fn triangle_overlaps_box(tri: &[Vec3; 3], bmin: Vec3, bmax: Vec3) -> bool {
         return false;
     }
     // Nine edge axes.
-    let axes_of = |ed: Vec3| {
-        [
-            Vec3::new(0.0, -ed.z, ed.y),
-            Vec3::new(ed.z, 0.0, -ed.x),
-            Vec3::new(-ed.y, ed.x, 0.0),
-        ]
-    };
+    let axes_of = |ed: Vec3| [Vec3::new(0.0, -ed.z, ed.y), Vec3::new(ed.z, 0.0, -ed.x), Vec3::new(-ed.y, ed.x, 0.0)];
     for ed in e {
         for a in axes_of(ed) {
             if a == Vec3::ZERO {
@@ -98,44 +86,16 @@ mod tests {
     fn diagonal_triangle_skips_corner_box_its_bbox_covers() {
         // Triangle near the x+y=2 plane corner; its bbox covers box [0,0.5]^3 but the
         // triangle does not.
-        let tri = [
-            Vec3::new(2.0, 0.0, 0.0),
-            Vec3::new(0.0, 2.0, 0.0),
-            Vec3::new(0.0, 0.0, 2.0),
-        ];
-        assert!(!triangle_overlaps_box(
-            &tri,
-            Vec3::ZERO,
-            Vec3::new(0.5, 0.5, 0.5)
-        ));
-        assert!(triangle_overlaps_box(
-            &tri,
-            Vec3::new(0.5, 0.5, 0.5),
-            Vec3::new(1.0, 1.0, 1.0)
-        ));
+        let tri = [Vec3::new(2.0, 0.0, 0.0), Vec3::new(0.0, 2.0, 0.0), Vec3::new(0.0, 0.0, 2.0)];
+        assert!(!triangle_overlaps_box(&tri, Vec3::ZERO, Vec3::new(0.5, 0.5, 0.5)));
+        assert!(triangle_overlaps_box(&tri, Vec3::new(0.5, 0.5, 0.5), Vec3::new(1.0, 1.0, 1.0)));
     }
 
     #[test]
     fn touching_face_counts() {
-        let tri = [
-            Vec3::new(0.0, 0.0, 1.0),
-            Vec3::new(1.0, 0.0, 1.0),
-            Vec3::new(0.0, 1.0, 1.0),
-        ];
-        assert!(triangle_overlaps_box(
-            &tri,
-            Vec3::ZERO,
-            Vec3::new(1.0, 1.0, 1.0)
-        ));
-        assert!(triangle_overlaps_box(
-            &tri,
-            Vec3::new(0.0, 0.0, 1.0),
-            Vec3::new(1.0, 1.0, 2.0)
-        ));
-        assert!(!triangle_overlaps_box(
-            &tri,
-            Vec3::new(0.0, 0.0, 1.1),
-            Vec3::new(1.0, 1.0, 2.0)
-        ));
+        let tri = [Vec3::new(0.0, 0.0, 1.0), Vec3::new(1.0, 0.0, 1.0), Vec3::new(0.0, 1.0, 1.0)];
+        assert!(triangle_overlaps_box(&tri, Vec3::ZERO, Vec3::new(1.0, 1.0, 1.0)));
+        assert!(triangle_overlaps_box(&tri, Vec3::new(0.0, 0.0, 1.0), Vec3::new(1.0, 1.0, 2.0)));
+        assert!(!triangle_overlaps_box(&tri, Vec3::new(0.0, 0.0, 1.1), Vec3::new(1.0, 1.0, 2.0)));
     }
 }

@@ -30,8 +30,7 @@ pub fn sample_spherical_triangle(p: Vec3, v: &[Vec3; 3], u0: f64, u1: f64) -> Op
     let n_ab = a.cross(b);
     let n_bc = b.cross(c);
     let n_ca = c.cross(a);
-    if n_ab.length_squared() == 0.0 || n_bc.length_squared() == 0.0 || n_ca.length_squared() == 0.0
-    {
+    if n_ab.length_squared() == 0.0 || n_bc.length_squared() == 0.0 || n_ca.length_squared() == 0.0 {
         return None;
     }
     let (n_ab, n_bc, n_ca) = (n_ab.normalized(), n_bc.normalized(), n_ca.normalized());
@@ -50,11 +49,7 @@ pub fn sample_spherical_triangle(p: Vec3, v: &[Vec3; 3], u0: f64, u1: f64) -> Op
     let k1 = cos_phi + cos_alpha;
     let k2 = sin_phi - sin_alpha * a.dot(b);
     let den = (k2 * sin_phi + k1 * cos_phi) * sin_alpha;
-    let mut cos_bp = if den != 0.0 {
-        (k2 + (k2 * cos_phi - k1 * sin_phi) * cos_alpha) / den
-    } else {
-        1.0
-    };
+    let mut cos_bp = if den != 0.0 { (k2 + (k2 * cos_phi - k1 * sin_phi) * cos_alpha) / den } else { 1.0 };
     if !cos_bp.is_finite() {
         cos_bp = 1.0;
     }
@@ -88,11 +83,7 @@ mod tests {
 
     #[test]
     fn spherical_samples_land_on_the_triangle_and_are_uniform_in_solid_angle() {
-        let tri = [
-            Vec3::new(-1.0, -0.5, -2.0),
-            Vec3::new(2.0, -0.3, -1.0),
-            Vec3::new(0.2, 1.5, -3.0),
-        ];
+        let tri = [Vec3::new(-1.0, -0.5, -2.0), Vec3::new(2.0, -0.3, -1.0), Vec3::new(0.2, 1.5, -3.0)];
         let p = Vec3::new(0.1, 0.2, 0.3);
         // Split the triangle in two halves by a median; the share of samples in each half
         // must match the share of solid angle.
@@ -106,19 +97,13 @@ mod tests {
             let u1 = ((i / n) as f64 + 0.5) / n as f64;
             let w = sample_spherical_triangle(p, &tri, u0, u1).unwrap();
             let r = Ray::new(p, w);
-            assert!(
-                intersect_watertight(&r, &tri, 0.0, f64::INFINITY).is_some(),
-                "sample missed the triangle"
-            );
+            assert!(intersect_watertight(&r, &tri, 0.0, f64::INFINITY).is_some(), "sample missed the triangle");
             if intersect_watertight(&r, &half, 0.0, f64::INFINITY).is_some() {
                 inside += 1;
             }
         }
         let got = inside as f64 / (n * n) as f64;
-        assert!(
-            (got - expected).abs() < 0.01,
-            "got {got}, expected {expected}"
-        );
+        assert!((got - expected).abs() < 0.01, "got {got}, expected {expected}");
     }
 
     #[test]
@@ -127,11 +112,7 @@ mod tests {
         let mut mean_cos = 0.0;
         let k = 32;
         for i in 0..k * k {
-            let w = cosine_hemisphere(
-                n,
-                ((i % k) as f64 + 0.5) / k as f64,
-                ((i / k) as f64 + 0.5) / k as f64,
-            );
+            let w = cosine_hemisphere(n, ((i % k) as f64 + 0.5) / k as f64, ((i / k) as f64 + 0.5) / k as f64);
             assert!(w.dot(n) >= 0.0);
             mean_cos += w.dot(n);
         }

@@ -73,10 +73,7 @@ pub fn intersect_watertight(ray: &Ray, v: &[Vec3; 3], tmin: f64, tmax: f64) -> O
         return None;
     }
     let inv = 1.0 / det;
-    Some(TriHit {
-        t,
-        bary: [u * inv, vv * inv, w * inv],
-    })
+    Some(TriHit { t, bary: [u * inv, vv * inv, w * inv] })
 }
 
 /// Area of a triangle.
@@ -110,11 +107,7 @@ mod tests {
     use super::*;
 
     fn tri() -> [Vec3; 3] {
-        [
-            Vec3::new(0.0, 0.0, 0.0),
-            Vec3::new(1.0, 0.0, 0.0),
-            Vec3::new(0.0, 1.0, 0.0),
-        ]
+        [Vec3::new(0.0, 0.0, 0.0), Vec3::new(1.0, 0.0, 0.0), Vec3::new(0.0, 1.0, 0.0)]
     }
 
     #[test]
@@ -130,16 +123,8 @@ mod tests {
     #[test]
     fn shared_edge_is_hit_by_one_of_two_triangles() {
         // Square split along its diagonal; rays aimed exactly at points of the diagonal.
-        let t1 = [
-            Vec3::new(0.0, 0.0, 0.0),
-            Vec3::new(1.0, 0.0, 0.0),
-            Vec3::new(1.0, 1.0, 0.0),
-        ];
-        let t2 = [
-            Vec3::new(0.0, 0.0, 0.0),
-            Vec3::new(1.0, 1.0, 0.0),
-            Vec3::new(0.0, 1.0, 0.0),
-        ];
+        let t1 = [Vec3::new(0.0, 0.0, 0.0), Vec3::new(1.0, 0.0, 0.0), Vec3::new(1.0, 1.0, 0.0)];
+        let t2 = [Vec3::new(0.0, 0.0, 0.0), Vec3::new(1.0, 1.0, 0.0), Vec3::new(0.0, 1.0, 0.0)];
         let o = Vec3::new(0.3, -0.7, 2.0);
         // Interior points of the diagonal (its ends are corners of the square's outline).
         for i in 1..1000 {
@@ -148,31 +133,20 @@ mod tests {
             let r = Ray::new(o, (target - o).normalized());
             let h1 = intersect_watertight(&r, &t1, 0.0, f64::INFINITY);
             let h2 = intersect_watertight(&r, &t2, 0.0, f64::INFINITY);
-            assert!(
-                h1.is_some() || h2.is_some(),
-                "ray through diagonal point {s} missed both"
-            );
+            assert!(h1.is_some() || h2.is_some(), "ray through diagonal point {s} missed both");
         }
     }
 
     #[test]
     fn degenerate_triangle_never_hits() {
-        let t = [
-            Vec3::new(0.0, 0.0, 0.0),
-            Vec3::new(1.0, 0.0, 0.0),
-            Vec3::new(2.0, 0.0, 0.0),
-        ];
+        let t = [Vec3::new(0.0, 0.0, 0.0), Vec3::new(1.0, 0.0, 0.0), Vec3::new(2.0, 0.0, 0.0)];
         let r = Ray::new(Vec3::new(1.0, 0.0, 1.0), Vec3::new(0.0, 0.0, -1.0));
         assert!(intersect_watertight(&r, &t, 0.0, f64::INFINITY).is_none());
     }
 
     #[test]
     fn non_finite_rays_never_hit() {
-        for d in [
-            Vec3::new(f64::NAN, 0.0, -1.0),
-            Vec3::new(0.0, 0.0, 0.0),
-            Vec3::new(0.0, 0.0, f64::INFINITY),
-        ] {
+        for d in [Vec3::new(f64::NAN, 0.0, -1.0), Vec3::new(0.0, 0.0, 0.0), Vec3::new(0.0, 0.0, f64::INFINITY)] {
             let r = Ray::new(Vec3::new(0.25, 0.25, 1.0), d);
             assert!(intersect_watertight(&r, &tri(), 0.0, f64::INFINITY).is_none());
         }
@@ -183,52 +157,17 @@ mod tests {
         // A unit cube around the origin: 12 triangles, total 4 pi.
         let c = |x: f64, y: f64, z: f64| Vec3::new(x, y, z);
         let faces = [
-            [
-                c(-1., -1., -1.),
-                c(1., -1., -1.),
-                c(1., 1., -1.),
-                c(-1., 1., -1.),
-            ],
-            [
-                c(-1., -1., 1.),
-                c(1., -1., 1.),
-                c(1., 1., 1.),
-                c(-1., 1., 1.),
-            ],
-            [
-                c(-1., -1., -1.),
-                c(1., -1., -1.),
-                c(1., -1., 1.),
-                c(-1., -1., 1.),
-            ],
-            [
-                c(-1., 1., -1.),
-                c(1., 1., -1.),
-                c(1., 1., 1.),
-                c(-1., 1., 1.),
-            ],
-            [
-                c(-1., -1., -1.),
-                c(-1., 1., -1.),
-                c(-1., 1., 1.),
-                c(-1., -1., 1.),
-            ],
-            [
-                c(1., -1., -1.),
-                c(1., 1., -1.),
-                c(1., 1., 1.),
-                c(1., -1., 1.),
-            ],
+            [c(-1., -1., -1.), c(1., -1., -1.), c(1., 1., -1.), c(-1., 1., -1.)],
+            [c(-1., -1., 1.), c(1., -1., 1.), c(1., 1., 1.), c(-1., 1., 1.)],
+            [c(-1., -1., -1.), c(1., -1., -1.), c(1., -1., 1.), c(-1., -1., 1.)],
+            [c(-1., 1., -1.), c(1., 1., -1.), c(1., 1., 1.), c(-1., 1., 1.)],
+            [c(-1., -1., -1.), c(-1., 1., -1.), c(-1., 1., 1.), c(-1., -1., 1.)],
+            [c(1., -1., -1.), c(1., 1., -1.), c(1., 1., 1.), c(1., -1., 1.)],
         ];
         let p = c(0.1, -0.2, 0.3);
-        let total: f64 = faces
-            .iter()
-            .map(|q| solid_angle(p, &[q[0], q[1], q[2]]) + solid_angle(p, &[q[0], q[2], q[3]]))
-            .sum();
-        assert!(
-            (total - 4.0 * std::f64::consts::PI).abs() < 1e-12,
-            "{total}"
-        );
+        let total: f64 =
+            faces.iter().map(|q| solid_angle(p, &[q[0], q[1], q[2]]) + solid_angle(p, &[q[0], q[2], q[3]])).sum();
+        assert!((total - 4.0 * std::f64::consts::PI).abs() < 1e-12, "{total}");
     }
 
     #[test]

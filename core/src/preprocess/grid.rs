@@ -21,17 +21,8 @@ pub(super) struct Grid {
 
 /// Padded scene bounds: a little margin everywhere, and some thickness on flat axes.
 fn bounds(mesh: &Mesh) -> Aabb {
-    let b = mesh
-        .patches
-        .iter()
-        .fold(Aabb::EMPTY, |acc, v| acc.union(Aabb::of_triangle(v)));
-    let scale = b
-        .min
-        .abs()
-        .max(b.max.abs())
-        .max_component()
-        .max(b.extent().max_component())
-        .max(1e-30);
+    let b = mesh.patches.iter().fold(Aabb::EMPTY, |acc, v| acc.union(Aabb::of_triangle(v)));
+    let scale = b.min.abs().max(b.max.abs()).max_component().max(b.extent().max_component()).max(1e-30);
     let ext = b.extent();
     let pad = |e: f64| {
         if e < 1e-6 * scale {
@@ -41,10 +32,7 @@ fn bounds(mesh: &Mesh) -> Aabb {
         }
     };
     let p = Vec3::new(pad(ext.x), pad(ext.y), pad(ext.z));
-    Aabb {
-        min: b.min - p,
-        max: b.max + p,
-    }
+    Aabb { min: b.min - p, max: b.max + p }
 }
 
 /// Cells per axis: the scene's choice, or about two patches' worth of near-cubic cells.
@@ -57,12 +45,7 @@ fn dims_for(spec: GridSpec, patches: usize, ext: Vec3) -> [u32; 3] {
     let longest = ext.max_component();
     let flat: Vec<bool> = e.iter().map(|&x| x < 1e-3 * longest).collect();
     let k = flat.iter().filter(|f| !**f).count().max(1) as f64;
-    let measure: f64 = e
-        .iter()
-        .zip(&flat)
-        .filter(|(_, f)| !**f)
-        .map(|(x, _)| *x)
-        .product();
+    let measure: f64 = e.iter().zip(&flat).filter(|(_, f)| !**f).map(|(x, _)| *x).product();
     let side = (measure / target).powf(1.0 / k);
     let mut d = [1u32; 3];
     for a in 0..3 {
@@ -78,11 +61,7 @@ pub(super) fn build(scene: &Scene, mesh: &Mesh) -> Grid {
     let dims = dims_for(scene.settings.grid, mesh.patches.len(), b.extent());
     let cs = {
         let e = b.extent();
-        Vec3::new(
-            e.x / dims[0] as f64,
-            e.y / dims[1] as f64,
-            e.z / dims[2] as f64,
-        )
+        Vec3::new(e.x / dims[0] as f64, e.y / dims[1] as f64, e.z / dims[2] as f64)
     };
     let cell_of = |x: f64, a: usize| -> u32 {
         let c = ((x - b.min[a]) / cs[a]).floor();
@@ -99,32 +78,19 @@ pub(super) fn build(scene: &Scene, mesh: &Mesh) -> Grid {
         .enumerate()
         .flat_map_iter(|(p, v)| {
             let bb = Aabb::of_triangle(v);
-            let lo = [
-                cell_of(bb.min.x, 0),
-                cell_of(bb.min.y, 1),
-                cell_of(bb.min.z, 2),
-            ];
-            let hi = [
-                cell_of(bb.max.x, 0),
-                cell_of(bb.max.y, 1),
-                cell_of(bb.max.z, 2),
-            ];
+            let lo = [cell_of(bb.min.x, 0), cell_of(bb.min.y, 1), cell_of(bb.min.z, 2)];
+            let hi = [cell_of(bb.max.x, 0), cell_of(bb.max.y, 1), cell_of(bb.max.z, 2)];
             let mut out = Vec::new();
             for z in lo[2]..=hi[2] {
                 for y in lo[1]..=hi[1] {
                     for x in lo[0]..=hi[0] {
-                        let cmin = Vec3::new(
-                            b.min.x + cs.x * x as f64,
-                            b.min.y + cs.y * y as f64,
-                            b.min.z + cs.z * z as f64,
-                        );
+                        let cmin =
+                            Vec3::new(b.min.x + cs.x * x as f64, b.min.y + cs.y * y as f64, b.min.z + cs.z * z as f64);
                         // Grow the cell by a hair so that patches lying exactly on a cell
                         // face are listed on both sides despite rounding.
                         let eps = cs * 1e-9;
                         if triangle_overlaps_box(v, cmin - eps, cmin + cs + eps) {
-                            let cell = (z as usize * dims[1] as usize + y as usize)
-                                * dims[0] as usize
-                                + x as usize;
+                            let cell = (z as usize * dims[1] as usize + y as usize) * dims[0] as usize + x as usize;
                             out.push((cell as u32, p as u32));
                         }
                     }
@@ -138,10 +104,5 @@ pub(super) fn build(scene: &Scene, mesh: &Mesh) -> Grid {
     for (c, p) in pairs {
         cells[c as usize].push(p);
     }
-    Grid {
-        min: b.min,
-        max: b.max,
-        dims,
-        cells,
-    }
+    Grid { min: b.min, max: b.max, dims, cells }
 }

@@ -5,9 +5,7 @@ use super::{ElementInfo, PrepareError};
 use crate::geometry::triangle_area;
 use crate::math::Vec3;
 use crate::scene::Scene;
-use crate::subdivision::{
-    element_corners, element_count, lattice_count, lattice_index, lattice_point,
-};
+use crate::subdivision::{element_corners, element_count, lattice_count, lattice_index, lattice_point};
 use rayon::prelude::*;
 
 /// Patches subdivided into elements.
@@ -32,10 +30,7 @@ pub fn subdivisions_of(v: &[Vec3; 3], fixed: Option<u32>, element_size: f64) -> 
     if let Some(n) = fixed {
         return n.clamp(1, 4096);
     }
-    let longest = (v[1] - v[0])
-        .length()
-        .max((v[2] - v[1]).length())
-        .max((v[0] - v[2]).length());
+    let longest = (v[1] - v[0]).length().max((v[2] - v[1]).length()).max((v[0] - v[2]).length());
     let n = (longest / element_size).ceil();
     if n.is_finite() {
         n.clamp(1.0, 4096.0) as u32
@@ -47,28 +42,16 @@ pub fn subdivisions_of(v: &[Vec3; 3], fixed: Option<u32>, element_size: f64) -> 
 pub(super) fn build(scene: &Scene) -> Result<Mesh, PrepareError> {
     let s = &scene.settings;
     let patches: Vec<[Vec3; 3]> = scene.patches.iter().map(|p| p.vertices).collect();
-    let subdivisions: Vec<u32> = scene
-        .patches
-        .par_iter()
-        .map(|p| subdivisions_of(&p.vertices, p.subdivisions, s.element_size))
-        .collect();
+    let subdivisions: Vec<u32> =
+        scene.patches.par_iter().map(|p| subdivisions_of(&p.vertices, p.subdivisions, s.element_size)).collect();
     let estimate: u64 = subdivisions.iter().map(|&n| element_count(n)).sum();
     if estimate > s.max_elements {
-        return Err(PrepareError::TooManyElements {
-            file: scene.name.clone(),
-            estimate,
-            limit: s.max_elements,
-        });
+        return Err(PrepareError::TooManyElements { file: scene.name.clone(), estimate, limit: s.max_elements });
     }
     let lattice_total: u64 = subdivisions.iter().map(|&n| lattice_count(n)).sum();
-    if estimate >= u32::MAX as u64 / 2
-        || lattice_total >= u32::MAX as u64 / 2
-        || patches.len() >= u32::MAX as usize / 2
+    if estimate >= u32::MAX as u64 / 2 || lattice_total >= u32::MAX as u64 / 2 || patches.len() >= u32::MAX as usize / 2
     {
-        return Err(PrepareError::TooLarge {
-            file: scene.name.clone(),
-            what: format!("{estimate} elements"),
-        });
+        return Err(PrepareError::TooLarge { file: scene.name.clone(), what: format!("{estimate} elements") });
     }
     let mut first_element = Vec::with_capacity(patches.len());
     let mut acc = 0u32;
@@ -117,11 +100,7 @@ mod tests {
 
     #[test]
     fn subdivision_count_follows_element_size() {
-        let v = [
-            Vec3::ZERO,
-            Vec3::new(1.0, 0.0, 0.0),
-            Vec3::new(0.0, 1.0, 0.0),
-        ];
+        let v = [Vec3::ZERO, Vec3::new(1.0, 0.0, 0.0), Vec3::new(0.0, 1.0, 0.0)];
         assert_eq!(subdivisions_of(&v, None, 0.1), 15); // diagonal 1.414
         assert_eq!(subdivisions_of(&v, Some(20), 0.1), 20);
         assert_eq!(subdivisions_of(&v, None, 10.0), 1);

@@ -88,9 +88,7 @@ pub fn prepare(scene: &Scene) -> Result<PreparedScene, PrepareError> {
 pub fn prepare_with_plan(scene: &Scene, plan: EffectsPlan) -> Result<PreparedScene, PrepareError> {
     let start = Instant::now();
     if scene.patches.is_empty() {
-        return Err(PrepareError::Empty {
-            file: scene.name.clone(),
-        });
+        return Err(PrepareError::Empty { file: scene.name.clone() });
     }
     let mesh = mesh::build(scene)?;
     let grid = grid::build(scene, &mesh);

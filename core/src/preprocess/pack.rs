@@ -29,11 +29,7 @@ pub(super) fn pack(mesh: &Mesh, grid: &Grid) -> Packed {
         let first = blocks.len() as u32;
         for (k, chunk) in chunks.iter().enumerate() {
             let mut b = zero_block();
-            let next = if k + 1 < chunks.len() {
-                first + k as u32 + 1
-            } else {
-                NO_BLOCK
-            };
+            let next = if k + 1 < chunks.len() { first + k as u32 + 1 } else { NO_BLOCK };
             encode_subspace_header(&mut b, chunk.len() as u32, next);
             for (i, &id) in chunk.iter().enumerate() {
                 encode_subspace_id(&mut b, i, id);
@@ -44,10 +40,7 @@ pub(super) fn pack(mesh: &Mesh, grid: &Grid) -> Packed {
     let subspace_blocks = blocks.len() as u32;
 
     let patch_base = blocks.len() as u32;
-    for chunk in (0..mesh.patches.len())
-        .collect::<Vec<_>>()
-        .chunks(PATCHES_PER_BLOCK)
-    {
+    for chunk in (0..mesh.patches.len()).collect::<Vec<_>>().chunks(PATCHES_PER_BLOCK) {
         let mut b = zero_block();
         for (k, &p) in chunk.iter().enumerate() {
             PatchRecord {
@@ -66,31 +59,17 @@ pub(super) fn pack(mesh: &Mesh, grid: &Grid) -> Packed {
         for (k, e) in chunk.iter().enumerate() {
             let id = (chunk_idx * ELEMENTS_PER_BLOCK + k) as u32;
             let local = id - mesh.first_element[e.patch as usize];
-            ElementRecord {
-                patch: e.patch,
-                local,
-                vertices: e.vertices,
-                area: e.area,
-            }
-            .encode(&mut b, k * ELEMENT_RECORD);
+            ElementRecord { patch: e.patch, local, vertices: e.vertices, area: e.area }
+                .encode(&mut b, k * ELEMENT_RECORD);
         }
         blocks.push(b);
     }
     let vertex_base = blocks.len() as u32;
-    let vertex_blocks = mesh
-        .vertex_positions
-        .len()
-        .div_ceil(VERTICES_PER_BLOCK)
-        .max(1);
+    let vertex_blocks = mesh.vertex_positions.len().div_ceil(VERTICES_PER_BLOCK).max(1);
     for _ in 0..vertex_blocks {
         blocks.push(zero_block());
     }
-    let layout = BlockLayout {
-        patch_base,
-        element_base,
-        vertex_base,
-        total: blocks.len() as u32,
-    };
+    let layout = BlockLayout { patch_base, element_base, vertex_base, total: blocks.len() as u32 };
     let counts = Counts {
         patches: mesh.patches.len() as u32,
         elements: mesh.elements.len() as u32,
@@ -104,12 +83,7 @@ pub(super) fn pack(mesh: &Mesh, grid: &Grid) -> Packed {
     Packed {
         blocks,
         layout,
-        grid: GridHeader {
-            min: grid.min,
-            max: grid.max,
-            dims: grid.dims,
-            cell_first_block,
-        },
+        grid: GridHeader { min: grid.min, max: grid.max, dims: grid.dims, cell_first_block },
         counts,
     }
 }

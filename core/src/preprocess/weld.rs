@@ -39,10 +39,7 @@ pub(super) fn weld(patches: &[[Vec3; 3]], subdivisions: &[u32]) -> Welded {
         lattice_offset.push(total);
         total += lattice_count(n);
     }
-    let normals: Vec<Vec3> = patches
-        .par_iter()
-        .map(|v| (v[1] - v[0]).cross(v[2] - v[0]).normalized())
-        .collect();
+    let normals: Vec<Vec3> = patches.par_iter().map(|v| (v[1] - v[0]).cross(v[2] - v[0]).normalized()).collect();
 
     // Positions of every lattice point, patch by patch.
     let positions: Vec<Vec3> = (0..patches.len())
@@ -62,12 +59,10 @@ pub(super) fn weld(patches: &[[Vec3; 3]], subdivisions: &[u32]) -> Welded {
             let off = lattice_offset[p];
             let positions = &positions;
             (0..=n).flat_map(move |j| {
-                (0..=n - j)
-                    .filter(move |&i| on_boundary(n, i, j))
-                    .map(move |i| {
-                        let g = off + lattice_index(n, i, j) as u64;
-                        (key(positions[g as usize]), p as u32, g)
-                    })
+                (0..=n - j).filter(move |&i| on_boundary(n, i, j)).map(move |i| {
+                    let g = off + lattice_index(n, i, j) as u64;
+                    (key(positions[g as usize]), p as u32, g)
+                })
             })
         })
         .collect();
@@ -83,9 +78,8 @@ pub(super) fn weld(patches: &[[Vec3; 3]], subdivisions: &[u32]) -> Welded {
         for b in start + 1..end {
             let (_, pb, gb) = boundary[b];
             let nb = normals[pb as usize];
-            if let Some(&(_, _, ga)) = boundary[start..b]
-                .iter()
-                .find(|(_, pa, _)| normals[*pa as usize].dot(nb) > 1.0 - 1e-9)
+            if let Some(&(_, _, ga)) =
+                boundary[start..b].iter().find(|(_, pa, _)| normals[*pa as usize].dot(nb) > 1.0 - 1e-9)
             {
                 let (ra, rb) = (find(&mut parent, ga), find(&mut parent, gb));
                 let (lo, hi) = (ra.min(rb), ra.max(rb));
@@ -106,11 +100,7 @@ pub(super) fn weld(patches: &[[Vec3; 3]], subdivisions: &[u32]) -> Welded {
             ids[g as usize] = ids[r as usize];
         }
     }
-    Welded {
-        lattice_offset,
-        ids,
-        positions: out_positions,
-    }
+    Welded { lattice_offset, ids, positions: out_positions }
 }
 
 #[cfg(test)]
@@ -130,16 +120,8 @@ mod tests {
 
     #[test]
     fn a_corner_between_walls_keeps_separate_vertices() {
-        let floor = [
-            Vec3::new(0.0, 0.0, 0.0),
-            Vec3::new(1.0, 0.0, 0.0),
-            Vec3::new(0.0, 0.0, -1.0),
-        ];
-        let wall = [
-            Vec3::new(0.0, 0.0, 0.0),
-            Vec3::new(0.0, 1.0, 0.0),
-            Vec3::new(1.0, 0.0, 0.0),
-        ];
+        let floor = [Vec3::new(0.0, 0.0, 0.0), Vec3::new(1.0, 0.0, 0.0), Vec3::new(0.0, 0.0, -1.0)];
+        let wall = [Vec3::new(0.0, 0.0, 0.0), Vec3::new(0.0, 1.0, 0.0), Vec3::new(1.0, 0.0, 0.0)];
         let w = weld(&[floor, wall], &[2, 2]);
         assert_eq!(w.positions.len(), 12);
     }

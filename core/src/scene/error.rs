@@ -20,10 +20,6 @@ pub struct SceneError {
 impl SceneError {
     /// Builds an error.
     pub fn new(loc: SourceLoc, field: impl Into<String>, message: impl Into<String>) -> Self {
-        SceneError {
-            loc,
-            field: field.into(),
-            message: message.into(),
-        }
+        SceneError { loc, field: field.into(), message: message.into() }
     }
 }

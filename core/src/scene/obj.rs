@@ -57,13 +57,10 @@ pub(super) fn load_mesh(
     read: &dyn Fn(&Path) -> std::io::Result<String>,
     materials: &mut MaterialTable,
 ) -> Result<Vec<([Vec3; 3], u32)>, SceneError> {
-    let scene_err = |name: &str, msg: String| {
-        SceneError::new(entry.at.clone(), format!("{}.{name}", entry.field), msg)
-    };
+    let scene_err = |name: &str, msg: String| SceneError::new(entry.at.clone(), format!("{}.{name}", entry.field), msg);
     let obj_path = base_dir.join(entry.obj);
     let obj_label = obj_path.display().to_string();
-    let text = read(&obj_path)
-        .map_err(|e| scene_err("obj", format!("cannot read OBJ file '{obj_label}': {e}")))?;
+    let text = read(&obj_path).map_err(|e| scene_err("obj", format!("cannot read OBJ file '{obj_label}': {e}")))?;
     let mesh = parse_obj(&obj_label, &text)?;
 
     // Material of each `usemtl` name (None: defined nowhere, reported at its first face).
@@ -72,11 +69,7 @@ pub(super) fn load_mesh(
         let mtl = load_mtllibs(&mesh, &obj_path, &obj_label, read)?;
         for name in &mesh.usemtl_names {
             let id = match mtl.iter().find(|mm| mm.name == *name) {
-                Some(mm) => Some(
-                    materials
-                        .add_mtl(entry, mm)
-                        .map_err(|m| scene_err("obj", m))?,
-                ),
+                Some(mm) => Some(materials.add_mtl(entry, mm).map_err(|m| scene_err("obj", m))?),
                 None => materials.toml.get(name).copied(),
             };
             usemtl_ids.push(id);
@@ -110,31 +103,21 @@ pub(super) fn load_mesh(
         let mut v = [Vec3::ZERO; 3];
         for (o, &k) in v.iter_mut().zip(&face.corners) {
             // parse_obj checked every index; stay safe anyway.
-            let p = mesh
-                .positions
-                .get(k)
-                .copied()
-                .ok_or_else(|| scene_err("obj", "face index out of range".into()))?;
+            let p = mesh.positions.get(k).copied().ok_or_else(|| scene_err("obj", "face index out of range".into()))?;
             *o = entry.transform.apply(p);
         }
         if flip {
             v.swap(1, 2);
         }
         if !v.iter().all(|p| p.is_finite()) {
-            return Err(scene_err(
-                "scale",
-                "the transform sends a vertex to infinity".into(),
-            ));
+            return Err(scene_err("scale", "the transform sends a vertex to infinity".into()));
         }
         if !is_degenerate(&v) {
             out.push((v, material));
         }
     }
     if out.is_empty() {
-        return Err(scene_err(
-            "obj",
-            format!("OBJ file '{obj_label}' has no faces of non-zero area"),
-        ));
+        return Err(scene_err("obj", format!("OBJ file '{obj_label}' has no faces of non-zero area")));
     }
     Ok(out)
 }
@@ -147,9 +130,7 @@ impl MaterialTable {
             return Ok(id);
         }
         if self.toml.contains_key(&name) {
-            return Err(format!(
-                "MTL material '{name}' clashes with a [[material]] of the same name"
-            ));
+            return Err(format!("MTL material '{name}' clashes with a [[material]] of the same name"));
         }
         let id = u32::try_from(self.list.len()).map_err(|_| "too many materials".to_string())?;
         self.list.push(Material {
@@ -173,18 +154,13 @@ fn load_mtllibs(
     obj_label: &str,
     read: &dyn Fn(&Path) -> std::io::Result<String>,
 ) -> Result<Vec<MtlMaterial>, SceneError> {
-    let dir = obj_path
-        .parent()
-        .map_or_else(PathBuf::new, Path::to_path_buf);
+    let dir = obj_path.parent().map_or_else(PathBuf::new, Path::to_path_buf);
     let mut out: Vec<MtlMaterial> = Vec::new();
     for lib in &mesh.mtllibs {
         let path = dir.join(&lib.file);
         let label = path.display().to_string();
         let text = read(&path).map_err(|e| {
-            let at = SourceLoc {
-                file: obj_label.to_string(),
-                line: lib.line,
-            };
+            let at = SourceLoc { file: obj_label.to_string(), line: lib.line };
             SceneError::new(at, "mtllib", format!("cannot read MTL file '{label}': {e}"))
         })?;
         for mm in parse_mtl(&label, &text)? {
@@ -254,10 +230,8 @@ const OBJ_IGNORED: &[&str] = &[
     "csh",
 ];
 /// OBJ free-form statements, which are refused rather than silently dropped.
-const OBJ_FREEFORM: &[&str] = &[
-    "cstype", "deg", "bmat", "step", "curv", "curv2", "surf", "parm", "trim", "hole", "scrv", "sp",
-    "end", "con",
-];
+const OBJ_FREEFORM: &[&str] =
+    &["cstype", "deg", "bmat", "step", "curv", "curv2", "surf", "parm", "trim", "hole", "scrv", "sp", "end", "con"];
 
 /// Parses an OBJ file; `label` names it in errors.
 pub(super) fn parse_obj(label: &str, text: &str) -> Result<ObjMesh, SceneError> {
@@ -265,16 +239,7 @@ pub(super) fn parse_obj(label: &str, text: &str) -> Result<ObjMesh, SceneError> 
     let mut current: Option<usize> = None;
     for (n, raw_line) in text.lines().enumerate() {
         let line = u32::try_from(n + 1).unwrap_or(u32::MAX);
-        let err = |msg: String| {
-            SceneError::new(
-                SourceLoc {
-                    file: label.to_string(),
-                    line,
-                },
-                "obj",
-                msg,
-            )
-        };
+        let err = |msg: String| SceneError::new(SourceLoc { file: label.to_string(), line }, "obj", msg);
         let content = raw_line.split('#').next().unwrap_or("").trim();
         let mut tokens = content.split_whitespace();
         let Some(keyword) = tokens.next() else {
@@ -302,19 +267,12 @@ pub(super) fn parse_obj(label: &str, text: &str) -> Result<ObjMesh, SceneError> 
                     .collect::<Result<Vec<_>, _>>()
                     .map_err(|m| err(format!("f: {m}")))?;
                 if corners.len() < 3 {
-                    return Err(err(format!(
-                        "f needs at least 3 vertices, found {}",
-                        corners.len()
-                    )));
+                    return Err(err(format!("f needs at least 3 vertices, found {}", corners.len())));
                 }
                 let first = corners[0];
                 for pair in corners[1..].windows(2) {
                     if let [b, c] = pair {
-                        mesh.faces.push(ObjFace {
-                            corners: [first, *b, *c],
-                            usemtl: current,
-                            line,
-                        });
+                        mesh.faces.push(ObjFace { corners: [first, *b, *c], usemtl: current, line });
                     }
                 }
             }
@@ -333,19 +291,14 @@ pub(super) fn parse_obj(label: &str, text: &str) -> Result<ObjMesh, SceneError> 
             }
             "mtllib" => {
                 let before = mesh.mtllibs.len();
-                mesh.mtllibs.extend(tokens.map(|t| MtlLib {
-                    file: t.to_string(),
-                    line,
-                }));
+                mesh.mtllibs.extend(tokens.map(|t| MtlLib { file: t.to_string(), line }));
                 if mesh.mtllibs.len() == before {
                     return Err(err("mtllib needs a file name".to_string()));
                 }
             }
             k if OBJ_IGNORED.contains(&k) => {}
             k if OBJ_FREEFORM.contains(&k) => {
-                return Err(err(format!(
-                    "free-form geometry ('{k}') is not supported: export triangles or polygons"
-                )));
+                return Err(err(format!("free-form geometry ('{k}') is not supported: export triangles or polygons")));
             }
             k => return Err(err(format!("unknown statement '{}'", truncate(k)))),
         }
@@ -361,15 +314,10 @@ fn resolve_corner(tok: &str, count: usize) -> Result<usize, String> {
     for p in parts {
         extra += 1;
         if extra > 2 || (!p.is_empty() && p.parse::<i64>().is_err()) {
-            return Err(format!(
-                "'{}' is not a vertex reference (v, v/vt, v//vn or v/vt/vn)",
-                truncate(tok)
-            ));
+            return Err(format!("'{}' is not a vertex reference (v, v/vt, v//vn or v/vt/vn)", truncate(tok)));
         }
     }
-    let i: i64 = v
-        .parse()
-        .map_err(|_| format!("'{}' is not a vertex index", truncate(tok)))?;
+    let i: i64 = v.parse().map_err(|_| format!("'{}' is not a vertex index", truncate(tok)))?;
     let count_i = i64::try_from(count).unwrap_or(i64::MAX);
     let index = match i {
         0 => return Err("vertex index 0 is not valid (OBJ indices start at 1)".to_string()),
@@ -377,9 +325,7 @@ fn resolve_corner(tok: &str, count: usize) -> Result<usize, String> {
         i => count_i.saturating_add(i),
     };
     if index < 0 || index >= count_i {
-        return Err(format!(
-            "vertex index {i} is out of range: {count} vertices defined so far"
-        ));
+        return Err(format!("vertex index {i} is out of range: {count} vertices defined so far"));
     }
     usize::try_from(index).map_err(|_| format!("vertex index {i} is out of range"))
 }
@@ -449,10 +395,7 @@ impl MtlPending {
     /// 4. `ior = Ni` clamped to `[1, 4]`, 1.5 when absent.
     fn finish(self, label: &str) -> MtlMaterial {
         let clamp = |c: Rgb| Rgb(c.0.map(|x| x.clamp(0.0, 1.0)));
-        let opacity = self
-            .d
-            .or(self.tr.map(|t| 1.0 - t))
-            .map(|o| o.clamp(0.0, 1.0));
+        let opacity = self.d.or(self.tr.map(|t| 1.0 - t)).map(|o| o.clamp(0.0, 1.0));
         let transmit = match (opacity, self.tf) {
             (Some(o), tf) => clamp(tf.unwrap_or(Rgb::splat(1.0))).scale(1.0 - o),
             (None, Some(tf)) => tf,
@@ -475,10 +418,7 @@ impl MtlPending {
             mirror,
             transmit,
             ior: self.ni.map_or(1.5, |n| n.clamp(1.0, 4.0)),
-            loc: SourceLoc {
-                file: label.to_string(),
-                line: self.line,
-            },
+            loc: SourceLoc { file: label.to_string(), line: self.line },
         }
     }
 }
@@ -490,16 +430,7 @@ pub(super) fn parse_mtl(label: &str, text: &str) -> Result<Vec<MtlMaterial>, Sce
     let mut pending: Option<MtlPending> = None;
     for (n, raw_line) in text.lines().enumerate() {
         let line = u32::try_from(n + 1).unwrap_or(u32::MAX);
-        let err = |msg: String| {
-            SceneError::new(
-                SourceLoc {
-                    file: label.to_string(),
-                    line,
-                },
-                "mtl",
-                msg,
-            )
-        };
+        let err = |msg: String| SceneError::new(SourceLoc { file: label.to_string(), line }, "mtl", msg);
         let content = raw_line.split('#').next().unwrap_or("").trim();
         let mut tokens = content.split_whitespace();
         let Some(keyword) = tokens.next() else {
@@ -514,16 +445,9 @@ pub(super) fn parse_mtl(label: &str, text: &str) -> Result<Vec<MtlMaterial>, Sce
                 done.push(p.finish(label));
             }
             if let Some(first) = done.iter().find(|m| m.name == name) {
-                return Err(err(format!(
-                    "material '{name}' is already defined at line {}",
-                    first.loc.line
-                )));
+                return Err(err(format!("material '{name}' is already defined at line {}", first.loc.line)));
             }
-            pending = Some(MtlPending {
-                name: name.to_string(),
-                line,
-                ..MtlPending::default()
-            });
+            pending = Some(MtlPending { name: name.to_string(), line, ..MtlPending::default() });
             continue;
         }
         let known = matches!(keyword, "Kd" | "Ks" | "Tf" | "d" | "Tr" | "Ni");
@@ -541,10 +465,7 @@ pub(super) fn parse_mtl(label: &str, text: &str) -> Result<Vec<MtlMaterial>, Sce
             "d" | "Tr" | "Ni" => {
                 let args: Vec<&str> = args.into_iter().filter(|a| *a != "-halo").collect();
                 let [a] = args.as_slice() else {
-                    return Err(err(format!(
-                        "{keyword} needs one number, found {}",
-                        args.len()
-                    )));
+                    return Err(err(format!("{keyword} needs one number, found {}", args.len())));
                 };
                 let x = parse_number(a).map_err(|m| err(format!("{keyword}: {m}")))?;
                 match keyword {
@@ -565,15 +486,9 @@ pub(super) fn parse_mtl(label: &str, text: &str) -> Result<Vec<MtlMaterial>, Sce
 /// An MTL colour: `r g b` or a single value for all three.
 fn parse_colour(args: &[&str]) -> Result<Rgb, String> {
     match args {
-        [first, ..] if *first == "spectral" || *first == "xyz" => {
-            Err(format!("'{first}' colours are not supported"))
-        }
+        [first, ..] if *first == "spectral" || *first == "xyz" => Err(format!("'{first}' colours are not supported")),
         [v] => parse_number(v).map(Rgb::splat),
-        [r, g, b] => Ok(Rgb::new(
-            parse_number(r)?,
-            parse_number(g)?,
-            parse_number(b)?,
-        )),
+        [r, g, b] => Ok(Rgb::new(parse_number(r)?, parse_number(g)?, parse_number(b)?)),
         _ => Err(format!("expected 1 or 3 numbers, found {}", args.len())),
     }
 }
@@ -594,27 +509,11 @@ impl Transform {
         let (sx, cx) = rotate_deg.x.to_radians().sin_cos();
         let (sy, cy) = rotate_deg.y.to_radians().sin_cos();
         let (sz, cz) = rotate_deg.z.to_radians().sin_cos();
-        let rx = [
-            Vec3::new(1.0, 0.0, 0.0),
-            Vec3::new(0.0, cx, -sx),
-            Vec3::new(0.0, sx, cx),
-        ];
-        let ry = [
-            Vec3::new(cy, 0.0, sy),
-            Vec3::new(0.0, 1.0, 0.0),
-            Vec3::new(-sy, 0.0, cy),
-        ];
-        let rz = [
-            Vec3::new(cz, -sz, 0.0),
-            Vec3::new(sz, cz, 0.0),
-            Vec3::new(0.0, 0.0, 1.0),
-        ];
+        let rx = [Vec3::new(1.0, 0.0, 0.0), Vec3::new(0.0, cx, -sx), Vec3::new(0.0, sx, cx)];
+        let ry = [Vec3::new(cy, 0.0, sy), Vec3::new(0.0, 1.0, 0.0), Vec3::new(-sy, 0.0, cy)];
+        let rz = [Vec3::new(cz, -sz, 0.0), Vec3::new(sz, cz, 0.0), Vec3::new(0.0, 0.0, 1.0)];
         let rotation = mat_mul(&rz, &mat_mul(&ry, &rx));
-        Transform {
-            scale,
-            rotation,
-            translate,
-        }
+        Transform { scale, rotation, translate }
     }
 
     /// Applies the transform to a point.
@@ -679,17 +578,11 @@ mod tests {
     fn usemtl_and_mtllib_are_recorded() {
         let m = obj("mtllib a.mtl b.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl red\nf 1 2 3\nusemtl blue\nf 1 2 3\nusemtl red\nf 1 2 3\n");
         assert_eq!(
-            m.mtllibs
-                .iter()
-                .map(|l| (l.file.as_str(), l.line))
-                .collect::<Vec<_>>(),
+            m.mtllibs.iter().map(|l| (l.file.as_str(), l.line)).collect::<Vec<_>>(),
             [("a.mtl", 1), ("b.mtl", 1)]
         );
         assert_eq!(m.usemtl_names, ["red", "blue"]);
-        assert_eq!(
-            m.faces.iter().map(|f| f.usemtl).collect::<Vec<_>>(),
-            [Some(0), Some(1), Some(0)]
-        );
+        assert_eq!(m.faces.iter().map(|f| f.usemtl).collect::<Vec<_>>(), [Some(0), Some(1), Some(0)]);
     }
 
     #[test]
@@ -699,18 +592,14 @@ mod tests {
             obj_err(&format!("{base}f 1 2 4\n")),
             "m.obj:4: obj: f: vertex index 4 is out of range: 3 vertices defined so far"
         );
-        assert!(obj_err(&format!("{base}f 1 2 -4\n"))
-            .starts_with("m.obj:4: obj: f: vertex index -4 is out of range"));
+        assert!(obj_err(&format!("{base}f 1 2 -4\n")).starts_with("m.obj:4: obj: f: vertex index -4 is out of range"));
         assert!(obj_err(&format!("{base}f 0 1 2\n")).contains("index 0 is not valid"));
-        assert!(obj_err(&format!("{base}f 1 2\n"))
-            .starts_with("m.obj:4: obj: f needs at least 3 vertices"));
+        assert!(obj_err(&format!("{base}f 1 2\n")).starts_with("m.obj:4: obj: f needs at least 3 vertices"));
         assert!(obj_err(&format!("{base}f 1 2 x\n")).contains("'x' is not a vertex index"));
         assert!(obj_err(&format!("{base}f 1 2 3/1/1/1\n")).contains("not a vertex reference"));
         assert!(obj_err("v 0 0\n").starts_with("m.obj:1: obj: v needs 3 coordinates"));
         assert!(obj_err("v 0 nan 0\n").contains("NaN is not a finite number"));
-        assert!(
-            obj_err("v 0 0 0\nbogus 1\n").starts_with("m.obj:2: obj: unknown statement 'bogus'")
-        );
+        assert!(obj_err("v 0 0 0\nbogus 1\n").starts_with("m.obj:2: obj: unknown statement 'bogus'"));
         assert!(obj_err("cstype bspline\n").contains("free-form geometry"));
         assert!(obj_err("usemtl\n").contains("usemtl needs a material name"));
         assert!(obj_err("\u{0}\u{1}garbage\n").starts_with("m.obj:1:"));
@@ -729,13 +618,7 @@ mod tests {
         assert_eq!(m[0].mirror, Rgb::splat(0.2));
         assert_eq!(m[0].transmit, Rgb::BLACK);
         assert_eq!(m[0].ior, 1.33);
-        assert_eq!(
-            m[0].loc,
-            SourceLoc {
-                file: "m.mtl".into(),
-                line: 1
-            }
-        );
+        assert_eq!(m[0].loc, SourceLoc { file: "m.mtl".into(), line: 1 });
         assert_eq!(m[1].name, "glass pane");
         assert_eq!(m[1].transmit, Rgb::splat(0.9));
         assert_eq!(m[1].ior, 1.5);
@@ -759,9 +642,7 @@ mod tests {
         let close = |x: f64, y: f64| (x - y).abs() < 1e-12;
         assert!(close(a.diffuse.0[0], 0.8 / 1.4) && close(a.mirror.0[0], 0.4 / 1.4));
         assert!(close(a.diffuse.0[1], 1.0 / 1.7) && close(a.transmit.0[1], 0.2 / 1.7));
-        assert!(
-            close(a.diffuse.0[2], 0.0) && close(a.mirror.0[2], 0.1) && close(a.transmit.0[2], 0.2)
-        );
+        assert!(close(a.diffuse.0[2], 0.0) && close(a.mirror.0[2], 0.1) && close(a.transmit.0[2], 0.2));
         for k in 0..3 {
             assert!(a.diffuse.0[k] + a.mirror.0[k] + a.transmit.0[k] <= 1.0 + 1e-12);
         }
@@ -770,47 +651,28 @@ mod tests {
 
     #[test]
     fn mtl_errors_name_file_and_line() {
-        let e = parse_mtl("m.mtl", "newmtl a\nKd 0.5 x 0.5\n")
-            .unwrap_err()
-            .to_string();
+        let e = parse_mtl("m.mtl", "newmtl a\nKd 0.5 x 0.5\n").unwrap_err().to_string();
         assert_eq!(e, "m.mtl:2: mtl: Kd: 'x' is not a number");
         let e = parse_mtl("m.mtl", "Kd 1 1 1\n").unwrap_err().to_string();
         assert!(e.starts_with("m.mtl:1: mtl: 'Kd' before any newmtl"), "{e}");
-        let e = parse_mtl("m.mtl", "newmtl a\nnewmtl a\n")
-            .unwrap_err()
-            .to_string();
-        assert!(
-            e.starts_with("m.mtl:2: mtl: material 'a' is already defined at line 1"),
-            "{e}"
-        );
-        let e = parse_mtl("m.mtl", "newmtl a\nKd spectral file.rfl\n")
-            .unwrap_err()
-            .to_string();
+        let e = parse_mtl("m.mtl", "newmtl a\nnewmtl a\n").unwrap_err().to_string();
+        assert!(e.starts_with("m.mtl:2: mtl: material 'a' is already defined at line 1"), "{e}");
+        let e = parse_mtl("m.mtl", "newmtl a\nKd spectral file.rfl\n").unwrap_err().to_string();
         assert!(e.contains("not supported"), "{e}");
     }
 
     #[test]
     fn rotation_is_x_then_y_then_z() {
-        let t = Transform::new(
-            Vec3::new(1.0, 1.0, 1.0),
-            Vec3::new(90.0, 90.0, 0.0),
-            Vec3::ZERO,
-        );
+        let t = Transform::new(Vec3::new(1.0, 1.0, 1.0), Vec3::new(90.0, 90.0, 0.0), Vec3::ZERO);
         // (0,1,0) --X 90--> (0,0,1) --Y 90--> (1,0,0).
         let p = t.apply(Vec3::new(0.0, 1.0, 0.0));
         assert!((p - Vec3::new(1.0, 0.0, 0.0)).length() < 1e-12, "{p:?}");
-        let t = Transform::new(
-            Vec3::new(2.0, 3.0, 4.0),
-            Vec3::new(0.0, 0.0, 90.0),
-            Vec3::new(1.0, 1.0, 1.0),
-        );
+        let t = Transform::new(Vec3::new(2.0, 3.0, 4.0), Vec3::new(0.0, 0.0, 90.0), Vec3::new(1.0, 1.0, 1.0));
         // (1,1,1) --scale--> (2,3,4) --Z 90--> (-3,2,4) --translate--> (-2,3,5).
         let p = t.apply(Vec3::new(1.0, 1.0, 1.0));
         assert!((p - Vec3::new(-2.0, 3.0, 5.0)).length() < 1e-12, "{p:?}");
         assert!(!t.flips_winding());
         assert!(Transform::new(Vec3::new(-1.0, 1.0, 1.0), Vec3::ZERO, Vec3::ZERO).flips_winding());
-        assert!(
-            !Transform::new(Vec3::new(-1.0, -1.0, 1.0), Vec3::ZERO, Vec3::ZERO).flips_winding()
-        );
+        assert!(!Transform::new(Vec3::new(-1.0, -1.0, 1.0), Vec3::ZERO, Vec3::ZERO).flips_winding());
     }
 }

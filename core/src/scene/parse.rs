@@ -14,9 +14,7 @@ use serde::Deserialize;
 use toml::Spanned;
 
 use super::error::SceneError;
-use super::model::{
-    Camera, Exposure, GridSpec, Light, Material, PatchDef, RenderSettings, Scene, SourceLoc, Spot,
-};
+use super::model::{Camera, Exposure, GridSpec, Light, Material, PatchDef, RenderSettings, Scene, SourceLoc, Spot};
 use super::obj::{self, MaterialTable, MeshEntry, Transform};
 use crate::math::{Rgb, Vec3};
 
@@ -139,12 +137,7 @@ pub fn parse_scene_str(
         Some(r) => cx.render(r)?,
         None => RenderSettings::default(),
     };
-    let lights = raw
-        .light
-        .iter()
-        .enumerate()
-        .map(|(i, l)| cx.light(i, l))
-        .collect::<Result<Vec<_>, _>>()?;
+    let lights = raw.light.iter().enumerate().map(|(i, l)| cx.light(i, l)).collect::<Result<Vec<_>, _>>()?;
     if lights.is_empty() {
         return Err(cx.whole_file("light", "the scene has no [[light]]: nothing would be lit"));
     }
@@ -154,16 +147,11 @@ pub fn parse_scene_str(
     for (i, m) in raw.material.iter().enumerate() {
         let mat = cx.material(i, m)?;
         if let Some(&first) = by_name.get(&mat.name) {
-            let first_line = materials
-                .get(first as usize)
-                .map_or(0, |f: &Material| f.loc.line);
+            let first_line = materials.get(first as usize).map_or(0, |f: &Material| f.loc.line);
             return Err(cx.err(
                 &m.name,
                 format!("material[{i}].name"),
-                format!(
-                    "material '{}' is already defined at line {first_line}",
-                    mat.name
-                ),
+                format!("material '{}' is already defined at line {first_line}", mat.name),
             ));
         }
         by_name.insert(mat.name.clone(), materials.len() as u32);
@@ -173,33 +161,14 @@ pub fn parse_scene_str(
     let mut builder = PatchBuilder {
         cx: &cx,
         settings: &settings,
-        materials: MaterialTable {
-            list: materials,
-            toml: by_name,
-            from_mtl: HashMap::new(),
-        },
+        materials: MaterialTable { list: materials, toml: by_name, from_mtl: HashMap::new() },
         patches: Vec::new(),
     };
     // Patches in file order, whatever their kind.
     let mut entries: Vec<(usize, Entry<'_>)> = Vec::new();
-    entries.extend(
-        raw.triangle
-            .iter()
-            .enumerate()
-            .map(|(i, t)| (t.vertices.span().start, Entry::Triangle(i, t))),
-    );
-    entries.extend(
-        raw.quad
-            .iter()
-            .enumerate()
-            .map(|(i, q)| (q.vertices.span().start, Entry::Quad(i, q))),
-    );
-    entries.extend(
-        raw.mesh
-            .iter()
-            .enumerate()
-            .map(|(i, m)| (m.obj.span().start, Entry::Mesh(i, m))),
-    );
+    entries.extend(raw.triangle.iter().enumerate().map(|(i, t)| (t.vertices.span().start, Entry::Triangle(i, t))));
+    entries.extend(raw.quad.iter().enumerate().map(|(i, q)| (q.vertices.span().start, Entry::Quad(i, q))));
+    entries.extend(raw.mesh.iter().enumerate().map(|(i, m)| (m.obj.span().start, Entry::Mesh(i, m))));
     entries.sort_by_key(|(start, _)| *start);
     for (_, entry) in entries {
         match entry {
@@ -209,22 +178,10 @@ pub fn parse_scene_str(
         }
     }
     if builder.patches.is_empty() {
-        return Err(cx.whole_file(
-            "triangle",
-            "the scene has no [[triangle]], [[quad]] or [[mesh]]",
-        ));
+        return Err(cx.whole_file("triangle", "the scene has no [[triangle]], [[quad]] or [[mesh]]"));
     }
-    let PatchBuilder {
-        materials, patches, ..
-    } = builder;
-    Ok(Scene {
-        name: file_label.to_string(),
-        camera,
-        settings,
-        lights,
-        materials: materials.list,
-        patches,
-    })
+    let PatchBuilder { materials, patches, .. } = builder;
+    Ok(Scene { name: file_label.to_string(), camera, settings, lights, materials: materials.list, patches })
 }
 
 enum Entry<'a> {
@@ -247,17 +204,8 @@ const XYZ_NAMES: [&str; 3] = ["x", "y", "z"];
 impl<'a> Ctx<'a> {
     fn new(file: &'a str, text: &'a str) -> Self {
         let mut line_starts = vec![0];
-        line_starts.extend(
-            text.bytes()
-                .enumerate()
-                .filter(|(_, b)| *b == b'\n')
-                .map(|(i, _)| i + 1),
-        );
-        Ctx {
-            file,
-            text,
-            line_starts,
-        }
+        line_starts.extend(text.bytes().enumerate().filter(|(_, b)| *b == b'\n').map(|(i, _)| i + 1));
+        Ctx { file, text, line_starts }
     }
 
     /// 1-based line of a byte offset.
@@ -266,50 +214,24 @@ impl<'a> Ctx<'a> {
     }
 
     fn loc<T>(&self, s: &Spanned<T>) -> SourceLoc {
-        SourceLoc {
-            file: self.file.to_string(),
-            line: self.line(s.span().start),
-        }
+        SourceLoc { file: self.file.to_string(), line: self.line(s.span().start) }
     }
 
-    fn err<T>(
-        &self,
-        s: &Spanned<T>,
-        field: impl Into<String>,
-        msg: impl Into<String>,
-    ) -> SceneError {
+    fn err<T>(&self, s: &Spanned<T>, field: impl Into<String>, msg: impl Into<String>) -> SceneError {
         SceneError::new(self.loc(s), field, msg)
     }
 
     fn whole_file(&self, field: &str, msg: &str) -> SceneError {
-        SceneError::new(
-            SourceLoc {
-                file: self.file.to_string(),
-                line: 0,
-            },
-            field,
-            msg,
-        )
+        SceneError::new(SourceLoc { file: self.file.to_string(), line: 0 }, field, msg)
     }
 
     /// Maps a TOML syntax or type error to a [`SceneError`] at its line, guessing the
     /// field from the text around it.
     fn toml_error(&self, e: &toml::de::Error) -> SceneError {
         let offset = e.span().map_or(0, |s| s.start.min(self.text.len()));
-        let line = if e.span().is_some() {
-            self.line(offset)
-        } else {
-            0
-        };
+        let line = if e.span().is_some() { self.line(offset) } else { 0 };
         let message = e.message().trim().replace('\n', " ");
-        SceneError::new(
-            SourceLoc {
-                file: self.file.to_string(),
-                line,
-            },
-            field_at(self.text, offset),
-            message,
-        )
+        SceneError::new(SourceLoc { file: self.file.to_string(), line }, field_at(self.text, offset), message)
     }
 
     fn finite(&self, v: &Spanned<f64>, field: &str) -> Result<f64, SceneError> {
@@ -322,14 +244,7 @@ impl<'a> Ctx<'a> {
     }
 
     /// A float in `[lo, hi]` (`lo_open` excludes `lo`).
-    fn float_in(
-        &self,
-        v: &Spanned<f64>,
-        field: &str,
-        lo: f64,
-        lo_open: bool,
-        hi: f64,
-    ) -> Result<f64, SceneError> {
+    fn float_in(&self, v: &Spanned<f64>, field: &str, lo: f64, lo_open: bool, hi: f64) -> Result<f64, SceneError> {
         let x = self.finite(v, field)?;
         if (lo_open && x <= lo) || x < lo || x > hi {
             let open = if lo_open { "(" } else { "[" };
@@ -370,11 +285,7 @@ impl<'a> Ctx<'a> {
         let c = self.triple(v, field, RGB_NAMES)?;
         for (x, name) in c.iter().zip(RGB_NAMES) {
             if *x < 0.0 || *x > hi {
-                let range = if hi.is_finite() {
-                    format!("[0, {hi}]")
-                } else {
-                    ">= 0".to_string()
-                };
+                let range = if hi.is_finite() { format!("[0, {hi}]") } else { ">= 0".to_string() };
                 return Err(self.err(v, field, format!("{name} = {x} is out of range {range}")));
             }
         }
@@ -391,34 +302,17 @@ impl<'a> Ctx<'a> {
         };
         let fov_y_deg = self.float_in(&raw.fov, "camera.fov", 0.0, true, 180.0)?;
         if fov_y_deg >= 180.0 {
-            return Err(self.err(
-                &raw.fov,
-                "camera.fov",
-                format!("{fov_y_deg} is out of range (0, 180)"),
-            ));
+            return Err(self.err(&raw.fov, "camera.fov", format!("{fov_y_deg} is out of range (0, 180)")));
         }
         let view = look_at - eye;
         if view.length() <= 1e-12 * (1.0 + eye.abs().max_component()) {
-            return Err(self.err(
-                &raw.look_at,
-                "camera.look_at",
-                "look_at is the eye position: no view direction",
-            ));
+            return Err(self.err(&raw.look_at, "camera.look_at", "look_at is the eye position: no view direction"));
         }
         if view.normalized().cross(up.normalized()).length() < 1e-9 {
             let at = raw.up.as_ref().map_or_else(|| self.loc(c), |u| self.loc(u));
-            return Err(SceneError::new(
-                at,
-                "camera.up",
-                "up is zero or parallel to the view direction",
-            ));
+            return Err(SceneError::new(at, "camera.up", "up is zero or parallel to the view direction"));
         }
-        Ok(Camera {
-            eye,
-            look_at,
-            up,
-            fov_y_deg,
-        })
+        Ok(Camera { eye, look_at, up, fov_y_deg })
     }
 
     fn render(&self, r: &RawRender) -> Result<RenderSettings, SceneError> {
@@ -431,29 +325,11 @@ impl<'a> Ctx<'a> {
         };
         u32_in(&r.width, "render.width", 1, 16384, &mut s.width)?;
         u32_in(&r.height, "render.height", 1, 16384, &mut s.height)?;
-        u32_in(
-            &r.pixel_samples,
-            "render.pixel_samples",
-            1,
-            4096,
-            &mut s.pixel_samples,
-        )?;
-        u32_in(
-            &r.light_rays,
-            "render.light_rays",
-            1,
-            1_000_000,
-            &mut s.light_rays,
-        )?;
+        u32_in(&r.pixel_samples, "render.pixel_samples", 1, 4096, &mut s.pixel_samples)?;
+        u32_in(&r.light_rays, "render.light_rays", 1, 1_000_000, &mut s.light_rays)?;
         u32_in(&r.lrt_depth, "render.lrt_depth", 0, 32, &mut s.lrt_depth)?;
         u32_in(&r.vrt_depth, "render.vrt_depth", 0, 32, &mut s.vrt_depth)?;
-        u32_in(
-            &r.diffuse_bounces,
-            "render.diffuse_bounces",
-            0,
-            16,
-            &mut s.diffuse_bounces,
-        )?;
+        u32_in(&r.diffuse_bounces, "render.diffuse_bounces", 0, 16, &mut s.diffuse_bounces)?;
         if let Some(v) = &r.element_size {
             s.element_size = self.float_in(v, "render.element_size", 0.0, true, f64::MAX)?;
         }
@@ -480,13 +356,7 @@ impl<'a> Ctx<'a> {
 
     fn grid(&self, v: &Spanned<toml::Value>) -> Result<GridSpec, SceneError> {
         const FIELD: &str = "render.grid";
-        let bad = || {
-            self.err(
-                v,
-                FIELD,
-                format!("expected \"auto\" or [nx, ny, nz], found {}", v.get_ref()),
-            )
-        };
+        let bad = || self.err(v, FIELD, format!("expected \"auto\" or [nx, ny, nz], found {}", v.get_ref()));
         match v.get_ref() {
             toml::Value::String(s) if s == "auto" => Ok(GridSpec::Auto),
             toml::Value::Array(a) if a.len() == 3 => {
@@ -516,13 +386,7 @@ impl<'a> Ctx<'a> {
             toml::Value::String(s) if s == "auto" => return Ok(Exposure::Auto),
             toml::Value::Integer(i) => *i as f64,
             toml::Value::Float(f) => *f,
-            other => {
-                return Err(self.err(
-                    v,
-                    FIELD,
-                    format!("expected \"auto\" or a number, found {other}"),
-                ))
-            }
+            other => return Err(self.err(v, FIELD, format!("expected \"auto\" or a number, found {other}"))),
         };
         if !x.is_finite() || x <= 0.0 {
             return Err(self.err(v, FIELD, format!("{x} is not a positive finite number")));
@@ -535,33 +399,19 @@ impl<'a> Ctx<'a> {
         let position = self.vec3(&l.position, &f("position"))?;
         let intensity = self.rgb(&l.intensity, &f("intensity"), f64::INFINITY)?;
         if intensity.is_black() {
-            return Err(self.err(
-                &l.intensity,
-                f("intensity"),
-                "intensity is zero in every channel",
-            ));
+            return Err(self.err(&l.intensity, f("intensity"), "intensity is zero in every channel"));
         }
         let spot = match (&l.direction, &l.cone) {
             (None, None) => {
                 if let Some(fo) = &l.falloff {
-                    return Err(self.err(
-                        fo,
-                        f("falloff"),
-                        "falloff needs a spot cone: add `cone` and `direction`",
-                    ));
+                    return Err(self.err(fo, f("falloff"), "falloff needs a spot cone: add `cone` and `direction`"));
                 }
                 None
             }
             (Some(d), None) => {
-                return Err(self.err(
-                    d,
-                    f("direction"),
-                    "a spot light needs `cone` (half-angle, degrees)",
-                ))
+                return Err(self.err(d, f("direction"), "a spot light needs `cone` (half-angle, degrees)"))
             }
-            (None, Some(c)) => {
-                return Err(self.err(c, f("cone"), "a spot light needs `direction`"))
-            }
+            (None, Some(c)) => return Err(self.err(c, f("cone"), "a spot light needs `direction`")),
             (Some(d), Some(c)) => {
                 let dir = self.vec3(d, &f("direction"))?;
                 if dir.length() == 0.0 || !dir.normalized().is_finite() {
@@ -572,28 +422,17 @@ impl<'a> Ctx<'a> {
                     Some(fo) => {
                         let x = self.float_in(fo, &f("falloff"), 0.0, false, 180.0)?;
                         if half_angle_deg + x > 180.0 {
-                            let msg = format!(
-                                "cone {half_angle_deg} + falloff {x} is more than 180 degrees"
-                            );
+                            let msg = format!("cone {half_angle_deg} + falloff {x} is more than 180 degrees");
                             return Err(self.err(fo, f("falloff"), msg));
                         }
                         x
                     }
                     None => 0.0,
                 };
-                Some(Spot {
-                    direction: dir.normalized(),
-                    half_angle_deg,
-                    falloff_deg,
-                })
+                Some(Spot { direction: dir.normalized(), half_angle_deg, falloff_deg })
             }
         };
-        Ok(Light {
-            position,
-            intensity,
-            spot,
-            loc: self.loc(&l.position),
-        })
+        Ok(Light { position, intensity, spot, loc: self.loc(&l.position) })
     }
 
     fn material(&self, i: usize, m: &RawMaterial) -> Result<Material, SceneError> {
@@ -623,14 +462,7 @@ impl<'a> Ctx<'a> {
                 return Err(self.err(&m.name, format!("material[{i}]"), msg));
             }
         }
-        Ok(Material {
-            name,
-            diffuse,
-            mirror,
-            transmit,
-            ior,
-            loc: self.loc(&m.name),
-        })
+        Ok(Material { name, diffuse, mirror, transmit, ior, loc: self.loc(&m.name) })
     }
 }
 
@@ -648,42 +480,18 @@ impl PatchBuilder<'_, '_> {
             .toml
             .get(m.get_ref())
             .copied()
-            .ok_or_else(|| {
-                self.cx.err(
-                    m,
-                    field,
-                    format!("material '{}' is not defined", m.get_ref()),
-                )
-            })
+            .ok_or_else(|| self.cx.err(m, field, format!("material '{}' is not defined", m.get_ref())))
     }
 
-    fn subdivisions(
-        &self,
-        v: &Option<Spanned<i64>>,
-        field: &str,
-    ) -> Result<Option<u32>, SceneError> {
-        v.as_ref()
-            .map(|v| {
-                self.cx
-                    .int_in(v, field, 1, MAX_SUBDIVISIONS)
-                    .map(|n| n as u32)
-            })
-            .transpose()
+    fn subdivisions(&self, v: &Option<Spanned<i64>>, field: &str) -> Result<Option<u32>, SceneError> {
+        v.as_ref().map(|v| self.cx.int_in(v, field, 1, MAX_SUBDIVISIONS).map(|n| n as u32)).transpose()
     }
 
     /// The corners of a `[[triangle]]`/`[[quad]]`, exactly `N` points.
-    fn corners<const N: usize>(
-        &self,
-        p: &RawPolygon,
-        field: &str,
-    ) -> Result<[Vec3; N], SceneError> {
+    fn corners<const N: usize>(&self, p: &RawPolygon, field: &str) -> Result<[Vec3; N], SceneError> {
         let pts = p.vertices.get_ref();
         if pts.len() != N {
-            return Err(self.cx.err(
-                &p.vertices,
-                field,
-                format!("expected {N} vertices, found {}", pts.len()),
-            ));
+            return Err(self.cx.err(&p.vertices, field, format!("expected {N} vertices, found {}", pts.len())));
         }
         let mut out = [Vec3::ZERO; N];
         for (k, (o, v)) in out.iter_mut().zip(pts).enumerate() {
@@ -696,11 +504,7 @@ impl PatchBuilder<'_, '_> {
             };
             *o = Vec3::new(*x, *y, *z);
             if !o.is_finite() {
-                return Err(self.cx.err(
-                    &p.vertices,
-                    field,
-                    format!("vertex {k} = {:?} is not finite", v),
-                ));
+                return Err(self.cx.err(&p.vertices, field, format!("vertex {k} = {:?} is not finite", v)));
             }
         }
         Ok(out)
@@ -710,47 +514,28 @@ impl PatchBuilder<'_, '_> {
         let field = format!("triangle[{i}].vertices");
         let v: [Vec3; 3] = self.corners(t, &field)?;
         if is_degenerate(&v) {
-            return Err(self.cx.err(
-                &t.vertices,
-                field,
-                format!("triangle[{i}] is degenerate (zero area)"),
-            ));
+            return Err(self.cx.err(&t.vertices, field, format!("triangle[{i}] is degenerate (zero area)")));
         }
         let material = self.material_ref(&t.material, &format!("triangle[{i}].material"))?;
-        let subdivisions =
-            self.subdivisions(&t.subdivisions, &format!("triangle[{i}].subdivisions"))?;
-        self.patches.push(PatchDef {
-            vertices: v,
-            material,
-            subdivisions,
-            loc: self.cx.loc(&t.vertices),
-        });
+        let subdivisions = self.subdivisions(&t.subdivisions, &format!("triangle[{i}].subdivisions"))?;
+        self.patches.push(PatchDef { vertices: v, material, subdivisions, loc: self.cx.loc(&t.vertices) });
         Ok(())
     }
 
     fn quad(&mut self, i: usize, q: &RawPolygon) -> Result<(), SceneError> {
         let field = format!("quad[{i}].vertices");
         let v: [Vec3; 4] = self.corners(q, &field)?;
-        check_quad(&v)
-            .map_err(|why| self.cx.err(&q.vertices, &field, format!("quad[{i}] {why}")))?;
+        check_quad(&v).map_err(|why| self.cx.err(&q.vertices, &field, format!("quad[{i}] {why}")))?;
         let material = self.material_ref(&q.material, &format!("quad[{i}].material"))?;
-        let subdivisions = match self
-            .subdivisions(&q.subdivisions, &format!("quad[{i}].subdivisions"))?
-        {
+        let subdivisions = match self.subdivisions(&q.subdivisions, &format!("quad[{i}].subdivisions"))? {
             Some(n) => n,
             None => {
                 // Both halves get the same n, from the longest edge of the quad including the
                 // shared diagonal, so that they subdivide identically and weld without seams.
-                let longest = [
-                    v[1] - v[0],
-                    v[2] - v[1],
-                    v[3] - v[2],
-                    v[0] - v[3],
-                    v[2] - v[0],
-                ]
-                .iter()
-                .map(|e| e.length())
-                .fold(0.0, f64::max);
+                let longest = [v[1] - v[0], v[2] - v[1], v[3] - v[2], v[0] - v[3], v[2] - v[0]]
+                    .iter()
+                    .map(|e| e.length())
+                    .fold(0.0, f64::max);
                 let n = (longest / self.settings.element_size).ceil().max(1.0);
                 let limit = self.settings.max_elements as f64;
                 if 2.0 * n * n > limit {
@@ -765,12 +550,7 @@ impl PatchBuilder<'_, '_> {
         };
         let loc = self.cx.loc(&q.vertices);
         for tri in [[v[0], v[1], v[2]], [v[0], v[2], v[3]]] {
-            self.patches.push(PatchDef {
-                vertices: tri,
-                material,
-                subdivisions: Some(subdivisions),
-                loc: loc.clone(),
-            });
+            self.patches.push(PatchDef { vertices: tri, material, subdivisions: Some(subdivisions), loc: loc.clone() });
         }
         Ok(())
     }
@@ -784,28 +564,14 @@ impl PatchBuilder<'_, '_> {
     ) -> Result<(), SceneError> {
         let cx = self.cx;
         let f = |name: &str| format!("mesh[{i}].{name}");
-        let translate = m
-            .translate
-            .as_ref()
-            .map(|v| cx.vec3(v, &f("translate")))
-            .transpose()?
-            .unwrap_or(Vec3::ZERO);
-        let rotate = m
-            .rotate
-            .as_ref()
-            .map(|v| cx.vec3(v, &f("rotate")))
-            .transpose()?
-            .unwrap_or(Vec3::ZERO);
+        let translate = m.translate.as_ref().map(|v| cx.vec3(v, &f("translate"))).transpose()?.unwrap_or(Vec3::ZERO);
+        let rotate = m.rotate.as_ref().map(|v| cx.vec3(v, &f("rotate"))).transpose()?.unwrap_or(Vec3::ZERO);
         let scale = match &m.scale {
             Some(v) => self.scale(v, &f("scale"))?,
             None => Vec3::new(1.0, 1.0, 1.0),
         };
         let subdivisions = self.subdivisions(&m.subdivisions, &f("subdivisions"))?;
-        let material = m
-            .material
-            .as_ref()
-            .map(|s| self.material_ref(s, &f("material")))
-            .transpose()?;
+        let material = m.material.as_ref().map(|s| self.material_ref(s, &f("material"))).transpose()?;
         let entry = MeshEntry {
             obj: m.obj.get_ref(),
             at: cx.loc(&m.obj),
@@ -814,12 +580,7 @@ impl PatchBuilder<'_, '_> {
             material,
         };
         for (vertices, material) in obj::load_mesh(&entry, base_dir, read, &mut self.materials)? {
-            self.patches.push(PatchDef {
-                vertices,
-                material,
-                subdivisions,
-                loc: entry.at.clone(),
-            });
+            self.patches.push(PatchDef { vertices, material, subdivisions, loc: entry.at.clone() });
         }
         Ok(())
     }
@@ -840,22 +601,12 @@ impl PatchBuilder<'_, '_> {
             }
             other => match num(other) {
                 Some(x) => Vec3::new(x, x, x),
-                None => {
-                    return Err(self.cx.err(
-                        v,
-                        field,
-                        format!("expected a number or [sx, sy, sz], found {other}"),
-                    ))
-                }
+                None => return Err(self.cx.err(v, field, format!("expected a number or [sx, sy, sz], found {other}"))),
             },
         };
         for (c, name) in s.to_array().iter().zip(XYZ_NAMES) {
             if !c.is_finite() || *c == 0.0 {
-                return Err(self.cx.err(
-                    v,
-                    field,
-                    format!("{name} = {c} is not a finite non-zero number"),
-                ));
+                return Err(self.cx.err(v, field, format!("{name} = {c} is not a finite non-zero number")));
             }
         }
         Ok(s)
@@ -865,10 +616,7 @@ impl PatchBuilder<'_, '_> {
 /// True when a triangle has (numerically) zero area: `|cross| <= 1e-12 * longest_edge^2`.
 pub(super) fn is_degenerate(v: &[Vec3; 3]) -> bool {
     let (e0, e1, e2) = (v[1] - v[0], v[2] - v[1], v[0] - v[2]);
-    let longest2 = e0
-        .length_squared()
-        .max(e1.length_squared())
-        .max(e2.length_squared());
+    let longest2 = e0.length_squared().max(e1.length_squared()).max(e2.length_squared());
     let area2 = e0.cross(v[2] - v[0]).length();
     area2.is_nan() || area2 <= EPS_AREA * longest2
 }
@@ -876,10 +624,8 @@ pub(super) fn is_degenerate(v: &[Vec3; 3]) -> bool {
 /// Checks that a quad is planar (within 1e-6 of its longest edge) and strictly convex with
 /// its vertices in order; the error says why not.
 fn check_quad(v: &[Vec3; 4]) -> Result<(), String> {
-    let longest = (0..4)
-        .flat_map(|a| (a + 1..4).map(move |b| (a, b)))
-        .map(|(a, b)| (v[b] - v[a]).length())
-        .fold(0.0, f64::max);
+    let longest =
+        (0..4).flat_map(|a| (a + 1..4).map(move |b| (a, b))).map(|(a, b)| (v[b] - v[a]).length()).fold(0.0, f64::max);
     let n = (v[2] - v[0]).cross(v[3] - v[1]);
     let area2 = n.length();
     if area2.is_nan() || area2 <= EPS_AREA * longest * longest {
@@ -900,10 +646,7 @@ fn check_quad(v: &[Vec3; 4]) -> Result<(), String> {
         let (a, b, c) = (v[k], v[(k + 1) % 4], v[(k + 2) % 4]);
         let turn = (b - a).cross(c - b).dot(n);
         if turn.is_nan() || turn <= EPS_AREA * longest * longest {
-            return Err(format!(
-                "is not convex at vertex {} (or its vertices are out of order)",
-                (k + 1) % 4
-            ));
+            return Err(format!("is not convex at vertex {} (or its vertices are out of order)", (k + 1) % 4));
         }
     }
     Ok(())
@@ -922,22 +665,14 @@ fn field_at(text: &str, offset: usize) -> String {
         }
         start += line.len();
         let t = line.split('#').next().unwrap_or("").trim();
-        if let Some(name) = t
-            .strip_prefix("[[")
-            .and_then(|r| r.strip_suffix("]]"))
-            .map(str::trim)
-        {
+        if let Some(name) = t.strip_prefix("[[").and_then(|r| r.strip_suffix("]]")).map(str::trim) {
             if is_table_name(name) {
                 let n = counts.entry(name).or_insert(0);
                 table = format!("{name}[{n}]");
                 *n += 1;
                 key = None;
             }
-        } else if let Some(name) = t
-            .strip_prefix('[')
-            .and_then(|r| r.strip_suffix(']'))
-            .map(str::trim)
-        {
+        } else if let Some(name) = t.strip_prefix('[').and_then(|r| r.strip_suffix(']')).map(str::trim) {
             if is_table_name(name) {
                 table = name.to_string();
                 key = None;
@@ -959,8 +694,7 @@ fn field_at(text: &str, offset: usize) -> String {
 
 fn is_table_name(s: &str) -> bool {
     s.starts_with(|c: char| c.is_ascii_alphabetic() || c == '_')
-        && s.chars()
-            .all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '-' || c == '.')
+        && s.chars().all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '-' || c == '.')
 }
 
 #[cfg(test)]
@@ -990,15 +724,9 @@ material = \"white\"
 ";
 
     fn parse_with(text: &str, files: &[(&str, &str)]) -> Result<Scene, SceneError> {
-        let files: HashMap<PathBuf, String> = files
-            .iter()
-            .map(|(p, t)| (PathBuf::from(p), t.to_string()))
-            .collect();
+        let files: HashMap<PathBuf, String> = files.iter().map(|(p, t)| (PathBuf::from(p), t.to_string())).collect();
         let read = move |p: &Path| {
-            files
-                .get(p)
-                .cloned()
-                .ok_or_else(|| std::io::Error::new(std::io::ErrorKind::NotFound, "not found"))
+            files.get(p).cloned().ok_or_else(|| std::io::Error::new(std::io::ErrorKind::NotFound, "not found"))
         };
         parse_scene_str("t.toml", text, Path::new("base"), &read)
     }
@@ -1021,13 +749,7 @@ material = \"white\"
         assert_eq!(s.camera.up, Vec3::new(0.0, 1.0, 0.0));
         assert_eq!(s.settings, RenderSettings::default());
         assert_eq!(s.patches.len(), 1);
-        assert_eq!(
-            s.patches[0].loc,
-            SourceLoc {
-                file: "t.toml".into(),
-                line: 15
-            }
-        );
+        assert_eq!(s.patches[0].loc, SourceLoc { file: "t.toml".into(), line: 15 });
         assert_eq!(s.lights[0].loc.line, 7);
         assert_eq!(s.materials[0].loc.line, 11);
         assert_eq!(s.materials[0].ior, 1.5);
@@ -1041,30 +763,14 @@ material = \"white\"
              seed = 42\nexposure = 2\nbackground = [0, 0, 1]\nmax_elements = 1000\n"
         );
         let s = parse(&text).unwrap().settings;
-        assert_eq!(
-            (s.width, s.height, s.pixel_samples, s.light_rays),
-            (640, 480, 2, 16)
-        );
-        assert_eq!(
-            (
-                s.lrt_depth,
-                s.vrt_depth,
-                s.diffuse_bounces,
-                s.seed,
-                s.max_elements
-            ),
-            (1, 2, 3, 42, 1000)
-        );
+        assert_eq!((s.width, s.height, s.pixel_samples, s.light_rays), (640, 480, 2, 16));
+        assert_eq!((s.lrt_depth, s.vrt_depth, s.diffuse_bounces, s.seed, s.max_elements), (1, 2, 3, 42, 1000));
         assert_eq!(s.element_size, 0.25);
         assert_eq!(s.ambient, Rgb::new(0.1, 0.2, 0.3));
         assert_eq!(s.background, Rgb::new(0.0, 0.0, 1.0));
         assert_eq!(s.grid, GridSpec::Fixed([8, 7, 6]));
         assert_eq!(s.exposure, Exposure::Fixed(2.0));
-        let auto = parse(&format!(
-            "{MINI}[render]\ngrid = \"auto\"\nexposure = \"auto\"\n"
-        ))
-        .unwrap()
-        .settings;
+        let auto = parse(&format!("{MINI}[render]\ngrid = \"auto\"\nexposure = \"auto\"\n")).unwrap().settings;
         assert_eq!((auto.grid, auto.exposure), (GridSpec::Auto, Exposure::Auto));
     }
 
@@ -1077,19 +783,13 @@ material = \"white\"
     #[test]
     fn undefined_material_names_the_reference() {
         let e = err(&MINI.replace("material = \"white\"", "material = \"gold\""));
-        assert_eq!(
-            e,
-            "t.toml:16: triangle[0].material: material 'gold' is not defined"
-        );
+        assert_eq!(e, "t.toml:16: triangle[0].material: material 'gold' is not defined");
     }
 
     #[test]
     fn nan_and_infinity_are_refused() {
         let e = err(&format!("{MINI}[render]\nelement_size = nan\n"));
-        assert!(
-            e.starts_with("t.toml:18: render.element_size: NaN is not a finite number"),
-            "{e}"
-        );
+        assert!(e.starts_with("t.toml:18: render.element_size: NaN is not a finite number"), "{e}");
         let e = err(&MINI.replace("eye = [0, 1, 3]", "eye = [0, inf, 3]"));
         assert!(e.starts_with("t.toml:2: camera.eye: y = inf"), "{e}");
     }
@@ -1097,10 +797,7 @@ material = \"white\"
     #[test]
     fn negative_intensity_is_refused() {
         let e = err(&MINI.replace("intensity = [1, 1, 1]", "intensity = [-1, 1, 1]"));
-        assert_eq!(
-            e,
-            "t.toml:8: light[0].intensity: red = -1 is out of range >= 0"
-        );
+        assert_eq!(e, "t.toml:8: light[0].intensity: red = -1 is out of range >= 0");
         let e = err(&MINI.replace("intensity = [1, 1, 1]", "intensity = [0, 0, 0]"));
         assert!(e.starts_with("t.toml:8: light[0].intensity"), "{e}");
     }
@@ -1108,15 +805,9 @@ material = \"white\"
     #[test]
     fn unknown_key_names_file_line_and_key() {
         let e = err(&MINI.replace("diffuse = [0.7, 0.7, 0.7]", "colour = [0.7, 0.7, 0.7]"));
-        assert!(
-            e.starts_with("t.toml:12: material[0].colour: unknown field `colour`"),
-            "{e}"
-        );
+        assert!(e.starts_with("t.toml:12: material[0].colour: unknown field `colour`"), "{e}");
         let e = err(&format!("{MINI}[render]\nwidht = 3\n"));
-        assert!(
-            e.starts_with("t.toml:18: render.widht: unknown field `widht`"),
-            "{e}"
-        );
+        assert!(e.starts_with("t.toml:18: render.widht: unknown field `widht`"), "{e}");
     }
 
     #[test]
@@ -1147,85 +838,46 @@ material = \"white\"
             ("seed = -1", "render.seed"),
         ] {
             let e = err(&format!("{MINI}[render]\n{line}\n"));
-            assert!(
-                e.starts_with(&format!("t.toml:18: {field}: ")),
-                "{line}: {e}"
-            );
+            assert!(e.starts_with(&format!("t.toml:18: {field}: ")), "{line}: {e}");
         }
         let e = err(&MINI.replace("fov = 40", "fov = 180"));
-        assert!(
-            e.starts_with("t.toml:4: camera.fov: 180 is out of range"),
-            "{e}"
-        );
-        let e = err(&MINI.replace(
-            "diffuse = [0.7, 0.7, 0.7]",
-            "diffuse = [0.7, 0.7, 0.7]\nior = 0.5",
-        ));
+        assert!(e.starts_with("t.toml:4: camera.fov: 180 is out of range"), "{e}");
+        let e = err(&MINI.replace("diffuse = [0.7, 0.7, 0.7]", "diffuse = [0.7, 0.7, 0.7]\nior = 0.5"));
         assert!(e.starts_with("t.toml:13: material[0].ior"), "{e}");
     }
 
     #[test]
     fn energy_conservation_names_the_channel() {
-        let e = err(&MINI.replace(
-            "diffuse = [0.7, 0.7, 0.7]",
-            "diffuse = [0.7, 0.7, 0.7]\nmirror = [0.2, 0.5, 0.2]",
-        ));
+        let e = err(&MINI.replace("diffuse = [0.7, 0.7, 0.7]", "diffuse = [0.7, 0.7, 0.7]\nmirror = [0.2, 0.5, 0.2]"));
         assert!(e.starts_with("t.toml:11: material[0]: "), "{e}");
         assert!(e.contains("green channel"), "{e}");
         // Within the 1e-9 tolerance.
-        parse(&MINI.replace(
-            "diffuse = [0.7, 0.7, 0.7]",
-            "diffuse = [0.7, 0.7, 0.7]\ntransmit = [0.3, 0.3, 0.3]",
-        ))
-        .unwrap();
+        parse(&MINI.replace("diffuse = [0.7, 0.7, 0.7]", "diffuse = [0.7, 0.7, 0.7]\ntransmit = [0.3, 0.3, 0.3]"))
+            .unwrap();
     }
 
     #[test]
     fn duplicate_material_is_refused() {
-        let text = MINI.replace(
-            "[[triangle]]",
-            "[[material]]\nname = \"white\"\n\n[[triangle]]",
-        );
+        let text = MINI.replace("[[triangle]]", "[[material]]\nname = \"white\"\n\n[[triangle]]");
         let e = err(&text);
-        assert_eq!(
-            e,
-            "t.toml:15: material[1].name: material 'white' is already defined at line 11"
-        );
+        assert_eq!(e, "t.toml:15: material[1].name: material 'white' is already defined at line 11");
     }
 
     #[test]
     fn degenerate_triangle_is_refused() {
-        let e = err(&MINI.replace(
-            "[[0, 0, 0], [1, 0, 0], [0, 1, 0]]",
-            "[[0, 0, 0], [1, 1, 1], [2, 2, 2]]",
-        ));
-        assert!(
-            e.starts_with("t.toml:15: triangle[0].vertices: triangle[0] is degenerate"),
-            "{e}"
-        );
-        let e = err(&MINI.replace(
-            "[[0, 0, 0], [1, 0, 0], [0, 1, 0]]",
-            "[[0, 0, 0], [1, 0, 0]]",
-        ));
+        let e = err(&MINI.replace("[[0, 0, 0], [1, 0, 0], [0, 1, 0]]", "[[0, 0, 0], [1, 1, 1], [2, 2, 2]]"));
+        assert!(e.starts_with("t.toml:15: triangle[0].vertices: triangle[0] is degenerate"), "{e}");
+        let e = err(&MINI.replace("[[0, 0, 0], [1, 0, 0], [0, 1, 0]]", "[[0, 0, 0], [1, 0, 0]]"));
         assert!(e.contains("expected 3 vertices, found 2"), "{e}");
     }
 
     #[test]
     fn missing_tables_are_refused() {
-        assert!(err(&MINI.replace(
-            "[camera]\neye = [0, 1, 3]\nlook_at = [0, 1, 0]\nfov = 40\n",
-            ""
-        ))
-        .contains("camera"));
-        let no_light = MINI.replace(
-            "[[light]]\nposition = [0, 1.9, 0]\nintensity = [1, 1, 1]\n",
-            "",
-        );
+        assert!(err(&MINI.replace("[camera]\neye = [0, 1, 3]\nlook_at = [0, 1, 0]\nfov = 40\n", "")).contains("camera"));
+        let no_light = MINI.replace("[[light]]\nposition = [0, 1.9, 0]\nintensity = [1, 1, 1]\n", "");
         assert!(err(&no_light).contains("no [[light]]"));
-        let no_patch = MINI.replace(
-            "[[triangle]]\nvertices = [[0, 0, 0], [1, 0, 0], [0, 1, 0]]\nmaterial = \"white\"\n",
-            "",
-        );
+        let no_patch =
+            MINI.replace("[[triangle]]\nvertices = [[0, 0, 0], [1, 0, 0], [0, 1, 0]]\nmaterial = \"white\"\n", "");
         assert!(err(&no_patch).contains("no [[triangle]]"));
         let e = err(&MINI
             .replace("look_at = [0, 1, 0]", "look_at = [0, 1, 0]\nup = [0, 2, 0]")
@@ -1242,10 +894,7 @@ material = \"white\"
         assert_eq!((sp.half_angle_deg, sp.falloff_deg), (30.0, 5.0));
         let e = err(&MINI.replace("intensity = [1, 1, 1]", "intensity = [1, 1, 1]\ncone = 30"));
         assert!(e.starts_with("t.toml:9: light[0].cone"), "{e}");
-        let e = err(&MINI.replace(
-            "intensity = [1, 1, 1]",
-            "intensity = [1, 1, 1]\ndirection = [0, 0, 0]\ncone = 30",
-        ));
+        let e = err(&MINI.replace("intensity = [1, 1, 1]", "intensity = [1, 1, 1]\ndirection = [0, 0, 0]\ncone = 30"));
         assert!(e.starts_with("t.toml:9: light[0].direction"), "{e}");
         let e = err(&MINI.replace(
             "intensity = [1, 1, 1]",
@@ -1254,8 +903,7 @@ material = \"white\"
         assert!(e.starts_with("t.toml:11: light[0].falloff"), "{e}");
     }
 
-    const QUAD: &str =
-        "[[quad]]\nvertices = [[0, 0, 0], [2, 0, 0], [2, 1, 0], [0, 1, 0]]\nmaterial = \"white\"\n";
+    const QUAD: &str = "[[quad]]\nvertices = [[0, 0, 0], [2, 0, 0], [2, 1, 0], [0, 1, 0]]\nmaterial = \"white\"\n";
 
     #[test]
     fn quad_becomes_two_triangles_with_equal_subdivisions() {
@@ -1270,12 +918,7 @@ material = \"white\"
         assert_eq!(a.loc.line, 18);
         // Winding kept: normal +z.
         for p in [a, b] {
-            assert!(
-                (p.vertices[1] - p.vertices[0])
-                    .cross(p.vertices[2] - p.vertices[0])
-                    .z
-                    > 0.0
-            );
+            assert!((p.vertices[1] - p.vertices[0]).cross(p.vertices[2] - p.vertices[0]).z > 0.0);
         }
         let fixed = parse(&format!("{MINI}{QUAD}subdivisions = 7\n")).unwrap();
         assert_eq!(fixed.patches[2].subdivisions, Some(7));
@@ -1290,10 +933,7 @@ material = \"white\"
         let crossed = QUAD.replace("[2, 1, 0], [0, 1, 0]", "[0, 1, 0], [2, 1, 0]");
         assert!(err(&format!("{MINI}{crossed}")).contains("quad[0]"));
         let e = err(&format!("{MINI}{QUAD}subdivisions = 0\n"));
-        assert!(
-            e.starts_with("t.toml:20: quad[0].subdivisions: 0 is out of range 1..=4096"),
-            "{e}"
-        );
+        assert!(e.starts_with("t.toml:20: quad[0].subdivisions: 0 is out of range 1..=4096"), "{e}");
     }
 
     const CUBE_OBJ: &str =
@@ -1306,43 +946,16 @@ material = \"white\"
 
     #[test]
     fn mesh_materials_come_from_mtl_then_toml() {
-        let s = parse_with(
-            &mesh_scene(""),
-            &[("base/m/cube.obj", CUBE_OBJ), ("base/m/cube.mtl", CUBE_MTL)],
-        )
-        .unwrap();
+        let s = parse_with(&mesh_scene(""), &[("base/m/cube.obj", CUBE_OBJ), ("base/m/cube.mtl", CUBE_MTL)]).unwrap();
         assert_eq!(s.patches.len(), 1 + 3);
         let names: Vec<&str> = s.materials.iter().map(|m| m.name.as_str()).collect();
         assert_eq!(names, ["white", "m/cube.obj:red"]);
         assert_eq!(s.materials[1].diffuse, Rgb::new(0.8, 0.1, 0.1));
-        assert_eq!(
-            s.materials[1].loc,
-            SourceLoc {
-                file: "base/m/cube.mtl".into(),
-                line: 1
-            }
-        );
-        assert_eq!(
-            [
-                s.patches[1].material,
-                s.patches[2].material,
-                s.patches[3].material
-            ],
-            [1, 1, 0]
-        );
-        assert_eq!(
-            s.patches[3].loc,
-            SourceLoc {
-                file: "t.toml".into(),
-                line: 19
-            }
-        );
+        assert_eq!(s.materials[1].loc, SourceLoc { file: "base/m/cube.mtl".into(), line: 1 });
+        assert_eq!([s.patches[1].material, s.patches[2].material, s.patches[3].material], [1, 1, 0]);
+        assert_eq!(s.patches[3].loc, SourceLoc { file: "t.toml".into(), line: 19 });
         // An explicit material overrides the MTL, which is then not even read.
-        let s = parse_with(
-            &mesh_scene("material = \"white\"\n"),
-            &[("base/m/cube.obj", CUBE_OBJ)],
-        )
-        .unwrap();
+        let s = parse_with(&mesh_scene("material = \"white\"\n"), &[("base/m/cube.obj", CUBE_OBJ)]).unwrap();
         assert!(s.patches.iter().all(|p| p.material == 0));
         assert_eq!(s.materials.len(), 1);
     }
@@ -1350,82 +963,41 @@ material = \"white\"
     #[test]
     fn missing_obj_names_scene_line_and_path() {
         let e = err(&mesh_scene(""));
-        assert!(
-            e.starts_with("t.toml:19: mesh[0].obj: cannot read OBJ file 'base/m/cube.obj'"),
-            "{e}"
-        );
-        let e = parse_with(&mesh_scene(""), &[("base/m/cube.obj", CUBE_OBJ)])
-            .unwrap_err()
-            .to_string();
-        assert!(
-            e.starts_with("base/m/cube.obj:1: mtllib: cannot read MTL file 'base/m/cube.mtl'"),
-            "{e}"
-        );
+        assert!(e.starts_with("t.toml:19: mesh[0].obj: cannot read OBJ file 'base/m/cube.obj'"), "{e}");
+        let e = parse_with(&mesh_scene(""), &[("base/m/cube.obj", CUBE_OBJ)]).unwrap_err().to_string();
+        assert!(e.starts_with("base/m/cube.obj:1: mtllib: cannot read MTL file 'base/m/cube.mtl'"), "{e}");
     }
 
     #[test]
     fn obj_errors_name_the_obj_file_and_line() {
         let bad = "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 9\n";
-        let e = parse_with(
-            &mesh_scene("material = \"white\"\n"),
-            &[("base/m/cube.obj", bad)],
-        )
-        .unwrap_err();
-        assert_eq!(
-            e.loc,
-            SourceLoc {
-                file: "base/m/cube.obj".into(),
-                line: 4
-            }
-        );
+        let e = parse_with(&mesh_scene("material = \"white\"\n"), &[("base/m/cube.obj", bad)]).unwrap_err();
+        assert_eq!(e.loc, SourceLoc { file: "base/m/cube.obj".into(), line: 4 });
         let no_mtl = "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n";
-        let e = parse_with(&mesh_scene(""), &[("base/m/cube.obj", no_mtl)])
-            .unwrap_err()
-            .to_string();
-        assert!(
-            e.starts_with("t.toml:19: mesh[0].material: base/m/cube.obj:4: face has no material"),
-            "{e}"
-        );
+        let e = parse_with(&mesh_scene(""), &[("base/m/cube.obj", no_mtl)]).unwrap_err().to_string();
+        assert!(e.starts_with("t.toml:19: mesh[0].material: base/m/cube.obj:4: face has no material"), "{e}");
         let unknown = "v 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl gold\nf 1 2 3\n";
-        let e = parse_with(&mesh_scene(""), &[("base/m/cube.obj", unknown)])
-            .unwrap_err()
-            .to_string();
-        assert!(
-            e.contains("base/m/cube.obj:5: material 'gold' is not defined"),
-            "{e}"
-        );
+        let e = parse_with(&mesh_scene(""), &[("base/m/cube.obj", unknown)]).unwrap_err().to_string();
+        assert!(e.contains("base/m/cube.obj:5: material 'gold' is not defined"), "{e}");
     }
 
     #[test]
     fn mesh_transform_is_scale_rotate_translate() {
         let obj = "v 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 2 3\n";
-        let text = mesh_scene(
-            "material = \"white\"\nscale = 2\nrotate = [0, 0, 90]\ntranslate = [10, 0, 0]\n",
-        );
+        let text = mesh_scene("material = \"white\"\nscale = 2\nrotate = [0, 0, 90]\ntranslate = [10, 0, 0]\n");
         let s = parse_with(&text, &[("base/m/cube.obj", obj)]).unwrap();
         let v = s.patches[1].vertices;
         // (1,0,0) -> scale (2,0,0) -> 90 deg about z (0,2,0) -> translate (10,2,0).
-        assert!(
-            (v[0] - Vec3::new(10.0, 2.0, 0.0)).length() < 1e-12,
-            "{:?}",
-            v[0]
-        );
-        assert!(
-            (v[2] - Vec3::new(10.0, 0.0, 2.0)).length() < 1e-12,
-            "{:?}",
-            v[2]
-        );
+        assert!((v[0] - Vec3::new(10.0, 2.0, 0.0)).length() < 1e-12, "{:?}", v[0]);
+        assert!((v[2] - Vec3::new(10.0, 0.0, 2.0)).length() < 1e-12, "{:?}", v[2]);
     }
 
     #[test]
     fn negative_scale_keeps_normals_outward() {
         let obj = "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n";
         let normal = |extra: &str| {
-            let s = parse_with(
-                &mesh_scene(&format!("material = \"white\"\n{extra}")),
-                &[("base/m/cube.obj", obj)],
-            )
-            .unwrap();
+            let s = parse_with(&mesh_scene(&format!("material = \"white\"\n{extra}")), &[("base/m/cube.obj", obj)])
+                .unwrap();
             let v = s.patches[1].vertices;
             (v[1] - v[0]).cross(v[2] - v[0]).normalized()
         };
@@ -1442,19 +1014,12 @@ material = \"white\"
     #[test]
     fn degenerate_obj_faces_are_skipped() {
         let obj = "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 2 0 0\nf 1 2 3\nf 1 2 4\n";
-        let s = parse_with(
-            &mesh_scene("material = \"white\"\nsubdivisions = 3\n"),
-            &[("base/m/cube.obj", obj)],
-        )
-        .unwrap();
+        let s =
+            parse_with(&mesh_scene("material = \"white\"\nsubdivisions = 3\n"), &[("base/m/cube.obj", obj)]).unwrap();
         assert_eq!(s.patches.len(), 2);
         assert_eq!(s.patches[1].subdivisions, Some(3));
         let flat = "v 0 0 0\nv 1 0 0\nv 2 0 0\nf 1 2 3\n";
-        let e = parse_with(
-            &mesh_scene("material = \"white\"\n"),
-            &[("base/m/cube.obj", flat)],
-        )
-        .unwrap_err();
+        let e = parse_with(&mesh_scene("material = \"white\"\n"), &[("base/m/cube.obj", flat)]).unwrap_err();
         assert!(e.message.contains("no faces of non-zero area"), "{e}");
     }
 
@@ -1462,10 +1027,7 @@ material = \"white\"
     fn patches_keep_file_order_across_kinds() {
         let text = MINI.replace("[[triangle]]", &format!("{QUAD}\n[[triangle]]"));
         let s = parse(&text).unwrap();
-        assert_eq!(
-            s.patches.iter().map(|p| p.loc.line).collect::<Vec<_>>(),
-            [15, 15, 19]
-        );
+        assert_eq!(s.patches.iter().map(|p| p.loc.line).collect::<Vec<_>>(), [15, 15, 19]);
     }
 
     #[test]

@@ -1,0 +1,92 @@
+//! Scene builders for the core's integration tests.
+#![allow(dead_code)]
+
+use magg_core::math::{Rgb, Vec3};
+use magg_core::preprocess::{prepare, PreparedScene};
+use magg_core::progress::NoProgress;
+use magg_core::render::{render, RenderOptions, RenderOutput};
+use magg_core::scene::*;
+
+pub fn v(x: f64, y: f64, z: f64) -> Vec3 {
+    Vec3::new(x, y, z)
+}
+
+pub fn loc() -> SourceLoc {
+    SourceLoc { file: "<test>".into(), line: 0 }
+}
+
+pub fn material(name: &str, diffuse: f64, mirror: f64, transmit: f64) -> Material {
+    Material {
+        name: name.into(),
+        diffuse: Rgb::splat(diffuse),
+        mirror: Rgb::splat(mirror),
+        transmit: Rgb::splat(transmit),
+        ior: 1.5,
+        loc: loc(),
+    }
+}
+
+pub fn light(p: Vec3, i: f64) -> Light {
+    Light { position: p, intensity: Rgb::splat(i), spot: None, loc: loc() }
+}
+
+/// A quad (a, b, c, d), counter-clockwise from the front, as two triangles sharing n.
+pub fn quad(a: Vec3, b: Vec3, c: Vec3, d: Vec3, material: u32, n: u32) -> Vec<PatchDef> {
+    vec![
+        PatchDef { vertices: [a, b, c], material, subdivisions: Some(n), loc: loc() },
+        PatchDef { vertices: [a, c, d], material, subdivisions: Some(n), loc: loc() },
+    ]
+}
+
+/// An axis-aligned box from `lo` to `hi` with faces facing inward (a room) or outward.
+pub fn boxed(lo: Vec3, hi: Vec3, material: u32, n: u32, inward: bool) -> Vec<PatchDef> {
+    let c = |x: bool, y: bool, z: bool| {
+        v(if x { hi.x } else { lo.x }, if y { hi.y } else { lo.y }, if z { hi.z } else { lo.z })
+    };
+    // Outward-facing faces, counter-clockwise seen from outside.
+    let faces = [
+        [c(false, false, false), c(false, false, true), c(false, true, true), c(false, true, false)], // -x
+        [c(true, false, false), c(true, true, false), c(true, true, true), c(true, false, true)],     // +x
+        [c(false, false, false), c(true, false, false), c(true, false, true), c(false, false, true)], // -y
+        [c(false, true, false), c(false, true, true), c(true, true, true), c(true, true, false)],     // +y
+        [c(false, false, false), c(false, true, false), c(true, true, false), c(true, false, false)], // -z
+        [c(false, false, true), c(true, false, true), c(true, true, true), c(false, true, true)],     // +z
+    ];
+    faces
+        .iter()
+        .flat_map(|f| {
+            if inward {
+                quad(f[3], f[2], f[1], f[0], material, n)
+            } else {
+                quad(f[0], f[1], f[2], f[3], material, n)
+            }
+        })
+        .collect()
+}
+
+pub fn scene(patches: Vec<PatchDef>, materials: Vec<Material>, lights: Vec<Light>) -> Scene {
+    Scene {
+        name: "<test>".into(),
+        camera: Camera { eye: v(0.0, 1.0, 3.0), look_at: v(0.0, 0.5, 0.0), up: v(0.0, 1.0, 0.0), fov_y_deg: 50.0 },
+        settings: RenderSettings {
+            width: 32,
+            height: 32,
+            pixel_samples: 1,
+            light_rays: 16,
+            ..RenderSettings::default()
+        },
+        lights,
+        materials,
+        patches,
+    }
+}
+
+pub fn run(p: &PreparedScene, nodes: u32, cache: Option<u64>) -> RenderOutput {
+    render(p, &RenderOptions { nodes, forks: 5, cache_blocks: cache, subscreen: 8 }, &NoProgress).expect("render")
+}
+
+pub fn prepare_and_run(s: &Scene) -> (PreparedScene, RenderOutput) {
+    let p = prepare(s).expect("prepare");
+    let o = run(&p, 2, None);
+    (p, o)
+}
