@@ -130,18 +130,12 @@ pub enum ImageFormat {
 impl ImageFormat {
     /// The format of `path`, from its extension.
     pub fn of(path: &std::path::Path) -> anyhow::Result<ImageFormat> {
-        let ext = path
-            .extension()
-            .and_then(|e| e.to_str())
-            .map(|e| e.to_ascii_lowercase());
+        let ext = path.extension().and_then(|e| e.to_str()).map(|e| e.to_ascii_lowercase());
         match ext.as_deref() {
             Some("png") => Ok(ImageFormat::Png),
             Some("exr") => Ok(ImageFormat::Exr),
             Some("pfm") => Ok(ImageFormat::Pfm),
-            _ => bail!(
-                "{}: unknown image format (use .png, .exr or .pfm)",
-                path.display()
-            ),
+            _ => bail!("{}: unknown image format (use .png, .exr or .pfm)", path.display()),
         }
     }
 }
@@ -182,9 +176,7 @@ pub fn parse_cache_blocks(s: &str) -> anyhow::Result<Option<u64>> {
     if s.eq_ignore_ascii_case("unlimited") {
         return Ok(None);
     }
-    let n: u64 = s.parse().with_context(|| {
-        format!("--cache-blocks {s:?}: expected a block count or \"unlimited\"")
-    })?;
+    let n: u64 = s.parse().with_context(|| format!("--cache-blocks {s:?}: expected a block count or \"unlimited\""))?;
     if n == 0 {
         bail!("--cache-blocks 0: a node needs at least one cache block");
     }
@@ -215,10 +207,7 @@ impl RenderArgs {
             bail!("--subscreen {}: must be 1..=4096", self.subscreen);
         }
         if self.profile != "native" {
-            bail!(
-                "--profile {}: only the \"native\" profile exists in this build",
-                self.profile
-            );
+            bail!("--profile {}: only the \"native\" profile exists in this build", self.profile);
         }
         Ok(RenderConfig {
             scene: self.scene,
@@ -295,10 +284,7 @@ mod tests {
 
     #[test]
     fn formats_by_extension() {
-        assert_eq!(
-            ImageFormat::of("a/b.PNG".as_ref()).unwrap(),
-            ImageFormat::Png
-        );
+        assert_eq!(ImageFormat::of("a/b.PNG".as_ref()).unwrap(), ImageFormat::Png);
         assert_eq!(ImageFormat::of("x.exr".as_ref()).unwrap(), ImageFormat::Exr);
         assert!(ImageFormat::of("x.jpg".as_ref()).is_err());
     }

@@ -17,12 +17,7 @@ pub fn write(
     let mut out = std::io::BufWriter::new(std::fs::File::create(path)?);
     writeln!(out, "kind,id,patch,x,y,z,area,r,g,b")?;
     let q = prepared.header.energy_quantum;
-    for (i, (e, irr)) in prepared
-        .elements
-        .iter()
-        .zip(element_irradiance(&prepared.elements, flux, q))
-        .enumerate()
-    {
+    for (i, (e, irr)) in prepared.elements.iter().zip(element_irradiance(&prepared.elements, flux, q)).enumerate() {
         let c = e.centroid;
         writeln!(
             out,
@@ -30,17 +25,8 @@ pub fn write(
             e.patch, c.x, c.y, c.z, e.area, irr.0[0], irr.0[1], irr.0[2]
         )?;
     }
-    for (i, (p, irr)) in prepared
-        .vertex_positions
-        .iter()
-        .zip(vertex_irradiance)
-        .enumerate()
-    {
-        writeln!(
-            out,
-            "vertex,{i},,{},{},{},,{},{},{}",
-            p.x, p.y, p.z, irr.0[0], irr.0[1], irr.0[2]
-        )?;
+    for (i, (p, irr)) in prepared.vertex_positions.iter().zip(vertex_irradiance).enumerate() {
+        writeln!(out, "vertex,{i},,{},{},{},,{},{},{}", p.x, p.y, p.z, irr.0[0], irr.0[1], irr.0[2])?;
     }
     out.flush()?;
     Ok(())

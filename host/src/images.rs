@@ -8,12 +8,7 @@ use std::io::Write;
 use std::path::Path;
 
 /// Writes `frame` to `path` in `format`; PNG uses `exposure` for tone mapping.
-pub fn write(
-    frame: &Frame,
-    path: &Path,
-    format: ImageFormat,
-    exposure: Exposure,
-) -> anyhow::Result<()> {
+pub fn write(frame: &Frame, path: &Path, format: ImageFormat, exposure: Exposure) -> anyhow::Result<()> {
     match format {
         ImageFormat::Png => write_png(frame, path, exposure),
         ImageFormat::Exr => write_exr(frame, path),

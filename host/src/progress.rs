@@ -14,10 +14,7 @@ impl Bars {
     /// Bars on stderr when it is a terminal and `quiet` is false.
     pub fn new(quiet: bool) -> Self {
         use std::io::IsTerminal;
-        Bars {
-            bar: Mutex::new(None),
-            enabled: !quiet && std::io::stderr().is_terminal(),
-        }
+        Bars { bar: Mutex::new(None), enabled: !quiet && std::io::stderr().is_terminal() }
     }
 }
 
@@ -27,9 +24,9 @@ impl magg_core::progress::Progress for Bars {
             return;
         }
         let pb = ProgressBar::with_draw_target(Some(total), ProgressDrawTarget::stderr());
-        if let Ok(style) = ProgressStyle::with_template(
-            "{msg:>22} [{bar:40}] {percent:>3}% {elapsed_precise} eta {eta}",
-        ) {
+        if let Ok(style) =
+            ProgressStyle::with_template("{msg:>22} [{bar:40}] {percent:>3}% {elapsed_precise} eta {eta}")
+        {
             pb.set_style(style.progress_chars("=> "));
         }
         pb.set_message(stage.to_string());

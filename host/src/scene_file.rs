@@ -6,8 +6,7 @@ use std::path::Path;
 
 /// Reads and parses the scene at `path`; OBJ/MTL files are resolved next to it.
 pub fn load(path: &Path) -> anyhow::Result<Scene> {
-    let text = std::fs::read_to_string(path)
-        .with_context(|| format!("cannot read scene file {}", path.display()))?;
+    let text = std::fs::read_to_string(path).with_context(|| format!("cannot read scene file {}", path.display()))?;
     let base = path.parent().unwrap_or_else(|| Path::new("."));
     let label = path.display().to_string();
     let scene = parse_scene_str(&label, &text, base, &|p: &Path| std::fs::read_to_string(p))?;

@@ -24,30 +24,42 @@ pub(super) struct Mesh {
     pub vertex_positions: Vec<Vec3>,
 }
 
-/// The subdivision count of a patch: its own, or `ceil(longest edge / element_size)`,
-/// at least 1 and at most 4096.
-pub fn subdivisions_of(v: &[Vec3; 3], fixed: Option<u32>, element_size: f64) -> u32 {
+/// The subdivision count n of a patch: its own, or `ceil(length / element_size)` with
+/// length its size hint or longest edge; at least 1. Returned as `f64` so that absurd
+/// counts can be refused rather than wrapped or clamped.
+pub fn subdivisions_of(v: &[Vec3; 3], fixed: Option<u32>, size_hint: Option<f64>, element_size: f64) -> f64 {
     if let Some(n) = fixed {
-        return n.clamp(1, 4096);
+        return n.max(1) as f64;
     }
     let longest = (v[1] - v[0]).length().max((v[2] - v[1]).length()).max((v[0] - v[2]).length());
-    let n = (longest / element_size).ceil();
+    let n = (size_hint.unwrap_or(longest) / element_size).ceil();
     if n.is_finite() {
-        n.clamp(1.0, 4096.0) as u32
+        n.max(1.0)
     } else {
-        1
+        f64::INFINITY
     }
 }
 
 pub(super) fn build(scene: &Scene) -> Result<Mesh, PrepareError> {
     let s = &scene.settings;
     let patches: Vec<[Vec3; 3]> = scene.patches.iter().map(|p| p.vertices).collect();
-    let subdivisions: Vec<u32> =
-        scene.patches.par_iter().map(|p| subdivisions_of(&p.vertices, p.subdivisions, s.element_size)).collect();
-    let estimate: u64 = subdivisions.iter().map(|&n| element_count(n)).sum();
-    if estimate > s.max_elements {
-        return Err(PrepareError::TooManyElements { file: scene.name.clone(), estimate, limit: s.max_elements });
+    let counts: Vec<f64> = scene
+        .patches
+        .par_iter()
+        .map(|p| subdivisions_of(&p.vertices, p.subdivisions, p.size_hint, s.element_size))
+        .collect();
+    let estimate: f64 = counts.iter().map(|n| n * n).sum();
+    if !(estimate <= s.max_elements as f64) {
+        let (worst, n) = counts.iter().enumerate().fold((0, 0.0), |a, (i, &n)| if n > a.1 { (i, n) } else { a });
+        return Err(PrepareError::TooManyElements {
+            file: scene.name.clone(),
+            estimate: estimate.min(u64::MAX as f64) as u64,
+            limit: s.max_elements,
+            worst: format!("{} ({n} x {n} subdivisions)", scene.patches[worst].loc),
+        });
     }
+    let subdivisions: Vec<u32> = counts.iter().map(|&n| n as u32).collect();
+    let estimate = estimate as u64;
     let lattice_total: u64 = subdivisions.iter().map(|&n| lattice_count(n)).sum();
     if estimate >= u32::MAX as u64 / 2 || lattice_total >= u32::MAX as u64 / 2 || patches.len() >= u32::MAX as usize / 2
     {
@@ -101,8 +113,10 @@ mod tests {
     #[test]
     fn subdivision_count_follows_element_size() {
         let v = [Vec3::ZERO, Vec3::new(1.0, 0.0, 0.0), Vec3::new(0.0, 1.0, 0.0)];
-        assert_eq!(subdivisions_of(&v, None, 0.1), 15); // diagonal 1.414
-        assert_eq!(subdivisions_of(&v, Some(20), 0.1), 20);
-        assert_eq!(subdivisions_of(&v, None, 10.0), 1);
+        assert_eq!(subdivisions_of(&v, None, None, 0.1), 15.0); // diagonal 1.414
+        assert_eq!(subdivisions_of(&v, Some(20), None, 0.1), 20.0);
+        assert_eq!(subdivisions_of(&v, None, None, 10.0), 1.0);
+        assert_eq!(subdivisions_of(&v, None, Some(3.0), 0.1), 30.0);
+        assert_eq!(subdivisions_of(&v, None, None, 1e-320), f64::INFINITY);
     }
 }

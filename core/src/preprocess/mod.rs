@@ -24,8 +24,10 @@ pub use mesh::subdivisions_of;
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
 pub enum PrepareError {
     /// The element count is over the scene's `max_elements`.
-    #[error("{file}: the scene would have {estimate} elements, over the limit of {limit} (render.max_elements); raise element_size or the limit")]
+    #[error("{file}: the scene would have {estimate} elements, over the limit of {limit} (render.max_elements); the largest patch is at {worst}; raise element_size or the limit")]
     TooManyElements {
+        /// Where the patch with the most elements is defined, and its subdivisions.
+        worst: String,
         /// Scene label.
         file: String,
         /// Elements it would create.

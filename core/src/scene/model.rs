@@ -180,6 +180,10 @@ pub struct PatchDef {
     pub material: u32,
     /// Fixed subdivision count n (n*n elements), overriding `element_size`.
     pub subdivisions: Option<u32>,
+    /// Length to divide by `element_size` instead of this triangle's longest edge: the
+    /// two halves of a quad carry the quad's longest edge (diagonal included), so that
+    /// they subdivide identically and weld without a seam whatever the element size.
+    pub size_hint: Option<f64>,
     /// Where it was defined (the `[[quad]]`, `[[triangle]]` or `[[mesh]]` entry).
     pub loc: SourceLoc,
 }

@@ -518,7 +518,13 @@ impl PatchBuilder<'_, '_> {
         }
         let material = self.material_ref(&t.material, &format!("triangle[{i}].material"))?;
         let subdivisions = self.subdivisions(&t.subdivisions, &format!("triangle[{i}].subdivisions"))?;
-        self.patches.push(PatchDef { vertices: v, material, subdivisions, loc: self.cx.loc(&t.vertices) });
+        self.patches.push(PatchDef {
+            vertices: v,
+            material,
+            subdivisions,
+            size_hint: None,
+            loc: self.cx.loc(&t.vertices),
+        });
         Ok(())
     }
 
@@ -527,30 +533,18 @@ impl PatchBuilder<'_, '_> {
         let v: [Vec3; 4] = self.corners(q, &field)?;
         check_quad(&v).map_err(|why| self.cx.err(&q.vertices, &field, format!("quad[{i}] {why}")))?;
         let material = self.material_ref(&q.material, &format!("quad[{i}].material"))?;
-        let subdivisions = match self.subdivisions(&q.subdivisions, &format!("quad[{i}].subdivisions"))? {
-            Some(n) => n,
-            None => {
-                // Both halves get the same n, from the longest edge of the quad including the
-                // shared diagonal, so that they subdivide identically and weld without seams.
-                let longest = [v[1] - v[0], v[2] - v[1], v[3] - v[2], v[0] - v[3], v[2] - v[0]]
-                    .iter()
-                    .map(|e| e.length())
-                    .fold(0.0, f64::max);
-                let n = (longest / self.settings.element_size).ceil().max(1.0);
-                let limit = self.settings.max_elements as f64;
-                if 2.0 * n * n > limit {
-                    let msg = format!(
-                        "quad[{i}] would need {n} x {n} subdivisions at element_size {}: more than render.max_elements {limit}",
-                        self.settings.element_size
-                    );
-                    return Err(self.cx.err(&q.vertices, field, msg));
-                }
-                n as u32
-            }
-        };
+        let subdivisions = self.subdivisions(&q.subdivisions, &format!("quad[{i}].subdivisions"))?;
+        // Without a fixed n, both halves are subdivided from the longest edge of the quad
+        // including the shared diagonal (at preprocessing, with the element size then in
+        // force), so that they subdivide identically and weld without seams.
+        let longest = [v[1] - v[0], v[2] - v[1], v[3] - v[2], v[0] - v[3], v[2] - v[0]]
+            .iter()
+            .map(|e| e.length())
+            .fold(0.0, f64::max);
+        let size_hint = Some(longest);
         let loc = self.cx.loc(&q.vertices);
         for tri in [[v[0], v[1], v[2]], [v[0], v[2], v[3]]] {
-            self.patches.push(PatchDef { vertices: tri, material, subdivisions: Some(subdivisions), loc: loc.clone() });
+            self.patches.push(PatchDef { vertices: tri, material, subdivisions, size_hint, loc: loc.clone() });
         }
         Ok(())
     }
@@ -580,7 +574,7 @@ impl PatchBuilder<'_, '_> {
             material,
         };
         for (vertices, material) in obj::load_mesh(&entry, base_dir, read, &mut self.materials)? {
-            self.patches.push(PatchDef { vertices, material, subdivisions, loc: entry.at.clone() });
+            self.patches.push(PatchDef { vertices, material, subdivisions, size_hint: None, loc: entry.at.clone() });
         }
         Ok(())
     }
@@ -913,8 +907,10 @@ material = \"white\"
         let v = |x: f64, y: f64| Vec3::new(x, y, 0.0);
         assert_eq!(a.vertices, [v(0.0, 0.0), v(2.0, 0.0), v(2.0, 1.0)]);
         assert_eq!(b.vertices, [v(0.0, 0.0), v(2.0, 1.0), v(0.0, 1.0)]);
-        // Longest edge incl. the diagonal: sqrt(5) = 2.236 / 0.5 -> 5.
-        assert_eq!((a.subdivisions, b.subdivisions), (Some(5), Some(5)));
+        // Both halves carry the quad's longest edge incl. the diagonal: sqrt(5).
+        assert_eq!((a.subdivisions, b.subdivisions), (None, None));
+        assert_eq!(a.size_hint, b.size_hint);
+        assert!((a.size_hint.unwrap() - 5f64.sqrt()).abs() < 1e-12);
         assert_eq!(a.loc.line, 18);
         // Winding kept: normal +z.
         for p in [a, b] {

@@ -33,8 +33,8 @@ pub fn light(p: Vec3, i: f64) -> Light {
 /// A quad (a, b, c, d), counter-clockwise from the front, as two triangles sharing n.
 pub fn quad(a: Vec3, b: Vec3, c: Vec3, d: Vec3, material: u32, n: u32) -> Vec<PatchDef> {
     vec![
-        PatchDef { vertices: [a, b, c], material, subdivisions: Some(n), loc: loc() },
-        PatchDef { vertices: [a, c, d], material, subdivisions: Some(n), loc: loc() },
+        PatchDef { vertices: [a, b, c], material, subdivisions: Some(n), size_hint: None, loc: loc() },
+        PatchDef { vertices: [a, c, d], material, subdivisions: Some(n), size_hint: None, loc: loc() },
     ]
 }
 

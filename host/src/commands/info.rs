@@ -27,28 +27,15 @@ pub fn run(args: &InfoArgs) -> anyhow::Result<()> {
     println!("scene      {}", p.name);
     println!("lights     {}", h.lights.len());
     println!("materials  {}", h.materials.len());
-    println!(
-        "patches    {:>9}  in {:>6} patch blocks",
-        c.patches, c.patch_blocks
-    );
-    println!(
-        "elements   {:>9}  in {:>6} element blocks",
-        c.elements, c.element_blocks
-    );
-    println!(
-        "vertices   {:>9}  in {:>6} vertex-energy blocks",
-        c.vertices, c.vertex_blocks
-    );
+    println!("patches    {:>9}  in {:>6} patch blocks", c.patches, c.patch_blocks);
+    println!("elements   {:>9}  in {:>6} element blocks", c.elements, c.element_blocks);
+    println!("vertices   {:>9}  in {:>6} vertex-energy blocks", c.vertices, c.vertex_blocks);
     let g = h.grid.dims;
     println!(
         "subspaces  {:>9}  in {:>6} subspace blocks (grid {}x{}x{})",
         c.subspaces, c.subspace_blocks, g[0], g[1], g[2]
     );
-    println!(
-        "blocks     {:>9}  (2 KB each, {:.1} MB)",
-        h.layout.total,
-        h.layout.total as f64 * 2048.0 / 1e6
-    );
+    println!("blocks     {:>9}  (2 KB each, {:.1} MB)", h.layout.total, h.layout.total as f64 * 2048.0 / 1e6);
     println!(
         "image      {}x{}, {} samples/pixel, {} light rays/pair",
         h.settings.width, h.settings.height, h.settings.pixel_samples, h.settings.light_rays

@@ -10,15 +10,11 @@ use magg_core::{preprocess, render};
 pub fn run(cfg: RenderConfig) -> anyhow::Result<()> {
     let mut scene = scene_file::load(&cfg.scene)?;
     cfg.knobs.apply(&mut scene.settings)?;
-    let plan = if cfg.all_effects {
-        EffectsPlan::forced_on(&scene)
-    } else {
-        EffectsPlan::for_scene(&scene)
-    };
-    if !cfg.quiet {
-        eprint!("{plan}");
-    }
+    let plan = if cfg.all_effects { EffectsPlan::forced_on(&scene) } else { EffectsPlan::for_scene(&scene) };
     let prepared = preprocess::prepare_with_plan(&scene, plan)?;
+    if !cfg.quiet {
+        eprint!("{}", prepared.header.plan);
+    }
     let opts = render::RenderOptions {
         nodes: cfg.nodes,
         forks: cfg.forks,
@@ -40,8 +36,7 @@ pub fn run(cfg: RenderConfig) -> anyhow::Result<()> {
     }
     if let Some(path) = &cfg.stats {
         let json = serde_json::to_string_pretty(&stats)?;
-        std::fs::write(path, json + "\n")
-            .with_context(|| format!("cannot write stats file {}", path.display()))?;
+        std::fs::write(path, json + "\n").with_context(|| format!("cannot write stats file {}", path.display()))?;
     }
     if !cfg.quiet {
         let s = &stats.stages;

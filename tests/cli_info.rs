@@ -1,0 +1,47 @@
+//! `magg-host info`: the counts of the paper's scene, as JSON and as text.
+
+use magg_tests::{assert_success, magg_host};
+use serde_json::Value;
+
+#[test]
+fn paper_scene_counts_as_json() {
+    let out = magg_host().args(["info", "scenes/magg-paper.toml", "--json"]).output().unwrap();
+    assert_success(&out, "magg-host info --json");
+    let v: Value = serde_json::from_slice(&out.stdout).unwrap_or_else(|e| panic!("info --json is not JSON: {e}"));
+    let c = &v["counts"];
+    assert_eq!(c["patches"].as_u64(), Some(8), "{v:#}");
+    assert_eq!(c["elements"].as_u64(), Some(1664), "{v:#}");
+    assert_eq!(c["subspaces"].as_u64(), Some(336), "{v:#}");
+    assert_eq!(v["grid"], serde_json::json!([8, 7, 6]));
+    assert_eq!(v["lights"].as_u64(), Some(1));
+    // The blocks of every kind add up to the total.
+    let kinds: u64 = ["patch_blocks", "element_blocks", "vertex_blocks", "subspace_blocks"]
+        .iter()
+        .map(|k| c[k].as_u64().unwrap_or_else(|| panic!("counts.{k} missing")))
+        .sum();
+    assert!(kinds <= v["blocks"].as_u64().unwrap(), "{kinds} blocks of the kinds > total");
+    let passes = v["plan"]["passes"].as_array().expect("plan.passes");
+    assert!(passes.iter().any(|p| p == "lrt_specular"), "the mirror needs specular light rays");
+}
+
+#[test]
+fn paper_scene_text_shows_counts_and_plan() {
+    let out = magg_host().args(["info", "scenes/magg-paper.toml"]).output().unwrap();
+    assert_success(&out, "magg-host info");
+    let text = String::from_utf8(out.stdout).unwrap();
+    assert!(text.contains("effects plan"), "{text}");
+    assert!(text.contains("1664"), "{text}");
+    assert!(text.contains("grid 8x7x6"), "{text}");
+}
+
+#[test]
+fn large_scene_info_is_quick_and_consistent() {
+    let out = magg_host().args(["info", "scenes/large.toml", "--json"]).output().unwrap();
+    assert_success(&out, "magg-host info large.toml");
+    let v: Value = serde_json::from_slice(&out.stdout).unwrap();
+    // 39 560 mesh triangles (subdivisions = 1) plus the mirror's two halves.
+    let patches = v["counts"]["patches"].as_u64().unwrap();
+    assert_eq!(patches, 39_562, "{v:#}");
+    assert!(v["counts"]["elements"].as_u64().unwrap() > patches);
+    assert_eq!(v["lights"].as_u64(), Some(2));
+}
