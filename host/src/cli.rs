@@ -41,10 +41,11 @@ pub struct RenderArgs {
     /// Also write the linear image to this .exr or .pfm file.
     #[arg(long)]
     pub linear: Option<PathBuf>,
-    /// Node workers (0 = one per core).
+    /// Nodes started in this process (0 = one per core).
     #[arg(long, default_value_t = 0)]
     pub nodes: u32,
-    /// Forks the 2 KB blocks are interleaved over (block b on fork b mod F).
+    /// Forks started in this process; the 2 KB blocks are interleaved over them (block b
+    /// on fork b mod F).
     #[arg(long, default_value_t = 5)]
     pub forks: u32,
     /// LRU cache size per node, in 2 KB blocks, or "unlimited".
@@ -66,6 +67,23 @@ pub struct RenderArgs {
     /// Subscreen edge in pixels (VRT work unit).
     #[arg(long, default_value_t = 16)]
     pub subscreen: u32,
+    /// Drive the rendering core directly in this process (no gRPC): the reference the
+    /// cluster is measured and tested against.
+    #[arg(long, conflicts_with_all = ["forks_at", "external_nodes"])]
+    pub embedded: bool,
+    /// Use these running magg-fork processes (comma-separated HOST:PORT) instead of
+    /// starting forks in this process.
+    #[arg(long, value_delimiter = ',')]
+    pub forks_at: Vec<String>,
+    /// Address to serve nodes on (HOST:PORT; port 0 picks a free one).
+    #[arg(long, default_value = "127.0.0.1:0")]
+    pub listen: String,
+    /// Start no node in this process: wait for magg-node processes to register.
+    #[arg(long)]
+    pub external_nodes: bool,
+    /// Abort when a phase makes no progress for this many seconds.
+    #[arg(long, default_value_t = 60)]
+    pub stall_timeout: u64,
     /// No progress bars or summary.
     #[arg(short, long)]
     pub quiet: bool,
@@ -169,6 +187,27 @@ pub struct RenderConfig {
     pub quiet: bool,
     /// Scene overrides.
     pub knobs: Knobs,
+    /// Where the cluster runs.
+    pub mode: Mode,
+}
+
+/// How the render is run.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum Mode {
+    /// The rendering core driven directly, no gRPC.
+    Embedded,
+    /// The cluster over gRPC: forks in this process unless `forks_at` is given, nodes in
+    /// this process unless `external_nodes`.
+    Cluster {
+        /// External forks.
+        forks_at: Vec<String>,
+        /// Host address for nodes.
+        listen: String,
+        /// Wait for external nodes instead of starting them.
+        external_nodes: bool,
+        /// Phase stall limit.
+        stall_timeout: std::time::Duration,
+    },
 }
 
 /// Parses a cache size: a positive block count or "unlimited".
@@ -206,6 +245,12 @@ impl RenderArgs {
         if self.subscreen == 0 || self.subscreen > 4096 {
             bail!("--subscreen {}: must be 1..=4096", self.subscreen);
         }
+        if self.forks_at.iter().any(|a| a.trim().is_empty()) {
+            bail!("--forks-at: empty address in the list");
+        }
+        if self.stall_timeout == 0 {
+            bail!("--stall-timeout 0: must be at least 1 second");
+        }
         if self.profile != "native" {
             bail!("--profile {}: only the \"native\" profile exists in this build", self.profile);
         }
@@ -223,6 +268,16 @@ impl RenderArgs {
             subscreen: self.subscreen,
             quiet: self.quiet,
             knobs: self.knobs,
+            mode: if self.embedded {
+                Mode::Embedded
+            } else {
+                Mode::Cluster {
+                    forks_at: self.forks_at.iter().map(|a| a.trim().to_string()).collect(),
+                    listen: self.listen,
+                    external_nodes: self.external_nodes,
+                    stall_timeout: std::time::Duration::from_secs(self.stall_timeout),
+                }
+            },
         })
     }
 }

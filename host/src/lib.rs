@@ -6,6 +6,7 @@
 //! scene with no set-up.
 
 pub mod cli;
+pub mod cluster;
 pub mod commands;
 pub mod energy_csv;
 pub mod images;

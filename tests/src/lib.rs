@@ -62,7 +62,7 @@ fn host_binary() -> &'static Path {
         let cargo = std::env::var_os("CARGO").unwrap_or_else(|| "cargo".into());
         let mut cmd = Command::new(cargo);
         cmd.current_dir(workspace_root())
-            .args(["build", "--quiet", "-p", "magg-host", "--bin", "magg-host"])
+            .args(["build", "--quiet", "-p", "magg-host", "-p", "magg-fork", "-p", "magg-node"])
             .arg("--target-dir")
             .arg(&target);
         if release {
@@ -80,6 +80,12 @@ fn host_binary() -> &'static Path {
         assert!(bin.is_file(), "built magg-host but {} is missing", bin.display());
         bin
     })
+}
+
+/// Path of a cluster binary (`magg-fork`, `magg-node`) built beside `magg-host`.
+pub fn magg_bin(name: &str) -> PathBuf {
+    let host = host_binary();
+    host.with_file_name(format!("{name}{}", std::env::consts::EXE_SUFFIX))
 }
 
 /// A [`Command`] for the `magg-host` binary, built if needed, run from the workspace

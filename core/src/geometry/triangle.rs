@@ -72,8 +72,9 @@ pub fn intersect_watertight(ray: &Ray, v: &[Vec3; 3], tmin: f64, tmax: f64) -> O
     if !(t > tmin && t < tmax) {
         return None;
     }
-    let inv = 1.0 / det;
-    Some(TriHit { t, bary: [u * inv, vv * inv, w * inv] })
+    // Divide rather than multiply by 1 / det: for a sliver whose det is subnormal,
+    // 1 / det overflows and the weights would be inf or NaN.
+    Some(TriHit { t, bary: [u / det, vv / det, w / det] })
 }
 
 /// Area of a triangle.
@@ -93,6 +94,10 @@ pub fn solid_angle(p: Vec3, v: &[Vec3; 3]) -> f64 {
         return 0.0;
     }
     let num = a.dot(b.cross(c)).abs();
+    if num == 0.0 {
+        // In the plane (inside the triangle, atan2(0, den < 0) would say 2 pi).
+        return 0.0;
+    }
     let den = la * lb * lc + a.dot(b) * lc + a.dot(c) * lb + b.dot(c) * la;
     let omega = 2.0 * num.atan2(den);
     if omega.is_finite() {

@@ -77,9 +77,19 @@ pub(super) fn build(scene: &Scene, mesh: &Mesh) -> Grid {
         .par_iter()
         .enumerate()
         .flat_map_iter(|(p, v)| {
+            // A zero-area patch can carry no light and must never be hit; rounding in
+            // the watertight test can report a hit through one of its corners, so it
+            // is listed in no subspace.
+            if (v[1] - v[0]).cross(v[2] - v[0]) == Vec3::ZERO {
+                return Vec::new();
+            }
             let bb = Aabb::of_triangle(v);
-            let lo = [cell_of(bb.min.x, 0), cell_of(bb.min.y, 1), cell_of(bb.min.z, 2)];
-            let hi = [cell_of(bb.max.x, 0), cell_of(bb.max.y, 1), cell_of(bb.max.z, 2)];
+            // Candidate cells from the box grown like the cells below, so that a patch
+            // whose box starts exactly on a cell face is also tried in the cell before.
+            let eps = cs * 1e-9;
+            let (bmin, bmax) = (bb.min - eps, bb.max + eps);
+            let lo = [cell_of(bmin.x, 0), cell_of(bmin.y, 1), cell_of(bmin.z, 2)];
+            let hi = [cell_of(bmax.x, 0), cell_of(bmax.y, 1), cell_of(bmax.z, 2)];
             let mut out = Vec::new();
             for z in lo[2]..=hi[2] {
                 for y in lo[1]..=hi[1] {
@@ -88,7 +98,6 @@ pub(super) fn build(scene: &Scene, mesh: &Mesh) -> Grid {
                             Vec3::new(b.min.x + cs.x * x as f64, b.min.y + cs.y * y as f64, b.min.z + cs.z * z as f64);
                         // Grow the cell by a hair so that patches lying exactly on a cell
                         // face are listed on both sides despite rounding.
-                        let eps = cs * 1e-9;
                         if triangle_overlaps_box(v, cmin - eps, cmin + cs + eps) {
                             let cell = (z as usize * dims[1] as usize + y as usize) * dims[0] as usize + x as usize;
                             out.push((cell as u32, p as u32));

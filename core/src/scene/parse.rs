@@ -160,7 +160,6 @@ pub fn parse_scene_str(
 
     let mut builder = PatchBuilder {
         cx: &cx,
-        settings: &settings,
         materials: MaterialTable { list: materials, toml: by_name, from_mtl: HashMap::new() },
         patches: Vec::new(),
     };
@@ -469,7 +468,6 @@ impl<'a> Ctx<'a> {
 /// Builds triangle patches and registers MTL materials as meshes are read.
 struct PatchBuilder<'c, 'a> {
     cx: &'c Ctx<'a>,
-    settings: &'c RenderSettings,
     materials: MaterialTable,
     patches: Vec<PatchDef>,
 }

@@ -1,6 +1,7 @@
 //! `magg-host render SCENE --out IMAGE`: the main job.
 
-use crate::cli::RenderConfig;
+use crate::cli::{Mode, RenderConfig};
+use crate::cluster::{render_in_process, InProcessOptions};
 use crate::{energy_csv, images, progress::Bars, scene_file};
 use anyhow::Context;
 use magg_core::plan::EffectsPlan;
@@ -22,7 +23,21 @@ pub fn run(cfg: RenderConfig) -> anyhow::Result<()> {
         subscreen: cfg.subscreen,
     };
     let bars = Bars::new(cfg.quiet);
-    let out = render::render(&prepared, &opts, &bars)?;
+    let out = match &cfg.mode {
+        Mode::Embedded => render::render(&prepared, &opts, &bars)?,
+        Mode::Cluster { forks_at, listen, external_nodes, stall_timeout } => {
+            let cluster = InProcessOptions {
+                nodes: if *external_nodes { 0 } else { opts.node_count() },
+                forks: cfg.forks,
+                forks_at: forks_at.clone(),
+                listen: listen.clone(),
+                cache_blocks: cfg.cache_blocks,
+                subscreen: cfg.subscreen,
+                stall_timeout: *stall_timeout,
+            };
+            render_in_process(&prepared, &cluster, &bars)?
+        }
+    };
     let mut stats = out.stats;
     stats.profile = cfg.profile.clone();
 

@@ -1,0 +1,44 @@
+//! # magg-fork: the fork processor of magg
+//!
+//! A fork (the paper's FP, §4.2–4.4) holds one shard of the scene's 2 KB blocks (block
+//! `b` on fork `b mod F`), serves blocks to its nodes (the DMA path) and fetches the ones
+//! it does not own from their fork on the node's behalf (the G-bus path), hands out the
+//! (light, element) pairs of the elements it owns and, when its queue runs dry, takes
+//! unassigned pairs from the other forks; and it accumulates, exactly once per pair, the
+//! fixed-point energy that nodes deposit on its elements.
+//!
+//! Rules the callers follow:
+//! - element `e` belongs to the fork holding its element block,
+//!   `layout.element_slot(e).0 % F`; its deposits go there;
+//! - a node sends all of one pair's deposits for one fork in a single `PairDeposits`
+//!   (a repeated pair id is acknowledged and ignored), and sets `complete` on the one it
+//!   sends to the owner of the pair's element (`pair % elements`);
+//! - clients of a fork raise their decoding limit ([`connect`] does): a `GetBlocks` reply
+//!   of 4096 blocks is 8 MiB.
+//!
+//! ```no_run
+//! # async fn f() -> Result<(), Box<dyn std::error::Error>> {
+//! let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await?;
+//! let addr = listener.local_addr()?;
+//! let (stop, stopped) = tokio::sync::oneshot::channel::<()>();
+//! let server = tokio::spawn(magg_fork::serve(listener, async { stopped.await.ok(); }));
+//! let mut fork = magg_fork::connect(&addr.to_string()).await?;
+//! // fork.load_shard(...), fork.get_blocks(...), fork.take_pairs(...), ...
+//! stop.send(()).ok();
+//! server.await??;
+//! # Ok(()) }
+//! ```
+
+pub mod error;
+mod locks;
+pub mod pairs;
+pub mod peers;
+pub mod server;
+pub mod service;
+pub mod shard;
+
+pub use error::ForkError;
+pub use peers::connect;
+pub use server::{fork_server, serve, serve_service, MAX_MESSAGE_BYTES};
+pub use service::ForkService;
+pub use shard::Shard;

@@ -1,0 +1,93 @@
+//! `magg-fork`: a fork process of a magg cluster. It waits for the host to load a shard,
+//! then serves blocks, pairs and energy to nodes and to the other forks.
+//!
+//! ```text
+//! magg-fork --listen 0.0.0.0:7100 -v
+//! ```
+
+use anyhow::Context;
+use clap::Parser;
+use std::net::SocketAddr;
+use std::process::ExitCode;
+
+/// A fork of a magg cluster: holds a shard of the scene's 2 KB blocks, serves them to
+/// nodes (DMA path) and other forks (G-bus path), hands out (light, element) pairs and
+/// accumulates the energy deposited on its elements. The host loads the shard
+/// (`magg-host render --forks-at ADDR,...`); until then every request but LoadShard is
+/// refused. Stops on Ctrl-C or SIGTERM, finishing the requests in flight.
+#[derive(Debug, Parser)]
+#[command(name = "magg-fork", version)]
+struct Args {
+    /// Address to listen on for gRPC (HOST:PORT; port 0 picks a free port).
+    #[arg(long, default_value = "127.0.0.1:7100")]
+    listen: SocketAddr,
+    /// More log output (-v: debug, -vv: trace); RUST_LOG overrides.
+    #[arg(short, long, action = clap::ArgAction::Count)]
+    verbose: u8,
+}
+
+fn main() -> ExitCode {
+    let args = Args::parse();
+    init_tracing(args.verbose);
+    match run(args) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("magg-fork: {e:#}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+fn init_tracing(verbose: u8) {
+    let level = match verbose {
+        0 => "info",
+        1 => "debug",
+        _ => "trace",
+    };
+    let filter = tracing_subscriber::EnvFilter::try_from_default_env()
+        .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new(format!("magg_fork={level},warn")));
+    tracing_subscriber::fmt().with_env_filter(filter).with_writer(std::io::stderr).init();
+}
+
+fn run(args: Args) -> anyhow::Result<()> {
+    let runtime = tokio::runtime::Builder::new_multi_thread().enable_all().build().context("starting the runtime")?;
+    runtime.block_on(async {
+        let listener = tokio::net::TcpListener::bind(args.listen)
+            .await
+            .with_context(|| format!("cannot listen on {}", args.listen))?;
+        let local = listener.local_addr().context("reading the bound address")?;
+        tracing::info!(%local, "fork listening");
+        magg_fork::serve(listener, shutdown_signal()).await.context("serving")?;
+        tracing::info!("fork stopped");
+        Ok(())
+    })
+}
+
+/// Completes on Ctrl-C or (on Unix) SIGTERM.
+async fn shutdown_signal() {
+    let ctrl_c = async {
+        if let Err(e) = tokio::signal::ctrl_c().await {
+            tracing::warn!("cannot wait for Ctrl-C: {e}");
+            std::future::pending::<()>().await;
+        }
+    };
+    #[cfg(unix)]
+    let term = async {
+        match tokio::signal::unix::signal(tokio::signal::unix::SignalKind::terminate()) {
+            Ok(mut s) => {
+                s.recv().await;
+            }
+            Err(e) => {
+                tracing::warn!("cannot wait for SIGTERM: {e}");
+                std::future::pending::<()>().await;
+            }
+        }
+    };
+    #[cfg(not(unix))]
+    let term = std::future::pending::<()>();
+    tokio::select! {
+        _ = ctrl_c => {}
+        _ = term => {}
+    }
+    tracing::info!("shutting down");
+}

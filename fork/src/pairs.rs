@@ -1,0 +1,79 @@
+//! The queue of a fork's unassigned (light, element) pairs (paper §4.4).
+//!
+//! A fork's pairs are every (light, element) with an element the fork owns, handed out in
+//! ascending pair id (`light * elements + element`, see [`magg_core::lrt::pair_id`]).
+//! The queue is a cursor over that sequence, so it costs no memory per pair however large
+//! the scene. Re-issuing the pairs of a failed node (leases) will add a second, explicit
+//! queue of returned pairs that is popped before the cursor.
+
+use magg_core::lrt::pair_id;
+
+/// Unassigned pairs of one fork.
+#[derive(Clone, Debug)]
+pub struct PairQueue {
+    /// Index of the next pair in the fork's sequence.
+    next: u64,
+    /// Pairs in the sequence: lights x owned elements (0 when LRT is off).
+    total: u64,
+}
+
+impl PairQueue {
+    /// The queue of `lights` lights over `owned` elements; empty when `lrt` is false.
+    pub fn new(lights: u32, owned: usize, lrt: bool) -> PairQueue {
+        PairQueue { next: 0, total: if lrt { lights as u64 * owned as u64 } else { 0 } }
+    }
+
+    /// Pairs of this fork in all (handed out or not).
+    pub fn total(&self) -> u64 {
+        self.total
+    }
+
+    /// Pairs not handed out yet.
+    pub fn remaining(&self) -> u64 {
+        self.total - self.next
+    }
+
+    /// Takes up to `max` pairs, ascending. `owned` is the fork's owned elements in
+    /// ascending order (the same slice the queue was built for), `elements` the scene's
+    /// element count.
+    pub fn pop(&mut self, max: usize, owned: &[u32], elements: u32) -> Vec<u64> {
+        if owned.is_empty() {
+            return Vec::new();
+        }
+        let n = (max as u64).min(self.remaining());
+        let per_light = owned.len() as u64;
+        let out = (self.next..self.next + n)
+            .map(|k| pair_id((k / per_light) as u32, owned[(k % per_light) as usize], elements))
+            .collect();
+        self.next += n;
+        out
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn pops_every_pair_once_in_ascending_order() {
+        let owned = [0u32, 1, 4, 5];
+        let mut q = PairQueue::new(2, owned.len(), true);
+        let mut all = Vec::new();
+        loop {
+            let got = q.pop(3, &owned, 6);
+            if got.is_empty() {
+                break;
+            }
+            all.extend(got);
+        }
+        assert_eq!(all, vec![0, 1, 4, 5, 6, 7, 10, 11]);
+        assert_eq!((q.total(), q.remaining()), (8, 0));
+    }
+
+    #[test]
+    fn no_pairs_without_lrt() {
+        let mut q = PairQueue::new(3, 10, false);
+        assert!(q.pop(100, &[0; 10], 10).is_empty());
+        assert_eq!(q.total(), 0);
+    }
+}

@@ -1,0 +1,136 @@
+//! Clients to the other forks (the paper's G-bus): block fetches and pair stealing.
+//!
+//! Connections are made on first use and cached; a connection that fails is dropped
+//! from the cache so that the next call reconnects. [`connect`] is also what nodes and
+//! the host use to reach a fork, with the message size limits a fork's replies need.
+
+use crate::error::ForkError;
+use crate::locks::lock;
+use crate::server::MAX_MESSAGE_BYTES;
+use magg_proto::v1;
+use magg_proto::v1::fork_client::ForkClient;
+use std::collections::HashMap;
+use std::sync::Mutex;
+use std::time::Duration;
+use tonic::transport::{Channel, Endpoint};
+use tonic::Code;
+
+/// How long a connection attempt to a fork may take.
+pub const CONNECT_TIMEOUT: Duration = Duration::from_secs(5);
+/// How long one fork-to-fork call may take.
+pub const PEER_CALL_TIMEOUT: Duration = Duration::from_secs(60);
+
+/// The URI of a fork address: `HOST:PORT` becomes `http://HOST:PORT`; an address with a
+/// scheme is kept.
+pub fn fork_uri(addr: &str) -> String {
+    if addr.contains("://") {
+        addr.to_string()
+    } else {
+        format!("http://{addr}")
+    }
+}
+
+/// Connects to the fork at `addr` (`HOST:PORT`), with the size limits of
+/// [`MAX_MESSAGE_BYTES`] both ways. Errors are [`ForkError::PeerUnavailable`] naming the
+/// address.
+pub async fn connect(addr: &str) -> Result<ForkClient<Channel>, ForkError> {
+    let unavailable = |reason: String| ForkError::PeerUnavailable { addr: addr.to_string(), reason };
+    let endpoint = Endpoint::from_shared(fork_uri(addr))
+        .map_err(|e| unavailable(format!("bad address: {e}")))?
+        .connect_timeout(CONNECT_TIMEOUT)
+        .timeout(PEER_CALL_TIMEOUT)
+        .tcp_nodelay(true);
+    let channel = endpoint.connect().await.map_err(|e| unavailable(error_chain(&e)))?;
+    Ok(ForkClient::new(channel)
+        .max_decoding_message_size(MAX_MESSAGE_BYTES)
+        .max_encoding_message_size(MAX_MESSAGE_BYTES))
+}
+
+/// An error and its sources on one line.
+fn error_chain(e: &dyn std::error::Error) -> String {
+    let mut s = e.to_string();
+    let mut src = e.source();
+    while let Some(c) = src {
+        s.push_str(": ");
+        s.push_str(&c.to_string());
+        src = c.source();
+    }
+    s
+}
+
+/// Cached clients to the other forks of one render.
+#[derive(Debug)]
+pub struct Peers {
+    addrs: Vec<String>,
+    clients: Mutex<HashMap<u32, ForkClient<Channel>>>,
+}
+
+impl Peers {
+    /// Peers at `addrs` (by fork index); nothing is connected yet.
+    pub fn new(addrs: Vec<String>) -> Peers {
+        Peers { addrs, clients: Mutex::new(HashMap::new()) }
+    }
+
+    /// Address of fork `fork`.
+    pub fn addr(&self, fork: u32) -> &str {
+        self.addrs.get(fork as usize).map(String::as_str).unwrap_or("<no such fork>")
+    }
+
+    async fn client(&self, fork: u32) -> Result<ForkClient<Channel>, ForkError> {
+        if let Some(c) = lock(&self.clients).get(&fork) {
+            return Ok(c.clone());
+        }
+        let c = connect(self.addr(fork)).await?;
+        lock(&self.clients).insert(fork, c.clone());
+        Ok(c)
+    }
+
+    /// Turns a peer's error status into a [`ForkError`], dropping the cached connection
+    /// when the transport failed.
+    fn failed(&self, fork: u32, status: tonic::Status) -> ForkError {
+        let addr = self.addr(fork).to_string();
+        if matches!(status.code(), Code::Unavailable | Code::Unknown | Code::Cancelled | Code::DeadlineExceeded) {
+            lock(&self.clients).remove(&fork);
+        }
+        if status.code() == Code::Unavailable {
+            return ForkError::PeerUnavailable { addr, reason: status.message().to_string() };
+        }
+        ForkError::Peer { fork, addr, status }
+    }
+
+    /// Blocks `ids`, all owned by fork `fork`, in request order (checked: same ids, 2 KB
+    /// each).
+    pub async fn blocks(&self, fork: u32, ids: Vec<u32>) -> Result<Vec<v1::Block>, ForkError> {
+        let mut client = self.client(fork).await?;
+        let reply = client
+            .peer_blocks(v1::GetBlocksRequest { ids: ids.clone() })
+            .await
+            .map_err(|s| self.failed(fork, s))?
+            .into_inner();
+        let wrong = |detail: String| ForkError::PeerReply { fork, addr: self.addr(fork).to_string(), detail };
+        if reply.blocks.len() != ids.len() {
+            return Err(wrong(format!("{} blocks for {} ids", reply.blocks.len(), ids.len())));
+        }
+        for (b, &id) in reply.blocks.iter().zip(&ids) {
+            if b.id != id || b.data.len() != magg_core::blocks::BLOCK_SIZE {
+                return Err(wrong(format!("block {} of {} bytes where block {id} was asked for", b.id, b.data.len())));
+            }
+        }
+        Ok(reply.blocks)
+    }
+
+    /// Up to `max` unassigned pairs of fork `fork`, taken on behalf of `node`.
+    pub async fn steal(&self, fork: u32, max: u32, node: u32) -> Result<Vec<u64>, ForkError> {
+        let mut client = self.client(fork).await?;
+        let reply = client
+            .steal_pairs(v1::TakePairsRequest { max, node })
+            .await
+            .map_err(|s| self.failed(fork, s))?
+            .into_inner();
+        if reply.pairs.len() > max as usize {
+            let detail = format!("{} pairs where at most {max} were asked for", reply.pairs.len());
+            return Err(ForkError::PeerReply { fork, addr: self.addr(fork).to_string(), detail });
+        }
+        Ok(reply.pairs)
+    }
+}

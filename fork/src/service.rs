@@ -1,0 +1,203 @@
+//! The `Fork` gRPC service (paper §4.2–4.4): shard loading, block serving over the DMA
+//! and G-bus paths, pair hand-out with stealing, exactly-once energy deposits.
+//!
+//! Each handler takes the current [`Shard`] (an `Arc`, so a concurrent `LoadShard` never
+//! pulls state from under a running request), does its checks, and maps every
+//! [`ForkError`] to a `Status` through the one mapping in [`crate::error`].
+
+use crate::error::ForkError;
+use crate::locks::{read, write};
+use crate::shard::{Shard, MAX_IDS_PER_REQUEST, MAX_PAIRS_PER_REQUEST};
+use magg_proto::v1;
+use magg_proto::v1::fork_server::Fork;
+use std::collections::BTreeMap;
+use std::sync::{Arc, RwLock};
+use tokio::task::JoinSet;
+use tonic::{Request, Response, Status};
+
+/// A fork process's service: the shard of the current render, if one is loaded.
+#[derive(Debug, Default)]
+pub struct ForkService {
+    shard: RwLock<Option<Arc<Shard>>>,
+}
+
+impl ForkService {
+    /// A fork with no scene loaded.
+    pub fn new() -> ForkService {
+        ForkService::default()
+    }
+
+    /// The loaded shard, counting the RPC against it.
+    fn shard(&self) -> Result<Arc<Shard>, ForkError> {
+        let shard = read(&self.shard).clone().ok_or(ForkError::NotLoaded)?;
+        shard.count_rpc();
+        Ok(shard)
+    }
+
+    /// The loaded shard, if any (for an embedding process that wants to inspect it).
+    pub fn current(&self) -> Option<Arc<Shard>> {
+        read(&self.shard).clone()
+    }
+}
+
+fn too_many(what: &'static str, got: usize, max: usize) -> ForkError {
+    ForkError::TooMany { what, got: got as u64, max: max as u64 }
+}
+
+/// `GetBlocks`: owned blocks from memory, the others from their forks (one
+/// `PeerBlocks` per owner, concurrently), in request order.
+async fn get_blocks(shard: Arc<Shard>, ids: Vec<u32>) -> Result<Vec<v1::Block>, ForkError> {
+    if ids.len() > MAX_IDS_PER_REQUEST {
+        return Err(too_many("block ids in a request", ids.len(), MAX_IDS_PER_REQUEST));
+    }
+    for &id in &ids {
+        shard.check_block_id(id)?;
+    }
+    let me = shard.placement().index;
+    let mut out: Vec<Option<v1::Block>> = vec![None; ids.len()];
+    let mut remote: BTreeMap<u32, Vec<usize>> = BTreeMap::new();
+    let mut local = Vec::new();
+    for (pos, &id) in ids.iter().enumerate() {
+        match shard.block_owner(id) {
+            owner if owner == me => local.push(pos),
+            owner => remote.entry(owner).or_default().push(pos),
+        }
+    }
+    let mut calls = JoinSet::new();
+    for (owner, positions) in remote {
+        let shard = shard.clone();
+        let wanted: Vec<u32> = positions.iter().map(|&p| ids[p]).collect();
+        calls.spawn(async move { (positions, shard.peers().blocks(owner, wanted).await) });
+    }
+    let local_ids: Vec<u32> = local.iter().map(|&p| ids[p]).collect();
+    for (pos, b) in local.into_iter().zip(shard.owned_blocks(&local_ids)?) {
+        out[pos] = Some(b);
+    }
+    let mut fetched = 0;
+    while let Some(joined) = calls.join_next().await {
+        let (positions, blocks) = joined.map_err(|e| ForkError::Internal(format!("peer fetch task failed: {e}")))?;
+        let blocks = blocks?;
+        fetched += blocks.len();
+        for (pos, b) in positions.into_iter().zip(blocks) {
+            out[pos] = Some(b);
+        }
+    }
+    let blocks: Vec<v1::Block> = out.into_iter().flatten().collect();
+    shard.count_gbus(fetched);
+    shard.count_dma(blocks.len());
+    Ok(blocks)
+}
+
+/// `TakePairs`: the fork's own queue first; when it is empty, the other forks in turn
+/// (index+1, index+2, ...) are asked to give some away (paper §4.4).
+async fn take_pairs(shard: Arc<Shard>, max: u32, node: u32) -> Result<v1::TakePairsReply, ForkError> {
+    let max = max.clamp(1, MAX_PAIRS_PER_REQUEST);
+    let pairs = shard.take_own_pairs(max, node);
+    if !pairs.is_empty() {
+        return Ok(v1::TakePairsReply { pairs, exhausted: false });
+    }
+    let (me, forks) = (shard.placement().index, shard.placement().forks());
+    let mut failure = None;
+    for k in 1..forks {
+        let peer = (me + k) % forks;
+        match shard.peers().steal(peer, max, node).await {
+            Ok(pairs) if pairs.is_empty() => {}
+            Ok(pairs) => {
+                check_stolen(&shard, peer, &pairs)?;
+                tracing::debug!(fork = me, from = peer, pairs = pairs.len(), "stole pairs");
+                return Ok(v1::TakePairsReply { pairs, exhausted: false });
+            }
+            Err(e) => {
+                tracing::warn!(fork = me, peer, "pair stealing failed: {e}");
+                failure.get_or_insert(e);
+            }
+        }
+    }
+    // A fork that could not be asked may still hold pairs: not exhausted.
+    match failure {
+        Some(e) => Err(e),
+        None => Ok(v1::TakePairsReply { pairs: Vec::new(), exhausted: true }),
+    }
+}
+
+/// Stolen pairs must be real pairs of the fork they came from.
+fn check_stolen(shard: &Shard, peer: u32, pairs: &[u64]) -> Result<(), ForkError> {
+    let elements = shard.header().counts.elements.max(1) as u64;
+    for &p in pairs {
+        if p >= shard.pair_count() || shard.element_owner((p % elements) as u32) != peer {
+            let addr = shard.peers().addr(peer).to_string();
+            return Err(ForkError::PeerReply { fork: peer, addr, detail: format!("pair {p} is not one of its pairs") });
+        }
+    }
+    Ok(())
+}
+
+#[tonic::async_trait]
+impl Fork for ForkService {
+    async fn load_shard(&self, req: Request<v1::LoadShardRequest>) -> Result<Response<v1::LoadShardReply>, Status> {
+        let shard = Shard::load(req.into_inner())?;
+        shard.count_rpc();
+        let (blocks, pairs) = (shard.stored_blocks(), shard.pairs_total());
+        let place = shard.placement();
+        tracing::info!(
+            fork = place.index,
+            forks = place.forks(),
+            blocks,
+            pairs,
+            elements = shard.owned_elements().len(),
+            "shard loaded"
+        );
+        *write(&self.shard) = Some(Arc::new(shard));
+        Ok(Response::new(v1::LoadShardReply { blocks, pairs }))
+    }
+
+    async fn put_blocks(&self, req: Request<v1::PutBlocksRequest>) -> Result<Response<v1::PutBlocksReply>, Status> {
+        let shard = self.shard()?;
+        let stored = shard.put_blocks(req.into_inner().blocks)?;
+        Ok(Response::new(v1::PutBlocksReply { stored }))
+    }
+
+    async fn get_blocks(&self, req: Request<v1::GetBlocksRequest>) -> Result<Response<v1::GetBlocksReply>, Status> {
+        let shard = self.shard()?;
+        let blocks = get_blocks(shard, req.into_inner().ids).await?;
+        Ok(Response::new(v1::GetBlocksReply { blocks }))
+    }
+
+    async fn peer_blocks(&self, req: Request<v1::GetBlocksRequest>) -> Result<Response<v1::GetBlocksReply>, Status> {
+        let shard = self.shard()?;
+        let ids = req.into_inner().ids;
+        if ids.len() > MAX_IDS_PER_REQUEST {
+            return Err(too_many("block ids in a request", ids.len(), MAX_IDS_PER_REQUEST).into());
+        }
+        let blocks = shard.owned_blocks(&ids)?;
+        Ok(Response::new(v1::GetBlocksReply { blocks }))
+    }
+
+    async fn take_pairs(&self, req: Request<v1::TakePairsRequest>) -> Result<Response<v1::TakePairsReply>, Status> {
+        let shard = self.shard()?;
+        let r = req.into_inner();
+        Ok(Response::new(take_pairs(shard, r.max, r.node).await?))
+    }
+
+    async fn steal_pairs(&self, req: Request<v1::TakePairsRequest>) -> Result<Response<v1::TakePairsReply>, Status> {
+        let shard = self.shard()?;
+        let r = req.into_inner();
+        let pairs = shard.take_own_pairs(r.max, r.node);
+        let exhausted = pairs.is_empty();
+        Ok(Response::new(v1::TakePairsReply { pairs, exhausted }))
+    }
+
+    async fn deposit(&self, req: Request<v1::DepositRequest>) -> Result<Response<v1::DepositReply>, Status> {
+        let shard = self.shard()?;
+        let (applied, duplicates) = shard.deposit(&req.into_inner().pairs)?;
+        Ok(Response::new(v1::DepositReply { applied, duplicates }))
+    }
+
+    async fn get_energies(
+        &self,
+        req: Request<v1::GetEnergiesRequest>,
+    ) -> Result<Response<v1::GetEnergiesReply>, Status> {
+        let shard = self.shard()?;
+        Ok(Response::new(shard.energies(req.into_inner().summary_only)))
+    }
+}

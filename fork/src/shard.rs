@@ -1,0 +1,368 @@
+//! A fork's state for one render: its place among the forks, its shard of blocks, its
+//! pair queue and the energy accumulated on its elements (paper §4.3–4.4).
+//!
+//! Everything here is synchronous and checks its input before changing anything, so a
+//! refused request leaves the state as it was. The gRPC layer ([`crate::service`]) adds
+//! the peer calls (G-bus fetches, pair stealing).
+
+use crate::error::ForkError;
+use crate::locks::{lock, read, write};
+use crate::pairs::PairQueue;
+use crate::peers::Peers;
+use magg_core::blocks::{Block, BLOCK_SIZE};
+use magg_core::energy::Fixed;
+use magg_core::header::SceneHeader;
+use magg_proto::convert::{block_from_wire, block_to_wire};
+use magg_proto::v1;
+use std::collections::{HashMap, HashSet};
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::{Mutex, RwLock};
+
+/// Most forks a cluster may have.
+pub const MAX_FORKS: usize = 4096;
+/// Most block ids in one `GetBlocks` / `PeerBlocks` request.
+pub const MAX_IDS_PER_REQUEST: usize = 4096;
+/// Most pairs handed out by one `TakePairs` / `StealPairs`.
+pub const MAX_PAIRS_PER_REQUEST: u32 = 4096;
+/// Most pairs in one `Deposit` request.
+pub const MAX_DEPOSIT_PAIRS: usize = 65_536;
+/// Most element deposits in one `Deposit` request.
+pub const MAX_DEPOSITS: usize = 1 << 20;
+/// Longest fork address accepted.
+pub const MAX_ADDR_LEN: usize = 256;
+
+/// Which fork this is, and where the others are.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Placement {
+    /// This fork's index.
+    pub index: u32,
+    /// Every fork's address, by index.
+    pub addrs: Vec<String>,
+}
+
+impl Placement {
+    /// Number of forks.
+    pub fn forks(&self) -> u32 {
+        self.addrs.len() as u32
+    }
+}
+
+/// Traffic this fork has served in the current render.
+#[derive(Debug, Default)]
+pub struct Traffic {
+    /// Block bytes sent to nodes (the DMA path).
+    pub dma_bytes: AtomicU64,
+    /// Block bytes fetched from other forks (the G-bus path).
+    pub gbus_bytes: AtomicU64,
+    /// RPCs handled.
+    pub rpcs: AtomicU64,
+}
+
+/// Pair and energy bookkeeping, under one lock.
+#[derive(Debug)]
+struct Work {
+    /// Unassigned pairs of this fork.
+    queue: PairQueue,
+    /// Pairs of this fork handed out and not yet complete, with the node they went to
+    /// (kept for re-issue on node failure).
+    leased: HashMap<u64, u32>,
+    /// Pairs whose deposits this fork has applied (exactly-once).
+    applied: HashSet<u64>,
+    /// Pairs of this fork reported complete.
+    done: HashSet<u64>,
+    /// Fixed-point flux of each owned element, parallel to `Shard::owned`.
+    energy: Vec<Fixed>,
+}
+
+/// One fork's share of a render.
+#[derive(Debug)]
+pub struct Shard {
+    header: SceneHeader,
+    place: Placement,
+    /// Owned blocks by local index `id / forks`; `None` until supplied.
+    blocks: RwLock<Vec<Option<Box<Block>>>>,
+    /// Elements whose element block this fork holds, ascending.
+    owned: Vec<u32>,
+    work: Mutex<Work>,
+    traffic: Traffic,
+    peers: Peers,
+}
+
+impl Shard {
+    /// Builds the shard from a `LoadShard` request: checks the protocol version, the
+    /// placement, the header and every block, then builds the pair queue.
+    pub fn load(req: v1::LoadShardRequest) -> Result<Shard, ForkError> {
+        if req.protocol_version != magg_proto::PROTOCOL_VERSION {
+            return Err(ForkError::ProtocolVersion { got: req.protocol_version, want: magg_proto::PROTOCOL_VERSION });
+        }
+        let forks = req.fork_addrs.len();
+        if forks == 0 || forks > MAX_FORKS {
+            return Err(ForkError::BadRequest(format!("fork_addrs has {forks} addresses, expected 1..={MAX_FORKS}")));
+        }
+        if let Some(a) = req.fork_addrs.iter().find(|a| a.is_empty() || a.len() > MAX_ADDR_LEN) {
+            return Err(ForkError::BadRequest(format!("fork address {a:?} is empty or over {MAX_ADDR_LEN} bytes")));
+        }
+        if req.fork_index as usize >= forks {
+            return Err(ForkError::BadRequest(format!("fork_index {} is not below {forks} forks", req.fork_index)));
+        }
+        let header = req.header.ok_or_else(|| ForkError::BadRequest("header is missing".into()))?;
+        let header = SceneHeader::try_from(header).map_err(ForkError::BadHeader)?;
+        let place = Placement { index: req.fork_index, addrs: req.fork_addrs };
+        let (index, f) = (place.index, place.forks());
+        let total = header.layout.total;
+        let local_blocks = (total.saturating_sub(index) as usize).div_ceil(f as usize);
+        let owned: Vec<u32> =
+            (0..header.counts.elements).filter(|&e| header.layout.element_slot(e).0 % f == index).collect();
+        let lights = header.lights.len() as u32;
+        let work = Work {
+            queue: PairQueue::new(lights, owned.len(), header.plan.lrt),
+            leased: HashMap::new(),
+            applied: HashSet::new(),
+            done: HashSet::new(),
+            energy: vec![[0; 3]; owned.len()],
+        };
+        let shard = Shard {
+            header,
+            blocks: RwLock::new(vec![None; local_blocks]),
+            owned,
+            work: Mutex::new(work),
+            traffic: Traffic::default(),
+            peers: Peers::new(place.addrs.clone()),
+            place,
+        };
+        shard.put_blocks(req.blocks)?;
+        Ok(shard)
+    }
+
+    /// The scene header.
+    pub fn header(&self) -> &SceneHeader {
+        &self.header
+    }
+
+    /// This fork's place among the forks.
+    pub fn placement(&self) -> &Placement {
+        &self.place
+    }
+
+    /// Clients to the other forks.
+    pub fn peers(&self) -> &Peers {
+        &self.peers
+    }
+
+    /// Traffic counters of this render.
+    pub fn traffic(&self) -> &Traffic {
+        &self.traffic
+    }
+
+    /// Elements owned by this fork, ascending.
+    pub fn owned_elements(&self) -> &[u32] {
+        &self.owned
+    }
+
+    /// Pairs of this fork in all.
+    pub fn pairs_total(&self) -> u64 {
+        lock(&self.work).queue.total()
+    }
+
+    /// The fork holding block `id`.
+    pub fn block_owner(&self, id: u32) -> u32 {
+        id % self.place.forks()
+    }
+
+    /// The fork owning element `e` (the one holding its element block).
+    pub fn element_owner(&self, e: u32) -> u32 {
+        self.block_owner(self.header.layout.element_slot(e).0)
+    }
+
+    /// Refuses ids past the scene's last block.
+    pub fn check_block_id(&self, id: u32) -> Result<(), ForkError> {
+        let total = self.header.layout.total;
+        if id < total {
+            Ok(())
+        } else {
+            Err(ForkError::BlockOutOfRange { id, total })
+        }
+    }
+
+    /// Refuses ids out of range or owned by another fork.
+    pub fn check_owned_block(&self, id: u32) -> Result<(), ForkError> {
+        self.check_block_id(id)?;
+        let owner = self.block_owner(id);
+        if owner == self.place.index {
+            Ok(())
+        } else {
+            Err(ForkError::BlockNotOwned { id, owner, fork: self.place.index })
+        }
+    }
+
+    /// Replaces owned blocks; all are checked before any is stored. Returns how many
+    /// were stored.
+    pub fn put_blocks(&self, blocks: Vec<v1::Block>) -> Result<u32, ForkError> {
+        let mut checked = Vec::with_capacity(blocks.len());
+        for b in blocks {
+            let (id, data) = block_from_wire(b).map_err(ForkError::BadBlock)?;
+            self.check_owned_block(id)?;
+            checked.push((id, data));
+        }
+        let n = checked.len() as u32;
+        let f = self.place.forks();
+        let mut store = write(&self.blocks);
+        for (id, data) in checked {
+            store[(id / f) as usize] = Some(data);
+        }
+        Ok(n)
+    }
+
+    /// Owned blocks supplied so far.
+    pub fn stored_blocks(&self) -> u32 {
+        read(&self.blocks).iter().filter(|b| b.is_some()).count() as u32
+    }
+
+    /// Owned blocks by id, in request order, ready for the wire.
+    pub fn owned_blocks(&self, ids: &[u32]) -> Result<Vec<v1::Block>, ForkError> {
+        for &id in ids {
+            self.check_owned_block(id)?;
+        }
+        let f = self.place.forks();
+        let store = read(&self.blocks);
+        ids.iter()
+            .map(|&id| match &store[(id / f) as usize] {
+                Some(b) => Ok(block_to_wire(id, b)),
+                None => Err(ForkError::BlockNotLoaded { id, fork: self.place.index }),
+            })
+            .collect()
+    }
+
+    /// Takes up to `max` unassigned pairs of this fork's own queue for `node`.
+    pub fn take_own_pairs(&self, max: u32, node: u32) -> Vec<u64> {
+        let max = max.clamp(1, MAX_PAIRS_PER_REQUEST) as usize;
+        let mut work = lock(&self.work);
+        let pairs = work.queue.pop(max, &self.owned, self.header.counts.elements);
+        for &p in &pairs {
+            work.leased.insert(p, node);
+        }
+        pairs
+    }
+
+    /// The id range of pairs: `lights * elements`.
+    pub fn pair_count(&self) -> u64 {
+        self.header.lights.len() as u64 * self.header.counts.elements as u64
+    }
+
+    /// Refuses a pair id out of range or whose element another fork owns.
+    pub fn check_own_pair(&self, pair: u64) -> Result<(), ForkError> {
+        let pairs = self.pair_count();
+        if pair >= pairs {
+            return Err(ForkError::PairOutOfRange { pair, pairs });
+        }
+        self.owned_index((pair % self.header.counts.elements as u64) as u32).map(|_| ())
+    }
+
+    /// Position of element `e` in the owned list, or why it is not there.
+    fn owned_index(&self, element: u32) -> Result<usize, ForkError> {
+        let elements = self.header.counts.elements;
+        if element >= elements {
+            return Err(ForkError::ElementOutOfRange { element, elements });
+        }
+        self.owned.binary_search(&element).map_err(|_| ForkError::ElementNotOwned {
+            element,
+            owner: self.element_owner(element),
+            fork: self.place.index,
+        })
+    }
+
+    /// Applies deposits exactly once per pair id; returns (applied, duplicates). The
+    /// whole request is checked before anything is applied.
+    pub fn deposit(&self, pairs: &[v1::PairDeposits]) -> Result<(u32, u32), ForkError> {
+        if pairs.len() > MAX_DEPOSIT_PAIRS {
+            return Err(ForkError::TooMany {
+                what: "pairs in a deposit",
+                got: pairs.len() as u64,
+                max: MAX_DEPOSIT_PAIRS as u64,
+            });
+        }
+        let deposits: usize = pairs.iter().map(|p| p.deposits.len()).sum();
+        if deposits > MAX_DEPOSITS {
+            return Err(ForkError::TooMany {
+                what: "element deposits in a request",
+                got: deposits as u64,
+                max: MAX_DEPOSITS as u64,
+            });
+        }
+        let total_pairs = self.pair_count();
+        let mut slots = Vec::with_capacity(deposits);
+        for p in pairs {
+            if p.pair >= total_pairs {
+                return Err(ForkError::PairOutOfRange { pair: p.pair, pairs: total_pairs });
+            }
+            if p.complete {
+                self.check_own_pair(p.pair)?;
+            }
+            for d in &p.deposits {
+                slots.push(self.owned_index(d.element)?);
+            }
+        }
+        let (mut applied, mut duplicates) = (0, 0);
+        let mut slots = slots.into_iter();
+        let mut work = lock(&self.work);
+        for p in pairs {
+            let fresh = work.applied.insert(p.pair);
+            for (d, slot) in p.deposits.iter().zip(slots.by_ref()) {
+                if fresh {
+                    let e = &mut work.energy[slot];
+                    e[0] = e[0].wrapping_add(d.r);
+                    e[1] = e[1].wrapping_add(d.g);
+                    e[2] = e[2].wrapping_add(d.b);
+                }
+            }
+            if fresh {
+                applied += 1;
+            } else {
+                duplicates += 1;
+            }
+            if p.complete {
+                work.done.insert(p.pair);
+                work.leased.remove(&p.pair);
+            }
+        }
+        Ok((applied, duplicates))
+    }
+
+    /// Energies of every owned element (ascending id; none when `summary_only`), pair
+    /// progress, and the traffic counters of [`Shard::traffic`].
+    pub fn energies(&self, summary_only: bool) -> v1::GetEnergiesReply {
+        let work = lock(&self.work);
+        let energies = if summary_only {
+            Vec::new()
+        } else {
+            self.owned
+                .iter()
+                .zip(&work.energy)
+                .map(|(&element, e)| v1::ElementEnergy { element, r: e[0], g: e[1], b: e[2] })
+                .collect()
+        };
+        v1::GetEnergiesReply {
+            energies,
+            pairs_total: work.queue.total(),
+            pairs_done: work.done.len() as u64,
+            dma_bytes: self.traffic.dma_bytes.load(Ordering::Relaxed),
+            gbus_bytes: self.traffic.gbus_bytes.load(Ordering::Relaxed),
+            rpcs: self.traffic.rpcs.load(Ordering::Relaxed),
+        }
+    }
+
+    /// Counts one RPC handled.
+    pub fn count_rpc(&self) {
+        self.traffic.rpcs.fetch_add(1, Ordering::Relaxed);
+    }
+
+    /// Counts `blocks` blocks sent to a node.
+    pub fn count_dma(&self, blocks: usize) {
+        self.traffic.dma_bytes.fetch_add((blocks * BLOCK_SIZE) as u64, Ordering::Relaxed);
+    }
+
+    /// Counts `blocks` blocks fetched from other forks.
+    pub fn count_gbus(&self, blocks: usize) {
+        self.traffic.gbus_bytes.fetch_add((blocks * BLOCK_SIZE) as u64, Ordering::Relaxed);
+    }
+}

@@ -1,0 +1,382 @@
+//! The fork service over real gRPC: three forks on 127.0.0.1:0 sharing the paper's test
+//! scene (with a second light), driven as nodes and the host would drive them.
+
+use magg_core::blocks::BLOCK_SIZE;
+use magg_core::lrt::pair_id;
+use magg_core::preprocess::{prepare, PreparedScene};
+use magg_core::scene::parse_scene_str;
+use magg_proto::v1;
+use magg_proto::v1::fork_client::ForkClient;
+use std::collections::BTreeSet;
+use tokio::sync::oneshot;
+use tokio::task::JoinHandle;
+use tonic::transport::Channel;
+use tonic::Code;
+
+const FORKS: u32 = 3;
+
+/// The paper's scene (1664 elements) with a second light: 3328 pairs.
+fn paper_scene() -> PreparedScene {
+    let text = include_str!("../../scenes/magg-paper.toml");
+    let read = |p: &std::path::Path| std::fs::read_to_string(p);
+    let mut scene = parse_scene_str("magg-paper.toml", text, "scenes".as_ref(), &read).unwrap();
+    let mut second = scene.lights[0].clone();
+    second.position.x += 1.0;
+    scene.lights.push(second);
+    prepare(&scene).unwrap()
+}
+
+struct Cluster {
+    scene: PreparedScene,
+    addrs: Vec<String>,
+    clients: Vec<ForkClient<Channel>>,
+    stops: Vec<oneshot::Sender<()>>,
+    servers: Vec<JoinHandle<Result<(), tonic::transport::Error>>>,
+}
+
+impl Cluster {
+    /// `FORKS` forks serving, nothing loaded.
+    async fn start() -> Cluster {
+        let (mut addrs, mut stops, mut servers, mut clients) = (vec![], vec![], vec![], vec![]);
+        for _ in 0..FORKS {
+            let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
+            addrs.push(listener.local_addr().unwrap().to_string());
+            let (stop, stopped) = oneshot::channel::<()>();
+            stops.push(stop);
+            servers.push(tokio::spawn(magg_fork::serve(listener, async {
+                stopped.await.ok();
+            })));
+        }
+        for a in &addrs {
+            clients.push(magg_fork::connect(a).await.unwrap());
+        }
+        Cluster { scene: paper_scene(), addrs, clients, stops, servers }
+    }
+
+    fn elements(&self) -> u32 {
+        self.scene.header.counts.elements
+    }
+
+    fn pairs(&self) -> u64 {
+        self.scene.header.lights.len() as u64 * self.elements() as u64
+    }
+
+    fn total_blocks(&self) -> u32 {
+        self.scene.header.layout.total
+    }
+
+    fn element_owner(&self, e: u32) -> u32 {
+        self.scene.header.layout.element_slot(e).0 % FORKS
+    }
+
+    /// The `LoadShard` request of fork `i`.
+    fn load_request(&self, i: u32) -> v1::LoadShardRequest {
+        let blocks = (0..self.total_blocks())
+            .filter(|b| b % FORKS == i)
+            .map(|b| magg_proto::convert::block_to_wire(b, &self.scene.blocks[b as usize]))
+            .collect();
+        v1::LoadShardRequest {
+            protocol_version: magg_proto::PROTOCOL_VERSION,
+            fork_index: i,
+            fork_addrs: self.addrs.clone(),
+            header: Some(v1::SceneHeader::from(&*self.scene.header)),
+            blocks,
+        }
+    }
+
+    async fn load_all(&mut self) {
+        for i in 0..FORKS {
+            let req = self.load_request(i);
+            let reply = self.clients[i as usize].load_shard(req).await.unwrap().into_inner();
+            let owned = (0..self.total_blocks()).filter(|b| b % FORKS == i).count() as u32;
+            assert_eq!(reply.blocks, owned);
+        }
+    }
+
+    async fn energies(&mut self, i: u32) -> v1::GetEnergiesReply {
+        let req = v1::GetEnergiesRequest { summary_only: false };
+        self.clients[i as usize].get_energies(req).await.unwrap().into_inner()
+    }
+
+    async fn stop(self) {
+        for s in self.stops {
+            s.send(()).ok();
+        }
+        for h in self.servers {
+            h.await.unwrap().unwrap();
+        }
+    }
+}
+
+fn deposit(pair: u64, element: u32, rgb: [i64; 3], complete: bool) -> v1::PairDeposits {
+    v1::PairDeposits { pair, deposits: vec![v1::Deposit { element, r: rgb[0], g: rgb[1], b: rgb[2] }], complete }
+}
+
+fn code<T: std::fmt::Debug>(r: Result<tonic::Response<T>, tonic::Status>) -> (Code, String) {
+    let s = r.expect_err("a bad request was accepted");
+    (s.code(), s.message().to_string())
+}
+
+#[tokio::test]
+async fn get_blocks_serves_every_forks_blocks_in_request_order() {
+    let mut c = Cluster::start().await;
+    c.load_all().await;
+    let last = c.total_blocks() - 1;
+    let element_base = c.scene.header.layout.element_base;
+    let ids = vec![last, 2, 0, 1, element_base + 1, 5, 4, 3, last, element_base];
+    let reply = c.clients[0].get_blocks(v1::GetBlocksRequest { ids: ids.clone() }).await.unwrap().into_inner();
+    assert_eq!(reply.blocks.iter().map(|b| b.id).collect::<Vec<_>>(), ids);
+    for b in &reply.blocks {
+        assert_eq!(b.data.as_slice(), &c.scene.blocks[b.id as usize][..], "block {}", b.id);
+    }
+    let remote = ids.iter().filter(|&&id| id % FORKS != 0).count() as u64;
+    let e = c.energies(0).await;
+    assert_eq!(e.dma_bytes, ids.len() as u64 * BLOCK_SIZE as u64);
+    assert_eq!(e.gbus_bytes, remote * BLOCK_SIZE as u64);
+    assert!(e.rpcs >= 2, "LoadShard and GetBlocks were counted: {}", e.rpcs);
+    let empty = c.clients[0].get_blocks(v1::GetBlocksRequest { ids: vec![] }).await.unwrap().into_inner();
+    assert!(empty.blocks.is_empty());
+    c.stop().await;
+}
+
+#[tokio::test]
+async fn take_pairs_from_one_fork_drains_every_pair_exactly_once() {
+    let mut c = Cluster::start().await;
+    c.load_all().await;
+    let mut totals = 0;
+    for i in 0..FORKS {
+        totals += c.energies(i).await.pairs_total;
+    }
+    assert_eq!(totals, c.pairs());
+    let mut seen = BTreeSet::new();
+    let mut stolen = 0;
+    loop {
+        let r = c.clients[1].take_pairs(v1::TakePairsRequest { max: 100, node: 7 }).await.unwrap().into_inner();
+        if r.exhausted {
+            assert!(r.pairs.is_empty());
+            break;
+        }
+        assert!(!r.pairs.is_empty() && r.pairs.len() <= 100);
+        for p in r.pairs {
+            assert!(p < c.pairs(), "pair {p} out of range");
+            assert!(seen.insert(p), "pair {p} handed out twice");
+            stolen += (c.element_owner((p % c.elements() as u64) as u32) != 1) as usize;
+        }
+    }
+    assert_eq!(seen.len() as u64, c.pairs());
+    assert!(stolen > 0, "fork 1 handed out only its own pairs");
+    for i in 0..FORKS {
+        let r = c.clients[i as usize].take_pairs(v1::TakePairsRequest { max: 0, node: 0 }).await.unwrap().into_inner();
+        assert!(r.exhausted && r.pairs.is_empty(), "fork {i} still had pairs");
+    }
+    c.stop().await;
+}
+
+#[tokio::test]
+async fn own_pairs_come_first_in_ascending_order() {
+    let mut c = Cluster::start().await;
+    c.load_all().await;
+    let own: Vec<u64> = (0..c.pairs()).filter(|p| c.element_owner((p % c.elements() as u64) as u32) == 2).collect();
+    assert!(own.len() < 4096);
+    // A max over the limit is clamped, not refused; the own queue is not empty, so
+    // nothing is stolen.
+    let r = c.clients[2].take_pairs(v1::TakePairsRequest { max: 50_000, node: 0 }).await.unwrap().into_inner();
+    assert_eq!(r.pairs, own);
+    assert!(!r.exhausted);
+    c.stop().await;
+}
+
+#[tokio::test]
+async fn deposits_apply_exactly_once_and_energies_sum() {
+    let mut c = Cluster::start().await;
+    c.load_all().await;
+    let e = c.elements();
+    let on = |f: u32| (0..e).filter(|&x| c.element_owner(x) == f).collect::<Vec<_>>();
+    let (own0, own1) = (on(0), on(1));
+    let (a, b) = (own1[0], own1[own1.len() - 1]);
+    // Pair (light 1, a): complete on fork 1, which owns a.
+    let p = pair_id(1, a, e);
+    let req = v1::DepositRequest {
+        pairs: vec![v1::PairDeposits {
+            pair: p,
+            deposits: vec![
+                v1::Deposit { element: a, r: 5, g: 6, b: 7 },
+                v1::Deposit { element: b, r: 1, g: 1, b: 1 },
+                v1::Deposit { element: a, r: 10, g: 0, b: 0 },
+            ],
+            complete: true,
+        }],
+    };
+    let r1 = c.clients[1].deposit(req.clone()).await.unwrap().into_inner();
+    assert_eq!((r1.applied, r1.duplicates), (1, 0));
+    let r2 = c.clients[1].deposit(req).await.unwrap().into_inner();
+    assert_eq!((r2.applied, r2.duplicates), (0, 1));
+    // A pair of fork 0's element whose secondary rays reached fork 1's element b.
+    let q = pair_id(0, own0[3], e);
+    let r3 = c.clients[1].deposit(v1::DepositRequest { pairs: vec![deposit(q, b, [2, 3, 4], false)] }).await.unwrap();
+    assert_eq!(r3.into_inner().applied, 1);
+    let r4 = c.clients[0].deposit(v1::DepositRequest { pairs: vec![deposit(q, own0[3], [100, 0, 0], true)] }).await;
+    assert_eq!(r4.unwrap().into_inner().applied, 1);
+
+    let e1 = c.energies(1).await;
+    let ids: Vec<u32> = e1.energies.iter().map(|x| x.element).collect();
+    assert_eq!(ids, own1, "every owned element, ascending");
+    let get = |r: &v1::GetEnergiesReply, el: u32| {
+        let x = r.energies.iter().find(|x| x.element == el).unwrap();
+        [x.r, x.g, x.b]
+    };
+    assert_eq!(get(&e1, a), [15, 6, 7]);
+    assert_eq!(get(&e1, b), [3, 4, 5]);
+    assert_eq!(e1.pairs_done, 1);
+    let req = v1::GetEnergiesRequest { summary_only: true };
+    let summary = c.clients[1].get_energies(req).await.unwrap().into_inner();
+    assert!(summary.energies.is_empty());
+    assert_eq!((summary.pairs_done, summary.pairs_total), (1, e1.pairs_total));
+    let e0 = c.energies(0).await;
+    assert_eq!(get(&e0, own0[3]), [100, 0, 0]);
+    assert_eq!(e0.pairs_done, 1);
+    let mut sum = [0i64; 3];
+    let mut count = 0;
+    for i in 0..FORKS {
+        for x in c.energies(i).await.energies {
+            sum = [sum[0] + x.r, sum[1] + x.g, sum[2] + x.b];
+            count += 1;
+        }
+    }
+    assert_eq!(count, e, "the forks together report every element once");
+    assert_eq!(sum, [118, 10, 12]);
+    c.stop().await;
+}
+
+#[tokio::test]
+async fn bad_requests_get_the_right_codes_and_the_server_keeps_serving() {
+    let mut c = Cluster::start().await;
+    // Before LoadShard.
+    let (k, m) = code(c.clients[0].get_energies(v1::GetEnergiesRequest { summary_only: true }).await);
+    assert_eq!((k, m.as_str()), (Code::FailedPrecondition, "no scene loaded"));
+    let (k, _) = code(c.clients[0].take_pairs(v1::TakePairsRequest { max: 1, node: 0 }).await);
+    assert_eq!(k, Code::FailedPrecondition);
+    // Wrong protocol version.
+    let mut req = c.load_request(0);
+    req.protocol_version = magg_proto::PROTOCOL_VERSION + 1;
+    let (k, m) = code(c.clients[0].load_shard(req).await);
+    assert_eq!(k, Code::FailedPrecondition);
+    assert!(m.contains(&(magg_proto::PROTOCOL_VERSION + 1).to_string()) && m.contains("1"), "{m}");
+    c.load_all().await;
+
+    let total = c.total_blocks();
+    let (k, m) = code(c.clients[0].get_blocks(v1::GetBlocksRequest { ids: vec![0, total + 5] }).await);
+    assert_eq!(k, Code::InvalidArgument);
+    assert!(m.contains(&(total + 5).to_string()), "{m}");
+    let (k, _) = code(c.clients[0].get_blocks(v1::GetBlocksRequest { ids: vec![0; 4097] }).await);
+    assert_eq!(k, Code::ResourceExhausted);
+    let (k, _) = code(c.clients[0].peer_blocks(v1::GetBlocksRequest { ids: vec![1] }).await);
+    assert_eq!(k, Code::InvalidArgument);
+
+    // Deposits: element not owned, element out of range, pair out of range, complete on
+    // another fork's pair.
+    let e = c.elements();
+    let own = |f: u32| (0..e).find(|&x| c.element_owner(x) == f).unwrap();
+    let (a0, a1) = (own(0), own(1));
+    let bad = [
+        deposit(pair_id(0, a0, e), a1, [1, 1, 1], false),
+        deposit(pair_id(0, a0, e), e, [1, 1, 1], false),
+        deposit(c.pairs(), a0, [1, 1, 1], false),
+        deposit(pair_id(0, a1, e), a0, [1, 1, 1], true),
+    ];
+    for (i, d) in bad.into_iter().enumerate() {
+        // The good pair first: a refused request must apply nothing.
+        let good = deposit(pair_id(1, a0, e), a0, [9, 9, 9], true);
+        let (k, m) = code(c.clients[0].deposit(v1::DepositRequest { pairs: vec![good, d] }).await);
+        assert_eq!(k, Code::InvalidArgument, "case {i}: {m}");
+    }
+    let e0 = c.energies(0).await;
+    assert!(e0.energies.iter().all(|x| [x.r, x.g, x.b] == [0, 0, 0]), "a refused deposit changed energies");
+    assert_eq!(e0.pairs_done, 0);
+    let good = deposit(pair_id(1, a0, e), a0, [9, 9, 9], true);
+    let r = c.clients[0].deposit(v1::DepositRequest { pairs: vec![good] }).await.unwrap().into_inner();
+    assert_eq!((r.applied, r.duplicates), (1, 0), "the pair was not marked applied by the refused requests");
+
+    // Bad shards: a block of another fork, a short block, a bad index, a bad header.
+    let mut req = c.load_request(0);
+    req.blocks.push(magg_proto::convert::block_to_wire(1, &c.scene.blocks[1]));
+    assert_eq!(code(c.clients[0].load_shard(req).await).0, Code::InvalidArgument);
+    let mut req = c.load_request(0);
+    req.blocks[0].data.truncate(100);
+    assert_eq!(code(c.clients[0].load_shard(req).await).0, Code::InvalidArgument);
+    let mut req = c.load_request(0);
+    req.fork_index = FORKS;
+    assert_eq!(code(c.clients[0].load_shard(req).await).0, Code::InvalidArgument);
+    let mut req = c.load_request(0);
+    req.header.as_mut().unwrap().settings.as_mut().unwrap().width = 0;
+    let (k, m) = code(c.clients[0].load_shard(req).await);
+    assert_eq!(k, Code::InvalidArgument);
+    assert!(m.contains("settings.width"), "{m}");
+    let (k, _) = code(
+        c.clients[0]
+            .put_blocks(v1::PutBlocksRequest { blocks: vec![v1::Block { id: total, data: vec![0; BLOCK_SIZE] }] })
+            .await,
+    );
+    assert_eq!(k, Code::InvalidArgument);
+
+    // Still serving the shard loaded before the refused requests.
+    let ids = vec![0, 1, 2];
+    let reply = c.clients[0].get_blocks(v1::GetBlocksRequest { ids }).await.unwrap().into_inner();
+    assert_eq!(reply.blocks[2].data.as_slice(), &c.scene.blocks[2][..]);
+    assert_eq!(c.energies(0).await.pairs_done, 1, "the earlier render was kept");
+    c.stop().await;
+}
+
+#[tokio::test]
+async fn put_blocks_replaces_owned_blocks() {
+    let mut c = Cluster::start().await;
+    c.load_all().await;
+    let v = c.scene.header.layout.vertex_base;
+    let id = (v..c.total_blocks()).find(|b| b % FORKS == 2).unwrap();
+    let block = v1::Block { id, data: vec![0xAB; BLOCK_SIZE] };
+    let r = c.clients[id as usize % FORKS as usize].put_blocks(v1::PutBlocksRequest { blocks: vec![block] }).await;
+    assert_eq!(r.unwrap().into_inner().stored, 1);
+    let got = c.clients[0].get_blocks(v1::GetBlocksRequest { ids: vec![id] }).await.unwrap().into_inner();
+    assert_eq!(got.blocks[0].data, vec![0xAB; BLOCK_SIZE]);
+    c.stop().await;
+}
+
+#[tokio::test]
+async fn no_pairs_when_the_plan_turns_lrt_off() {
+    let mut c = Cluster::start().await;
+    for i in 0..FORKS {
+        let mut req = c.load_request(i);
+        req.header.as_mut().unwrap().plan.as_mut().unwrap().lrt = false;
+        assert_eq!(c.clients[i as usize].load_shard(req).await.unwrap().into_inner().pairs, 0);
+    }
+    let r = c.clients[0].take_pairs(v1::TakePairsRequest { max: 10, node: 0 }).await.unwrap().into_inner();
+    assert!(r.exhausted && r.pairs.is_empty());
+    c.stop().await;
+}
+
+#[tokio::test]
+async fn an_unreachable_peer_is_unavailable_and_named() {
+    let mut c = Cluster::start().await;
+    // Fork 2's address points at a port nobody listens on.
+    let dead = {
+        let l = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
+        l.local_addr().unwrap().to_string()
+    };
+    c.addrs[2] = dead.clone();
+    for i in 0..2 {
+        let req = c.load_request(i);
+        c.clients[i as usize].load_shard(req).await.unwrap();
+    }
+    let (k, m) = code(c.clients[0].get_blocks(v1::GetBlocksRequest { ids: vec![0, 2] }).await);
+    assert_eq!(k, Code::Unavailable);
+    assert!(m.contains(&dead), "{m}");
+    // Fork 0 drains its own pairs and fork 1's, then cannot tell whether fork 2 is done.
+    let last = loop {
+        match c.clients[0].take_pairs(v1::TakePairsRequest { max: 4096, node: 0 }).await {
+            Ok(r) => assert!(!r.into_inner().exhausted, "exhausted although fork 2 was never asked"),
+            Err(s) => break s,
+        }
+    };
+    assert_eq!(last.code(), Code::Unavailable);
+    c.stop().await;
+}

@@ -1,0 +1,298 @@
+//! Running the phases against a set of forks, with nodes connecting to our Host service.
+
+use super::schedule::Scheduler;
+use super::service::{HostService, HostState, Phase};
+use anyhow::{bail, Context};
+use magg_core::energy::{interpolate, vertex_energy_blocks, Fixed};
+use magg_core::lrt::LrtTally;
+use magg_core::math::Rgb;
+use magg_core::preprocess::PreparedScene;
+use magg_core::progress::Progress;
+use magg_core::render::{subscreens, RenderOutput};
+use magg_core::stats::*;
+use magg_proto::convert::block_to_wire;
+use magg_proto::v1::fork_client::ForkClient;
+use magg_proto::v1::host_server::HostServer;
+use magg_proto::v1::{self, GetEnergiesRequest, LoadShardRequest, PutBlocksRequest};
+use magg_proto::PROTOCOL_VERSION;
+use std::time::{Duration, Instant};
+use tokio::net::TcpListener;
+use tonic::transport::Channel;
+
+/// How to drive a render.
+#[derive(Clone, Debug)]
+pub struct DriveOptions {
+    /// Fork addresses, by index.
+    pub forks: Vec<String>,
+    /// Cache blocks per node (`None` = unlimited).
+    pub cache_blocks: Option<u64>,
+    /// Subscreen edge in pixels.
+    pub subscreen: u32,
+    /// Nodes expected (the render starts LRT at once; later nodes join).
+    pub nodes: u32,
+    /// Give up if a phase makes no progress for this long.
+    pub stall_timeout: Duration,
+}
+
+/// Accepted connections with Nagle's algorithm off: the protocol is many small
+/// request/reply pairs, which Nagle plus delayed ACKs would stall for tens of ms each.
+fn nodelay_incoming(listener: TcpListener) -> impl tokio_stream::Stream<Item = std::io::Result<tokio::net::TcpStream>> {
+    use tokio_stream::StreamExt;
+    tokio_stream::wrappers::TcpListenerStream::new(listener).map(|r| {
+        r.inspect(|s| {
+            let _ = s.set_nodelay(true);
+        })
+    })
+}
+
+async fn connect_fork(addr: &str) -> anyhow::Result<ForkClient<Channel>> {
+    let ch = magg_node::connect_with_backoff(addr, magg_node::Backoff::default()).await?;
+    Ok(ForkClient::new(ch).max_decoding_message_size(512 << 20).max_encoding_message_size(512 << 20))
+}
+
+fn rgb(c: &Option<v1::Rgb>) -> Rgb {
+    c.as_ref().map_or(Rgb::BLACK, |c| Rgb::new(c.r, c.g, c.b))
+}
+
+/// Runs the render: serves `Host` on `listener`, drives the forks, returns when every
+/// node that registered has been told the render is done (or after a grace period).
+pub async fn drive(
+    prepared: &PreparedScene,
+    opts: &DriveOptions,
+    listener: TcpListener,
+    progress: &dyn Progress,
+) -> anyhow::Result<RenderOutput> {
+    let t_start = Instant::now();
+    let h = prepared.header.clone();
+    let f = opts.forks.len();
+    if f == 0 {
+        bail!("no fork to render with");
+    }
+    let mut forks = Vec::with_capacity(f);
+    for addr in &opts.forks {
+        forks.push(connect_fork(addr).await?);
+    }
+    // Load the shards.
+    let wire_header = v1::SceneHeader::from(&*h);
+    for (i, fork) in forks.iter_mut().enumerate() {
+        let blocks = prepared
+            .blocks
+            .iter()
+            .enumerate()
+            .filter(|(b, _)| b % f == i)
+            .map(|(b, data)| block_to_wire(b as u32, data))
+            .collect();
+        let req = LoadShardRequest {
+            protocol_version: PROTOCOL_VERSION,
+            fork_index: i as u32,
+            fork_addrs: opts.forks.clone(),
+            header: Some(wire_header.clone()),
+            blocks,
+        };
+        fork.load_shard(req).await.with_context(|| format!("loading the shard of fork {i} at {}", opts.forks[i]))?;
+    }
+
+    // Serve the host service.
+    let service = HostService::new(HostState {
+        phase: Phase::Lrt,
+        nodes: Vec::new(),
+        schedule: None,
+        header: wire_header,
+        fork_addrs: opts.forks.clone(),
+        cache_blocks: opts.cache_blocks.unwrap_or(0),
+        link_bytes: 0,
+        rpcs: 0,
+    });
+    let (stop_tx, stop_rx) = tokio::sync::oneshot::channel::<()>();
+    let server = tonic::transport::Server::builder()
+        .add_service(HostServer::new(service.clone()).max_decoding_message_size(16 << 20))
+        .serve_with_incoming_shutdown(nodelay_incoming(listener), async {
+            let _ = stop_rx.await;
+        });
+    let server = tokio::spawn(server);
+
+    // --- LRT: wait for every fork's pairs.
+    let t_lrt = Instant::now();
+    let total_pairs: u64 = {
+        let mut t = 0;
+        for fork in forks.iter_mut() {
+            t += fork.get_energies(GetEnergiesRequest { summary_only: true }).await?.into_inner().pairs_total;
+        }
+        t
+    };
+    progress.begin("light ray tracing", total_pairs);
+    let mut last = (0u64, Instant::now());
+    loop {
+        let mut done = 0;
+        for (i, fork) in forks.iter_mut().enumerate() {
+            let r = fork
+                .get_energies(GetEnergiesRequest { summary_only: true })
+                .await
+                .with_context(|| format!("fork {i} at {}", opts.forks[i]))?;
+            done += r.into_inner().pairs_done;
+        }
+        if done > last.0 {
+            progress.advance(done - last.0);
+            last = (done, Instant::now());
+        }
+        if done >= total_pairs {
+            break;
+        }
+        if last.1.elapsed() > opts.stall_timeout {
+            bail!(
+                "light ray tracing stalled at {done} of {total_pairs} pairs for {:?} (are nodes connected?)",
+                opts.stall_timeout
+            );
+        }
+        tokio::time::sleep(Duration::from_millis(5)).await;
+    }
+    progress.end();
+    let lrt_s = t_lrt.elapsed().as_secs_f64();
+
+    // --- Interpolation.
+    service.lock().phase = Phase::Interp;
+    let t_interp = Instant::now();
+    let n_el = h.counts.elements as usize;
+    let mut element_flux: Vec<Fixed> = vec![[0; 3]; n_el];
+    let (mut dma_bytes, mut gbus_bytes, mut fork_rpcs) = (0, 0, 0);
+    for (i, fork) in forks.iter_mut().enumerate() {
+        let r = fork.get_energies(GetEnergiesRequest { summary_only: false }).await?.into_inner();
+        for e in r.energies {
+            match element_flux.get_mut(e.element as usize) {
+                Some(slot) => *slot = [e.r, e.g, e.b],
+                None => bail!("fork {i} sent energy for element {} of {n_el}", e.element),
+            }
+        }
+    }
+    let vertex_irradiance =
+        interpolate(&prepared.elements, &element_flux, h.counts.vertices as usize, h.energy_quantum);
+    let mut per_fork: Vec<Vec<v1::Block>> = vec![Vec::new(); f];
+    for (id, block) in vertex_energy_blocks(&vertex_irradiance, &h.layout) {
+        per_fork[id as usize % f].push(block_to_wire(id, &block));
+    }
+    for (fork, blocks) in forks.iter_mut().zip(per_fork) {
+        fork.put_blocks(PutBlocksRequest { blocks }).await?;
+    }
+    let interp_s = t_interp.elapsed().as_secs_f64();
+
+    // --- VRT.
+    let t_vrt = Instant::now();
+    let s = &h.settings;
+    let tiles = subscreens(s.width, s.height, opts.subscreen);
+    let n_tiles = tiles.len() as u64;
+    {
+        let mut st = service.lock();
+        st.schedule = Some(Scheduler::new(s.width, s.height, tiles));
+        st.phase = Phase::Vrt;
+    }
+    progress.begin("viewing ray tracing", s.width as u64 * s.height as u64);
+    let mut last_rows = (0u64, Instant::now());
+    loop {
+        let (done, px) = {
+            let st = service.lock();
+            let sc = st.schedule.as_ref();
+            (sc.is_some_and(|s| s.is_done()), sc.map_or(0, |s| s.pixels_done()))
+        };
+        if px > last_rows.0 {
+            progress.advance(px - last_rows.0);
+            last_rows = (px, Instant::now());
+        }
+        if done {
+            break;
+        }
+        if last_rows.1.elapsed() > opts.stall_timeout {
+            bail!("viewing ray tracing stalled at {px} pixels for {:?}", opts.stall_timeout);
+        }
+        tokio::time::sleep(Duration::from_millis(5)).await;
+    }
+    progress.end();
+    let vrt_s = t_vrt.elapsed().as_secs_f64();
+
+    // --- Done: let every node hear it (bounded wait), then stop serving.
+    service.lock().phase = Phase::Done;
+    let deadline = Instant::now() + Duration::from_secs(5);
+    while Instant::now() < deadline {
+        if service.lock().nodes.iter().all(|n| n.finished()) {
+            break;
+        }
+        tokio::time::sleep(Duration::from_millis(5)).await;
+    }
+    // Give the final reports a moment to land.
+    tokio::time::sleep(Duration::from_millis(20)).await;
+    for fork in forks.iter_mut() {
+        let r = fork.get_energies(GetEnergiesRequest { summary_only: true }).await?.into_inner();
+        dma_bytes += r.dma_bytes;
+        gbus_bytes += r.gbus_bytes;
+        fork_rpcs += r.rpcs;
+    }
+    let _ = stop_tx.send(());
+    let _ = server.await;
+
+    let st = service.lock();
+    let frame = st
+        .schedule
+        .as_ref()
+        .map(|s| s.frame().clone())
+        .unwrap_or_else(|| magg_core::frame::Frame::new(s.width, s.height));
+    let redivisions = st.schedule.as_ref().map_or(0, |s| s.redivisions);
+    let mut per_node = Vec::new();
+    let mut cache = magg_core::blocks::CacheStats::default();
+    let mut light = LrtTally::default();
+    let (mut light_rays, mut view_rays) = (0, 0);
+    for (i, n) in st.nodes.iter().enumerate() {
+        let r = &n.report;
+        let c = magg_core::blocks::CacheStats {
+            hits: r.cache_hits,
+            misses: r.cache_misses,
+            remote_misses: r.cache_remote_misses,
+        };
+        cache = cache.add(c);
+        light = light.add(LrtTally {
+            reached: rgb(&r.reached),
+            occluded: rgb(&r.occluded),
+            absorbed: rgb(&r.absorbed),
+            diffuse_end: rgb(&r.diffuse_end),
+            escaped: rgb(&r.escaped),
+            cut: rgb(&r.cut),
+        });
+        light_rays += r.light_rays;
+        view_rays += r.view_rays;
+        per_node.push(NodeStats {
+            node: i as u32,
+            home_fork: i as u32 % f as u32,
+            pairs: r.pairs,
+            tiles: r.tiles,
+            cache: c.into(),
+            ops: magg_core::view::OpCounters {
+                grid_steps: r.grid_steps,
+                patch_tests: r.patch_tests,
+                light_rays: r.light_rays,
+                view_rays: r.view_rays,
+                shades: r.shades,
+            },
+        });
+    }
+    let stats = RenderStats {
+        scene: prepared.name.clone(),
+        mode: "cluster".into(),
+        nodes: st.nodes.len() as u32,
+        forks: f as u32,
+        cache_blocks: opts.cache_blocks,
+        profile: "native".into(),
+        stages: Stages {
+            preprocess_s: prepared.preprocess_s,
+            lrt_s,
+            interp_s,
+            vrt_s,
+            total_s: prepared.preprocess_s + t_start.elapsed().as_secs_f64(),
+        },
+        cache: cache.into(),
+        traffic: Traffic { link_bytes: st.link_bytes, dma_bytes, gbus_bytes, rpcs: st.rpcs + fork_rpcs },
+        work: Work { pairs: total_pairs, tiles: n_tiles, redivisions, light_rays, view_rays },
+        plan: PlanSummary { passes: h.plan.passes(), plan: h.plan.clone() },
+        counts: h.counts,
+        light,
+        per_node,
+    };
+    Ok(RenderOutput { frame, element_flux, vertex_irradiance, stats })
+}

@@ -1,0 +1,106 @@
+//! The single-process harness: F forks, N nodes and the host in this process, talking
+//! real gRPC over 127.0.0.1 ports, so that `magg-host render` needs no set-up and
+//! exercises exactly the services of a multi-process run.
+
+use super::drive::{drive, DriveOptions};
+use anyhow::Context;
+use magg_core::preprocess::PreparedScene;
+use magg_core::progress::Progress;
+use magg_core::render::RenderOutput;
+use std::time::Duration;
+use tokio::net::TcpListener;
+
+/// Shape of an in-process (or partly external) cluster.
+#[derive(Clone, Debug)]
+pub struct InProcessOptions {
+    /// Nodes to run in this process.
+    pub nodes: u32,
+    /// Forks to run in this process (ignored when `forks_at` is given).
+    pub forks: u32,
+    /// External forks to use instead.
+    pub forks_at: Vec<String>,
+    /// Address the host serves nodes on (`127.0.0.1:0` picks a free port).
+    pub listen: String,
+    /// Cache blocks per node (`None` = unlimited).
+    pub cache_blocks: Option<u64>,
+    /// Subscreen edge.
+    pub subscreen: u32,
+    /// Abort a phase that makes no progress for this long.
+    pub stall_timeout: Duration,
+}
+
+/// Runs the cluster and returns the render.
+pub fn render_in_process(
+    prepared: &PreparedScene,
+    opts: &InProcessOptions,
+    progress: &dyn Progress,
+) -> anyhow::Result<RenderOutput> {
+    let rt = tokio::runtime::Builder::new_multi_thread().enable_all().build().context("starting the async runtime")?;
+    let (stop_tx, _) = tokio::sync::broadcast::channel::<()>(1);
+
+    // Forks.
+    let mut fork_addrs = opts.forks_at.clone();
+    let mut fork_tasks = Vec::new();
+    if fork_addrs.is_empty() {
+        for _ in 0..opts.forks.max(1) {
+            let listener = rt.block_on(TcpListener::bind("127.0.0.1:0")).context("binding a fork port on 127.0.0.1")?;
+            fork_addrs.push(listener.local_addr()?.to_string());
+            let mut stop = stop_tx.subscribe();
+            fork_tasks.push(rt.spawn(magg_fork::serve(listener, async move {
+                let _ = stop.recv().await;
+            })));
+        }
+    }
+
+    // The host's listener.
+    let listener = rt
+        .block_on(TcpListener::bind(&opts.listen))
+        .with_context(|| format!("binding the host address {}", opts.listen))?;
+    let host_addr = listener.local_addr()?.to_string();
+    tracing::info!("host serving nodes on {host_addr}, forks at {}", fork_addrs.join(","));
+
+    // Nodes, each on a thread of its own.
+    let node_threads: Vec<_> = (0..opts.nodes)
+        .map(|i| {
+            let cfg = magg_node::NodeConfig {
+                host: host_addr.clone(),
+                threads: 1,
+                cache_blocks: Some(opts.cache_blocks),
+                name: format!("in-process-{i}"),
+                backoff: magg_node::Backoff::default(),
+                row_delay: Duration::ZERO,
+            };
+            let handle = rt.handle().clone();
+            std::thread::Builder::new()
+                .name(format!("magg-node-{i}"))
+                .spawn(move || magg_node::run_with_runtime(handle, &cfg))
+        })
+        .collect::<Result<_, _>>()
+        .context("starting node threads")?;
+
+    let drive_opts = DriveOptions {
+        forks: fork_addrs,
+        cache_blocks: opts.cache_blocks,
+        subscreen: opts.subscreen,
+        nodes: opts.nodes,
+        stall_timeout: opts.stall_timeout,
+    };
+    let result = rt.block_on(drive(prepared, &drive_opts, listener, progress));
+    let mut node_err = None;
+    for t in node_threads {
+        match t.join() {
+            Ok(Ok(_)) => {}
+            Ok(Err(e)) => node_err = node_err.or(Some(anyhow::anyhow!(e))),
+            Err(_) => node_err = node_err.or(Some(anyhow::anyhow!("a node thread panicked"))),
+        }
+    }
+    let _ = stop_tx.send(());
+    for t in fork_tasks {
+        let _ = rt.block_on(t);
+    }
+    let out = result?;
+    if let Some(e) = node_err {
+        return Err(e.context("a node failed"));
+    }
+    Ok(out)
+}

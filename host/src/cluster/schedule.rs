@@ -1,0 +1,220 @@
+//! The host's subscreen scheduler (paper §4.6): many more subscreens than nodes, handed
+//! out on request; when the queue is empty while nodes are still busy, a busy node is
+//! asked to give back the rows it has not started, and those become a new subscreen for
+//! an idle node (adaptive redivision).
+
+use magg_core::frame::Frame;
+use magg_core::math::Rgb;
+use magg_core::vrt::Subscreen;
+use std::collections::{BTreeMap, VecDeque};
+
+/// What an idle node should do.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Next {
+    /// Trace this subscreen (with its id).
+    Trace(u64, Subscreen),
+    /// Nothing to hand out now; ask again soon.
+    Wait,
+    /// Every pixel is in.
+    Done,
+}
+
+/// Why a row was refused.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum RowError {
+    /// Unknown or finished subscreen.
+    #[error("subscreen {0} is not being traced")]
+    UnknownSubscreen(u64),
+    /// Row outside the subscreen or out of order.
+    #[error("row {y} is not the next row of subscreen {id} (expected {expected})")]
+    BadRow {
+        /// Subscreen.
+        id: u64,
+        /// Row sent.
+        y: u32,
+        /// Row expected.
+        expected: u32,
+    },
+    /// Wrong number of values.
+    #[error("row {y} has {got} values, expected {expected}")]
+    BadLength {
+        /// Row.
+        y: u32,
+        /// Values sent.
+        got: usize,
+        /// Values expected (3 per pixel).
+        expected: usize,
+    },
+}
+
+#[derive(Clone, Copy, Debug)]
+struct Active {
+    rect: Subscreen,
+    next_row: u32,
+    end: u32,
+    node: u32,
+    split_wanted: bool,
+}
+
+/// Subscreen queue, work in progress and the frame being assembled.
+pub struct Scheduler {
+    queue: VecDeque<Subscreen>,
+    active: BTreeMap<u64, Active>,
+    next_id: u64,
+    /// Adaptive redivisions so far.
+    pub redivisions: u64,
+    /// Subscreens handed out (redivided parts included).
+    pub handed_out: u64,
+    frame: Frame,
+    pixels_done: u64,
+}
+
+impl Scheduler {
+    /// A scheduler over `tiles` for a `width` x `height` frame.
+    pub fn new(width: u32, height: u32, tiles: Vec<Subscreen>) -> Self {
+        Scheduler {
+            queue: tiles.into(),
+            active: BTreeMap::new(),
+            next_id: 0,
+            redivisions: 0,
+            handed_out: 0,
+            frame: Frame::new(width, height),
+            pixels_done: 0,
+        }
+    }
+
+    /// True when every pixel has arrived.
+    pub fn is_done(&self) -> bool {
+        self.pixels_done >= self.frame.width as u64 * self.frame.height as u64
+    }
+
+    /// Work for `node`.
+    pub fn next(&mut self, node: u32) -> Next {
+        if let Some(rect) = self.queue.pop_front() {
+            let id = self.next_id;
+            self.next_id += 1;
+            self.handed_out += 1;
+            self.active.insert(id, Active { rect, next_row: rect.y, end: rect.y + rect.h, node, split_wanted: false });
+            return Next::Trace(id, rect);
+        }
+        if self.is_done() {
+            return Next::Done;
+        }
+        // Ask the busy node with the most unstarted rows to give half of them back.
+        let pending = self.active.values().any(|a| a.split_wanted);
+        if !pending {
+            if let Some(a) = self
+                .active
+                .values_mut()
+                .filter(|a| a.node != node && a.end - a.next_row >= 3)
+                .max_by_key(|a| a.end - a.next_row)
+            {
+                a.split_wanted = true;
+            }
+        }
+        Next::Wait
+    }
+
+    /// Stores rows of subscreen `id` (in order, starting at its next row); returns the
+    /// row from which the node must stop (its unstarted rows were redivided), if any.
+    pub fn submit(&mut self, id: u64, rows: &[(u32, &[f32])]) -> Result<Option<u32>, RowError> {
+        for &(y, rgb) in rows {
+            self.store_row(id, y, rgb)?;
+        }
+        Ok(self.split_if_wanted(id))
+    }
+
+    fn store_row(&mut self, id: u64, y: u32, rgb: &[f32]) -> Result<(), RowError> {
+        let a = self.active.get_mut(&id).ok_or(RowError::UnknownSubscreen(id))?;
+        if y < a.next_row && y >= a.rect.y {
+            return Ok(()); // a repeated row: already stored
+        }
+        if y != a.next_row || y >= a.end {
+            return Err(RowError::BadRow { id, y, expected: a.next_row });
+        }
+        let expected = 3 * a.rect.w as usize;
+        if rgb.len() != expected {
+            return Err(RowError::BadLength { y, got: rgb.len(), expected });
+        }
+        for (i, px) in rgb.chunks_exact(3).enumerate() {
+            self.frame.set(a.rect.x + i as u32, y, Rgb::new(px[0] as f64, px[1] as f64, px[2] as f64));
+        }
+        self.pixels_done += a.rect.w as u64;
+        a.next_row = y + 1;
+        Ok(())
+    }
+
+    /// After rows arrived: hands half of the unstarted rows to the queue if an idle node
+    /// asked for work, and retires a finished subscreen.
+    fn split_if_wanted(&mut self, id: u64) -> Option<u32> {
+        let a = self.active.get_mut(&id)?;
+        let mut give_back = None;
+        let remaining = a.end - a.next_row;
+        if a.split_wanted && remaining >= 2 {
+            let split = a.next_row + remaining.div_ceil(2);
+            let rest = Subscreen { x: a.rect.x, y: split, w: a.rect.w, h: a.end - split };
+            a.end = split;
+            self.queue.push_back(rest);
+            self.redivisions += 1;
+            give_back = Some(split);
+        }
+        a.split_wanted = false;
+        if a.next_row >= a.end {
+            self.active.remove(&id);
+        }
+        give_back
+    }
+
+    /// Pixels received so far.
+    pub fn pixels_done(&self) -> u64 {
+        self.pixels_done
+    }
+
+    /// The assembled frame.
+    pub fn frame(&self) -> &Frame {
+        &self.frame
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn row(w: u32, v: f32) -> Vec<f32> {
+        vec![v; 3 * w as usize]
+    }
+
+    #[test]
+    fn redivision_hands_unstarted_rows_to_an_idle_node() {
+        let mut s = Scheduler::new(4, 8, vec![Subscreen { x: 0, y: 0, w: 4, h: 8 }]);
+        let Next::Trace(id, t) = s.next(0) else { panic!("expected work") };
+        assert_eq!(t.h, 8);
+        // Node 1 is idle: the queue is empty, so node 0 is asked to split.
+        assert_eq!(s.next(1), Next::Wait);
+        // Node 0 sends row 0; the host takes rows 5..8 back (half of the 7 unstarted).
+        assert_eq!(s.submit(id, &[(0, &row(4, 1.0))]).unwrap(), Some(5));
+        assert_eq!(s.redivisions, 1);
+        let Next::Trace(id2, t2) = s.next(1) else { panic!("expected the redivided part") };
+        assert_eq!((t2.y, t2.h), (5, 3));
+        for y in 1..5 {
+            assert_eq!(s.submit(id, &[(y, &row(4, 1.0))]).unwrap(), None);
+        }
+        for y in 5..8 {
+            s.submit(id2, &[(y, &row(4, 2.0))]).unwrap();
+        }
+        assert!(s.is_done());
+        assert_eq!(s.next(0), Next::Done);
+        assert_eq!(s.frame().get(0, 7), [2.0; 3]);
+    }
+
+    #[test]
+    fn bad_rows_are_refused() {
+        let mut s = Scheduler::new(4, 4, vec![Subscreen { x: 0, y: 0, w: 4, h: 4 }]);
+        let Next::Trace(id, _) = s.next(0) else { panic!() };
+        assert!(matches!(s.submit(id, &[(2, &row(4, 0.0))]), Err(RowError::BadRow { .. })));
+        assert!(matches!(s.submit(id, &[(0, &row(3, 0.0))]), Err(RowError::BadLength { .. })));
+        assert!(matches!(s.submit(99, &[(0, &row(4, 0.0))]), Err(RowError::UnknownSubscreen(99))));
+        s.submit(id, &[(0, &row(4, 0.0)), (1, &row(4, 0.0))]).unwrap();
+        assert_eq!(s.submit(id, &[(1, &row(4, 0.0))]).unwrap(), None, "a repeated row is ignored");
+    }
+}

@@ -1,0 +1,183 @@
+//! The host's gRPC service: node registration, work hand-out, pixel rows.
+
+use super::schedule::{Next, Scheduler};
+use magg_proto::v1::host_server::Host;
+use magg_proto::v1::next_work_reply::Kind;
+use magg_proto::v1::{
+    self, NextWorkReply, NextWorkRequest, RegisterReply, RegisterRequest, SubmitRowsReply, SubmitRowsRequest,
+};
+use magg_proto::PROTOCOL_VERSION;
+use std::sync::{Arc, Mutex, MutexGuard};
+use tokio::sync::Notify;
+use tonic::{Request, Response, Status};
+
+/// Render phase, as the host drives it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Phase {
+    /// Light ray tracing: nodes pull pairs from their forks.
+    Lrt,
+    /// Energy interpolation on the host: nodes wait.
+    Interp,
+    /// Viewing ray tracing: nodes pull subscreens.
+    Vrt,
+    /// Finished: nodes stop.
+    Done,
+}
+
+/// A registered node.
+#[derive(Clone, Debug, Default)]
+pub struct NodeEntry {
+    /// Name it gave.
+    pub name: String,
+    /// Its latest cumulative report.
+    pub report: v1::NodeReport,
+    /// It was told to trace pairs already in this LRT phase.
+    pub told_pairs: bool,
+    /// Worker threads it runs (each asks for work on its own).
+    pub threads: u32,
+    /// How many of its workers were told the render is done.
+    pub told_done: u32,
+}
+
+impl NodeEntry {
+    /// Every worker of the node has heard that the render is done.
+    pub fn finished(&self) -> bool {
+        self.told_done >= self.threads.max(1)
+    }
+}
+
+/// Shared state of the host service.
+pub struct HostState {
+    /// Current phase.
+    pub phase: Phase,
+    /// Registered nodes by id.
+    pub nodes: Vec<NodeEntry>,
+    /// Subscreens (set when VRT starts).
+    pub schedule: Option<Scheduler>,
+    /// Resident header sent at registration.
+    pub header: v1::SceneHeader,
+    /// Fork addresses.
+    pub fork_addrs: Vec<String>,
+    /// Cache blocks per node (0 = unlimited).
+    pub cache_blocks: u64,
+    /// Bytes of node <-> host messages (the link path).
+    pub link_bytes: u64,
+    /// RPCs served.
+    pub rpcs: u64,
+}
+
+/// The tonic service over [`HostState`].
+#[derive(Clone)]
+pub struct HostService {
+    state: Arc<Mutex<HostState>>,
+    /// Signalled when all pixels are in, and when a node is told done.
+    pub changed: Arc<Notify>,
+}
+
+impl HostService {
+    /// A service over `state`.
+    pub fn new(state: HostState) -> Self {
+        HostService { state: Arc::new(Mutex::new(state)), changed: Arc::new(Notify::new()) }
+    }
+    /// Locks the state (a poisoned lock is recovered: the state stays consistent because
+    /// every update is a single assignment or a checked scheduler call).
+    pub fn lock(&self) -> MutexGuard<'_, HostState> {
+        self.state.lock().unwrap_or_else(|e| e.into_inner())
+    }
+}
+
+const WAIT_MS: u32 = 5;
+
+#[tonic::async_trait]
+impl Host for HostService {
+    async fn register(&self, req: Request<RegisterRequest>) -> Result<Response<RegisterReply>, Status> {
+        let r = req.into_inner();
+        if r.protocol_version != PROTOCOL_VERSION {
+            return Err(Status::failed_precondition(format!(
+                "protocol version {} refused: this host speaks version {PROTOCOL_VERSION}",
+                r.protocol_version
+            )));
+        }
+        if r.name.len() > 256 {
+            return Err(Status::invalid_argument("node name longer than 256 bytes"));
+        }
+        let mut s = self.lock();
+        if s.nodes.len() >= 65_536 {
+            return Err(Status::resource_exhausted("too many nodes registered"));
+        }
+        let node = s.nodes.len() as u32;
+        s.nodes.push(NodeEntry { name: r.name.clone(), threads: r.threads.clamp(1, 1024), ..Default::default() });
+        s.rpcs += 1;
+        let forks = s.fork_addrs.len().max(1) as u32;
+        tracing::info!(node, name = %r.name, "node registered");
+        Ok(Response::new(RegisterReply {
+            node,
+            home_fork: node % forks,
+            fork_addrs: s.fork_addrs.clone(),
+            header: Some(s.header.clone()),
+            cache_blocks: s.cache_blocks,
+        }))
+    }
+
+    async fn next_work(&self, req: Request<NextWorkRequest>) -> Result<Response<NextWorkReply>, Status> {
+        let r = req.into_inner();
+        let mut s = self.lock();
+        s.rpcs += 1;
+        s.link_bytes += prost::Message::encoded_len(&r) as u64;
+        let phase = s.phase;
+        let Some(entry) = s.nodes.get_mut(r.node as usize) else {
+            return Err(Status::invalid_argument(format!("node {} is not registered", r.node)));
+        };
+        if let Some(rep) = r.report {
+            entry.report = rep;
+        }
+        let wait = NextWorkReply { kind: Kind::Wait as i32, subscreen: None, wait_ms: WAIT_MS };
+        let reply = match phase {
+            Phase::Lrt if !entry.told_pairs => {
+                entry.told_pairs = true;
+                NextWorkReply { kind: Kind::Pairs as i32, subscreen: None, wait_ms: 0 }
+            }
+            Phase::Lrt | Phase::Interp => wait,
+            Phase::Vrt => match s.schedule.as_mut().map(|sc| sc.next(r.node)) {
+                Some(Next::Trace(id, t)) => NextWorkReply {
+                    kind: Kind::Subscreen as i32,
+                    subscreen: Some(v1::Subscreen { x: t.x, y: t.y, w: t.w, h: t.h, id }),
+                    wait_ms: 0,
+                },
+                Some(Next::Wait) | None => wait,
+                Some(Next::Done) => {
+                    self.changed.notify_waiters();
+                    wait
+                }
+            },
+            Phase::Done => {
+                if let Some(e) = s.nodes.get_mut(r.node as usize) {
+                    e.told_done += 1;
+                }
+                self.changed.notify_waiters();
+                NextWorkReply { kind: Kind::Done as i32, subscreen: None, wait_ms: 0 }
+            }
+        };
+        s.link_bytes += prost::Message::encoded_len(&reply) as u64;
+        Ok(Response::new(reply))
+    }
+
+    async fn submit_rows(&self, req: Request<SubmitRowsRequest>) -> Result<Response<SubmitRowsReply>, Status> {
+        let r = req.into_inner();
+        let mut s = self.lock();
+        s.rpcs += 1;
+        s.link_bytes += prost::Message::encoded_len(&r) as u64;
+        if r.node as usize >= s.nodes.len() {
+            return Err(Status::invalid_argument(format!("node {} is not registered", r.node)));
+        }
+        let Some(schedule) = s.schedule.as_mut() else {
+            return Err(Status::failed_precondition("no viewing ray tracing in progress"));
+        };
+        let rows: Vec<(u32, &[f32])> = r.rows.iter().map(|row| (row.y, row.rgb.as_slice())).collect();
+        let give_back = schedule.submit(r.subscreen, &rows).map_err(|e| Status::invalid_argument(e.to_string()))?;
+        if schedule.is_done() {
+            self.changed.notify_waiters();
+        }
+        Ok(Response::new(SubmitRowsReply { give_back_from: give_back }))
+    }
+}

@@ -1,0 +1,68 @@
+//! Connecting to a peer with exponential backoff and jitter, naming the address on
+//! failure.
+
+use crate::NodeError;
+use std::time::Duration;
+use tonic::transport::{Channel, Endpoint};
+
+/// Retry policy of connections.
+#[derive(Clone, Copy, Debug)]
+pub struct Backoff {
+    /// First delay.
+    pub initial: Duration,
+    /// Longest delay.
+    pub max: Duration,
+    /// Give up after this long.
+    pub deadline: Duration,
+}
+
+impl Default for Backoff {
+    fn default() -> Self {
+        Backoff { initial: Duration::from_millis(50), max: Duration::from_secs(2), deadline: Duration::from_secs(30) }
+    }
+}
+
+/// `http://ADDR` unless a scheme is given.
+pub fn uri_of(addr: &str) -> String {
+    if addr.contains("://") {
+        addr.to_string()
+    } else {
+        format!("http://{addr}")
+    }
+}
+
+/// Connects to `addr`, retrying with exponential backoff and jitter until
+/// `backoff.deadline`; logs each failed attempt with the address.
+pub async fn connect_with_backoff(addr: &str, backoff: Backoff) -> Result<Channel, NodeError> {
+    let uri = uri_of(addr);
+    let endpoint = Endpoint::from_shared(uri.clone())
+        .map_err(|e| NodeError::Connect { addr: addr.to_string(), reason: e.to_string() })?
+        .connect_timeout(Duration::from_secs(2))
+        .tcp_nodelay(true);
+    let start = std::time::Instant::now();
+    let mut delay = backoff.initial;
+    let mut attempt = 0u64;
+    loop {
+        match endpoint.connect().await {
+            Ok(ch) => return Ok(ch),
+            Err(e) => {
+                attempt += 1;
+                if start.elapsed() >= backoff.deadline {
+                    return Err(NodeError::Connect {
+                        addr: addr.to_string(),
+                        reason: format!("{e} (after {attempt} attempts)"),
+                    });
+                }
+                tracing::warn!("cannot reach {addr} (attempt {attempt}): {e}; retrying in {delay:?}");
+                // Jitter in [0.5, 1.5) x delay, from the clock's low bits.
+                let nanos = std::time::SystemTime::now()
+                    .duration_since(std::time::UNIX_EPOCH)
+                    .map(|d| d.subsec_nanos())
+                    .unwrap_or(0);
+                let jitter = 0.5 + (nanos % 1000) as f64 / 1000.0;
+                tokio::time::sleep(delay.mul_f64(jitter)).await;
+                delay = (delay * 2).min(backoff.max);
+            }
+        }
+    }
+}

@@ -1,0 +1,41 @@
+//! Why a node stopped.
+
+/// Errors of a node process.
+#[derive(Debug, thiserror::Error)]
+pub enum NodeError {
+    /// A peer could not be reached, even after retries.
+    #[error("cannot reach {addr}: {reason}")]
+    Connect {
+        /// Address tried.
+        addr: String,
+        /// Last error.
+        reason: String,
+    },
+    /// A peer answered an RPC with an error.
+    #[error("{what} failed: {status}")]
+    Rpc {
+        /// Which call.
+        what: &'static str,
+        /// The gRPC status.
+        status: tonic::Status,
+    },
+    /// The host sent something the node cannot use.
+    #[error("bad data from the host: {0}")]
+    Convert(String),
+    /// A kernel could not read a block.
+    #[error(transparent)]
+    Block(#[from] magg_core::blocks::BlockError),
+    /// A worker thread died.
+    #[error("node worker failed: {0}")]
+    Worker(String),
+    /// The async runtime could not start.
+    #[error("cannot start the async runtime: {0}")]
+    Runtime(String),
+}
+
+impl NodeError {
+    /// Wraps a status of call `what`.
+    pub fn rpc(what: &'static str) -> impl FnOnce(tonic::Status) -> NodeError {
+        move |status| NodeError::Rpc { what, status }
+    }
+}

@@ -1,0 +1,39 @@
+//! The node's block source: its home fork over gRPC (the paper's DMA path).
+
+use magg_core::blocks::{Block, BlockError, BlockSource, BLOCK_SIZE};
+use magg_proto::v1::fork_client::ForkClient;
+use magg_proto::v1::GetBlocksRequest;
+use tokio::runtime::Handle;
+use tonic::transport::Channel;
+
+/// Fetches blocks from the node's home fork. Called from the kernels' worker threads
+/// (not from async code): each fetch blocks on the runtime.
+pub struct ForkBlocks {
+    client: ForkClient<Channel>,
+    rt: Handle,
+}
+
+impl ForkBlocks {
+    /// A source reading through `client` on runtime `rt`.
+    pub fn new(client: ForkClient<Channel>, rt: Handle) -> Self {
+        ForkBlocks { client, rt }
+    }
+}
+
+impl BlockSource for ForkBlocks {
+    fn fetch(&self, id: u32, out: &mut Block) -> Result<(), BlockError> {
+        let mut client = self.client.clone();
+        let reply = self
+            .rt
+            .block_on(async move { client.get_blocks(GetBlocksRequest { ids: vec![id] }).await })
+            .map_err(|s| BlockError::Unavailable { id, reason: s.message().to_string() })?
+            .into_inner();
+        match reply.blocks.into_iter().next() {
+            Some(b) if b.id == id && b.data.len() == BLOCK_SIZE => {
+                out.copy_from_slice(&b.data);
+                Ok(())
+            }
+            _ => Err(BlockError::Unavailable { id, reason: "the fork sent no block or a malformed one".into() }),
+        }
+    }
+}

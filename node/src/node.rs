@@ -1,0 +1,135 @@
+//! A node's life: connect, register, run workers until the host says done.
+
+use crate::connect::{connect_with_backoff, Backoff};
+use crate::fork_blocks::ForkBlocks;
+use crate::report::{Totals, WorkerTotals};
+use crate::work::Worker;
+use crate::NodeError;
+use magg_core::blocks::{BlockCache, BlockSource};
+use magg_core::header::SceneHeader;
+use magg_core::view::SceneView;
+use magg_proto::v1::fork_client::ForkClient;
+use magg_proto::v1::host_client::HostClient;
+use magg_proto::v1::RegisterRequest;
+use magg_proto::PROTOCOL_VERSION;
+use std::sync::Arc;
+use tokio::runtime::Handle;
+
+/// How to run a node.
+#[derive(Clone, Debug)]
+pub struct NodeConfig {
+    /// Host address (`HOST:PORT`).
+    pub host: String,
+    /// Worker threads (each with its own share of the cache).
+    pub threads: u32,
+    /// Cache blocks per node, overriding the host's choice; `Some(None)` = unlimited.
+    pub cache_blocks: Option<Option<u64>>,
+    /// Name shown in the host's logs.
+    pub name: String,
+    /// Connection retries.
+    pub backoff: Backoff,
+    /// Extra time spent per pixel row: emulates a slow or overloaded node (to watch
+    /// adaptive redivision and straggler handling).
+    pub row_delay: std::time::Duration,
+}
+
+impl Default for NodeConfig {
+    fn default() -> Self {
+        NodeConfig {
+            host: "127.0.0.1:7000".into(),
+            threads: 1,
+            cache_blocks: None,
+            name: "node".into(),
+            backoff: Backoff::default(),
+            row_delay: std::time::Duration::ZERO,
+        }
+    }
+}
+
+/// What a node did.
+#[derive(Clone, Debug, Default)]
+pub struct NodeSummary {
+    /// Its id.
+    pub node: u32,
+    /// Pairs traced.
+    pub pairs: u64,
+    /// Subscreens traced.
+    pub tiles: u64,
+}
+
+/// Runs a node on a runtime of its own (the `magg-node` binary).
+pub fn run(cfg: &NodeConfig) -> Result<NodeSummary, NodeError> {
+    let rt = tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(2)
+        .enable_all()
+        .build()
+        .map_err(|e| NodeError::Runtime(e.to_string()))?;
+    run_with_runtime(rt.handle().clone(), cfg)
+}
+
+/// Runs a node whose RPCs go through `rt`. Must be called from a thread that is not one
+/// of the runtime's (the kernels block on it).
+pub fn run_with_runtime(rt: Handle, cfg: &NodeConfig) -> Result<NodeSummary, NodeError> {
+    let channel = rt.block_on(connect_with_backoff(&cfg.host, cfg.backoff))?;
+    let mut host = HostClient::new(channel).max_decoding_message_size(256 << 20);
+    let req =
+        RegisterRequest { protocol_version: PROTOCOL_VERSION, name: cfg.name.clone(), threads: cfg.threads.max(1) };
+    let reg = rt.block_on(host.register(req)).map_err(NodeError::rpc("Register"))?.into_inner();
+    let wire_header = reg.header.ok_or_else(|| NodeError::Convert("registration without a scene header".into()))?;
+    let header: Arc<SceneHeader> =
+        Arc::new(SceneHeader::try_from(wire_header).map_err(|e| NodeError::Convert(e.to_string()))?);
+    if reg.fork_addrs.is_empty() || reg.home_fork as usize >= reg.fork_addrs.len() {
+        return Err(NodeError::Convert(format!("home fork {} of {} forks", reg.home_fork, reg.fork_addrs.len())));
+    }
+    let mut forks = Vec::with_capacity(reg.fork_addrs.len());
+    for addr in &reg.fork_addrs {
+        let ch = rt.block_on(connect_with_backoff(addr, cfg.backoff))?;
+        forks.push(ForkClient::new(ch).max_decoding_message_size(64 << 20));
+    }
+    let home = reg.home_fork as usize;
+    let cache_blocks = match cfg.cache_blocks {
+        Some(c) => c,
+        None if reg.cache_blocks == 0 => None,
+        None => Some(reg.cache_blocks),
+    };
+    let threads = cfg.threads.max(1) as usize;
+    // The node's cache is split evenly over its workers.
+    let per_worker = cache_blocks.map(|c| (c as usize / threads).max(1));
+    let totals = Arc::new(Totals::new(threads));
+    tracing::info!(node = reg.node, home, threads, ?cache_blocks, "registered with {}", cfg.host);
+
+    let handles: Vec<_> = (0..threads)
+        .map(|index| {
+            let source: Arc<dyn BlockSource> = Arc::new(ForkBlocks::new(forks[home].clone(), rt.clone()));
+            let cache = BlockCache::new(source, per_worker).with_home(home as u32, forks.len() as u32);
+            let worker = Worker {
+                index,
+                node: reg.node,
+                view: SceneView::new(header.clone(), cache),
+                rt: rt.clone(),
+                host: host.clone(),
+                forks: forks.clone(),
+                home,
+                totals: totals.clone(),
+                mine: WorkerTotals::default(),
+                row_delay: cfg.row_delay,
+            };
+            std::thread::Builder::new()
+                .name(format!("magg-node-{}-{index}", reg.node))
+                .spawn(move || worker.run())
+                .map_err(|e| NodeError::Worker(e.to_string()))
+        })
+        .collect::<Result<_, _>>()?;
+    let mut first_err = None;
+    for h in handles {
+        let r = h.join().unwrap_or_else(|_| Err(NodeError::Worker("a worker panicked".into())));
+        if let (Err(e), None) = (r, &first_err) {
+            first_err = Some(e);
+        }
+    }
+    if let Some(e) = first_err {
+        return Err(e);
+    }
+    let s = totals.sum();
+    Ok(NodeSummary { node: reg.node, pairs: s.pairs, tiles: s.tiles })
+}

@@ -1,0 +1,197 @@
+//! The work loops of one node worker: pairs from the home fork, subscreens from the host.
+
+use crate::report::{Totals, WorkerTotals};
+use crate::NodeError;
+use magg_core::camera::CameraRig;
+use magg_core::energy::Fixed;
+use magg_core::lrt::trace_pair;
+use magg_core::trace::TraceScratch;
+use magg_core::view::SceneView;
+use magg_core::vrt::shade_pixel;
+use magg_proto::v1::fork_client::ForkClient;
+use magg_proto::v1::host_client::HostClient;
+use magg_proto::v1::next_work_reply::Kind;
+use magg_proto::v1::{
+    self, Deposit, DepositRequest, NextWorkRequest, PairDeposits, Row, SubmitRowsRequest, TakePairsRequest,
+};
+use std::collections::BTreeMap;
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+use tokio::runtime::Handle;
+use tonic::transport::Channel;
+
+/// Longest time a node keeps finished rows before sending them to the host.
+pub const ROW_REPORT: Duration = Duration::from_millis(5);
+
+/// Pairs asked for per request (batched hand-out, DESIGN.md §4 `--scheme magg`).
+pub const PAIR_BATCH: u32 = 16;
+
+/// Everything a worker needs.
+pub struct Worker {
+    /// Index among the node's workers.
+    pub index: usize,
+    /// Node id given by the host.
+    pub node: u32,
+    /// The scene as this worker sees it (its own block cache).
+    pub view: SceneView,
+    /// Runtime the RPCs run on.
+    pub rt: Handle,
+    /// The host.
+    pub host: HostClient<Channel>,
+    /// Every fork, by index (deposits go to the owning fork).
+    pub forks: Vec<ForkClient<Channel>>,
+    /// The home fork's index.
+    pub home: usize,
+    /// Node-wide totals.
+    pub totals: Arc<Totals>,
+    /// This worker's counts so far.
+    pub mine: WorkerTotals,
+    /// Emulated extra time per pixel row.
+    pub row_delay: Duration,
+}
+
+impl Worker {
+    fn publish(&mut self) {
+        self.mine.cache = self.view.cache_stats();
+        self.mine.ops = self.view.counters;
+        self.totals.set(self.index, self.mine);
+    }
+
+    /// Asks the host for work until it says done.
+    pub fn run(mut self) -> Result<(), NodeError> {
+        loop {
+            self.publish();
+            let mut host = self.host.clone();
+            let req = NextWorkRequest { node: self.node, report: Some(self.totals.report()) };
+            let reply = self.rt.block_on(host.next_work(req)).map_err(NodeError::rpc("NextWork"))?.into_inner();
+            match Kind::try_from(reply.kind).unwrap_or(Kind::Wait) {
+                Kind::Wait => std::thread::sleep(Duration::from_millis(reply.wait_ms.clamp(1, 1000) as u64)),
+                Kind::Pairs => self.pairs()?,
+                Kind::Subscreen => match reply.subscreen {
+                    Some(s) => self.subscreen(s)?,
+                    None => return Err(NodeError::Convert("SUBSCREEN work without a subscreen".into())),
+                },
+                Kind::Done => {
+                    self.publish();
+                    let mut host = self.host.clone();
+                    // Final report, so the host's stats include everything.
+                    let req = NextWorkRequest { node: self.node, report: Some(self.totals.report()) };
+                    let _ = self.rt.block_on(host.next_work(req));
+                    return Ok(());
+                }
+            }
+        }
+    }
+
+    fn owner_of(&self, element: u32) -> usize {
+        let forks = self.forks.len().max(1) as u32;
+        (self.view.header.layout.element_slot(element).0 % forks) as usize
+    }
+
+    /// Pulls pairs from the home fork until no fork has any left.
+    fn pairs(&mut self) -> Result<(), NodeError> {
+        let h = self.view.header.clone();
+        let elements = h.counts.elements as u64;
+        let total = elements * h.lights.len() as u64;
+        let mut scratch = TraceScratch::default();
+        loop {
+            let mut home = self.forks[self.home].clone();
+            let take = TakePairsRequest { max: PAIR_BATCH, node: self.node };
+            let got = self.rt.block_on(home.take_pairs(take)).map_err(NodeError::rpc("TakePairs"))?.into_inner();
+            if got.pairs.is_empty() {
+                if got.exhausted {
+                    return Ok(());
+                }
+                std::thread::sleep(Duration::from_millis(2));
+                continue;
+            }
+            // Per fork: the deposits of every pair of the batch.
+            let mut per_fork: BTreeMap<usize, Vec<PairDeposits>> = BTreeMap::new();
+            let mut owners = Vec::with_capacity(got.pairs.len());
+            for &pair in &got.pairs {
+                if pair >= total || elements == 0 {
+                    return Err(NodeError::Convert(format!("pair {pair} out of range ({total} pairs)")));
+                }
+                let (light, element) = ((pair / elements) as u32, (pair % elements) as u32);
+                let r = trace_pair(&mut self.view, &mut scratch, light, element)?;
+                self.mine.pairs += 1;
+                self.mine.tally = self.mine.tally.add(r.tally);
+                let mut split: BTreeMap<usize, Vec<Deposit>> = BTreeMap::new();
+                for (e, f) in r.deposits {
+                    split.entry(self.owner_of(e)).or_default().push(deposit(e, f));
+                }
+                for (fork, deposits) in split {
+                    per_fork.entry(fork).or_default().push(PairDeposits { pair, deposits, complete: false });
+                }
+                owners.push((self.owner_of(element), pair));
+            }
+            // Round 1: the energies, to every owning fork.
+            for (fork, pairs) in per_fork {
+                let mut c = self.forks[fork].clone();
+                self.rt.block_on(c.deposit(DepositRequest { pairs })).map_err(NodeError::rpc("Deposit"))?;
+            }
+            // Round 2: mark each pair done at the fork that owns it, once its energy is
+            // everywhere (a pair marked done has lost nothing).
+            let mut done: BTreeMap<usize, Vec<PairDeposits>> = BTreeMap::new();
+            for (fork, pair) in owners {
+                done.entry(fork).or_default().push(PairDeposits { pair, deposits: vec![], complete: true });
+            }
+            for (fork, pairs) in done {
+                let mut c = self.forks[fork].clone();
+                self.rt.block_on(c.deposit(DepositRequest { pairs })).map_err(NodeError::rpc("Deposit"))?;
+            }
+            self.publish();
+        }
+    }
+
+    /// Traces a subscreen row by row, sending each row; stops early when the host asks
+    /// for the unstarted rows back.
+    fn subscreen(&mut self, s: v1::Subscreen) -> Result<(), NodeError> {
+        let h = self.view.header.clone();
+        let (w, hgt) = (h.settings.width, h.settings.height);
+        if s.w == 0 || s.h == 0 || s.x.saturating_add(s.w) > w || s.y.saturating_add(s.h) > hgt {
+            return Err(NodeError::Convert(format!(
+                "subscreen {}x{}+{}+{} outside the {w}x{hgt} image",
+                s.w, s.h, s.x, s.y
+            )));
+        }
+        let rig = CameraRig::new(&h.camera, w, hgt);
+        let mut scratch = TraceScratch::default();
+        let mut end = s.y + s.h;
+        let mut y = s.y;
+        // Rows go to the host in batches: at least every ROW_REPORT of work, so that the
+        // host can redivide a long subscreen, and never one RPC per row on fast tiles.
+        let mut rows = Vec::new();
+        let mut since = Instant::now();
+        while y < end {
+            let mut rgb = Vec::with_capacity(3 * s.w as usize);
+            for x in s.x..s.x + s.w {
+                let c = shade_pixel(&mut self.view, &mut scratch, &rig, x, y)?;
+                rgb.extend([c.0[0] as f32, c.0[1] as f32, c.0[2] as f32]);
+            }
+            if !self.row_delay.is_zero() {
+                std::thread::sleep(self.row_delay);
+            }
+            rows.push(Row { y, rgb });
+            y += 1;
+            if y < end && since.elapsed() < ROW_REPORT {
+                continue;
+            }
+            let mut host = self.host.clone();
+            let req = SubmitRowsRequest { node: self.node, subscreen: s.id, rows: std::mem::take(&mut rows) };
+            let reply = self.rt.block_on(host.submit_rows(req)).map_err(NodeError::rpc("SubmitRows"))?.into_inner();
+            since = Instant::now();
+            if let Some(from) = reply.give_back_from {
+                if from >= y && from < end {
+                    end = from;
+                }
+            }
+        }
+        self.mine.tiles += 1;
+        Ok(())
+    }
+}
+
+fn deposit(element: u32, f: Fixed) -> Deposit {
+    Deposit { element, r: f[0], g: f[1], b: f[2] }
+}

@@ -1,0 +1,719 @@
+//! Conversions between protobuf messages and the rendering core's types: the one place
+//! where prost types meet `magg-core`.
+//!
+//! Going out ([`From`]) is infallible. Coming in ([`TryFrom`], [`block_from_wire`]) trusts
+//! nothing: missing sub-messages, non-finite numbers, out-of-range settings, a block
+//! layout that does not match the counts, or a grid whose cell table has the wrong length
+//! are refused with a [`ConvertError`] that names the field and the value. A header that
+//! converts is one the kernels can use without panicking.
+//!
+//! ```
+//! use magg_proto::{convert, v1};
+//! let block = Box::new([7u8; magg_core::blocks::BLOCK_SIZE]);
+//! let wire: v1::Block = convert::block_to_wire(3, &block);
+//! let (id, back) = convert::block_from_wire(wire).unwrap();
+//! assert_eq!((id, &back[..]), (3, &block[..]));
+//! ```
+
+use crate::v1;
+use magg_core::blocks::{
+    Block, BlockLayout, BLOCK_SIZE, ELEMENTS_PER_BLOCK, NO_BLOCK, PATCHES_PER_BLOCK, VERTICES_PER_BLOCK,
+};
+use magg_core::header::{Counts, GridHeader, SceneHeader};
+use magg_core::math::{Rgb, Vec3};
+use magg_core::plan::EffectsPlan;
+use magg_core::scene::{Camera, Exposure, GridSpec, Light, Material, RenderSettings, SourceLoc, Spot};
+
+/// Most blocks a scene may have (32 GiB of scene data).
+pub const MAX_BLOCKS: u32 = 1 << 24;
+/// Most elements a scene may have (on top of its own `max_elements`).
+pub const MAX_ELEMENTS: u32 = 1 << 27;
+/// Most lights a header may carry.
+pub const MAX_LIGHTS: usize = 65_536;
+/// Most materials a header may carry.
+pub const MAX_MATERIALS: usize = 65_536;
+/// Most subspaces of a grid (the scene parser's limit).
+pub const MAX_SUBSPACES: u64 = 16_777_216;
+/// Most lines of an effects plan's reasons.
+pub const MAX_REASONS: usize = 256;
+/// Longest string (material name, plan reason) accepted, bytes.
+pub const MAX_STRING: usize = 4096;
+/// Largest depth of the effects plan.
+pub const MAX_PLAN_DEPTH: u32 = 32;
+
+/// A wire message that cannot become a core value.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum ConvertError {
+    /// A required sub-message is absent.
+    #[error("{field} is missing")]
+    Missing {
+        /// Dotted field name.
+        field: String,
+    },
+    /// A value is out of range, non-finite, or inconsistent with another.
+    #[error("{field} = {value}: {expected}")]
+    Invalid {
+        /// Dotted field name.
+        field: String,
+        /// The offending value as received.
+        value: String,
+        /// What was expected instead.
+        expected: String,
+    },
+    /// A block whose payload is not exactly [`BLOCK_SIZE`] bytes.
+    #[error("block {id} has {len} bytes, expected {BLOCK_SIZE}")]
+    BlockSize {
+        /// Block id.
+        id: u32,
+        /// Bytes received.
+        len: usize,
+    },
+}
+
+fn invalid(field: impl Into<String>, value: impl std::fmt::Display, expected: impl Into<String>) -> ConvertError {
+    ConvertError::Invalid { field: field.into(), value: value.to_string(), expected: expected.into() }
+}
+
+fn missing(field: &str) -> ConvertError {
+    ConvertError::Missing { field: field.to_string() }
+}
+
+fn require<T>(v: Option<T>, field: &str) -> Result<T, ConvertError> {
+    v.ok_or_else(|| missing(field))
+}
+
+fn finite(x: f64, field: &str) -> Result<f64, ConvertError> {
+    if x.is_finite() {
+        Ok(x)
+    } else {
+        Err(invalid(field, x, "a finite number"))
+    }
+}
+
+fn in_range<T: PartialOrd + std::fmt::Display + Copy>(x: T, lo: T, hi: T, field: &str) -> Result<T, ConvertError> {
+    if x >= lo && x <= hi {
+        Ok(x)
+    } else {
+        Err(invalid(field, x, format!("in {lo}..={hi}")))
+    }
+}
+
+fn short_string(s: String, field: &str) -> Result<String, ConvertError> {
+    if s.len() > MAX_STRING {
+        Err(invalid(field, format!("<{} bytes>", s.len()), format!("at most {MAX_STRING} bytes")))
+    } else {
+        Ok(s)
+    }
+}
+
+fn wire_loc() -> SourceLoc {
+    SourceLoc { file: "<wire>".into(), line: 0 }
+}
+
+// ------------------------------------------------------------------ small values
+
+fn vec3_to_wire(v: Vec3) -> v1::Vec3 {
+    v1::Vec3 { x: v.x, y: v.y, z: v.z }
+}
+
+fn vec3_from_wire(v: Option<v1::Vec3>, field: &str) -> Result<Vec3, ConvertError> {
+    let v = require(v, field)?;
+    for (x, axis) in [(v.x, "x"), (v.y, "y"), (v.z, "z")] {
+        finite(x, &format!("{field}.{axis}"))?;
+    }
+    Ok(Vec3::new(v.x, v.y, v.z))
+}
+
+fn rgb_to_wire(c: Rgb) -> v1::Rgb {
+    v1::Rgb { r: c.0[0], g: c.0[1], b: c.0[2] }
+}
+
+/// A colour whose channels are finite and in `[0, max]`.
+fn rgb_from_wire(c: Option<v1::Rgb>, field: &str, max: f64) -> Result<Rgb, ConvertError> {
+    let c = require(c, field)?;
+    for (x, ch) in [(c.r, "r"), (c.g, "g"), (c.b, "b")] {
+        let f = format!("{field}.{ch}");
+        finite(x, &f)?;
+        if !(0.0..=max).contains(&x) {
+            return Err(invalid(f, x, format!("in [0, {max}]")));
+        }
+    }
+    Ok(Rgb::new(c.r, c.g, c.b))
+}
+
+// ------------------------------------------------------------------ scene entities
+
+fn camera_to_wire(c: &Camera) -> v1::Camera {
+    v1::Camera {
+        eye: Some(vec3_to_wire(c.eye)),
+        look_at: Some(vec3_to_wire(c.look_at)),
+        up: Some(vec3_to_wire(c.up)),
+        fov_y_deg: c.fov_y_deg,
+    }
+}
+
+fn camera_from_wire(c: v1::Camera) -> Result<Camera, ConvertError> {
+    let eye = vec3_from_wire(c.eye, "camera.eye")?;
+    let look_at = vec3_from_wire(c.look_at, "camera.look_at")?;
+    let up = vec3_from_wire(c.up, "camera.up")?;
+    let fov = finite(c.fov_y_deg, "camera.fov_y_deg")?;
+    if !(fov > 0.0 && fov < 180.0) {
+        return Err(invalid("camera.fov_y_deg", fov, "in (0, 180)"));
+    }
+    let view = look_at - eye;
+    if view.length() == 0.0 || !view.normalized().is_finite() {
+        return Err(invalid("camera.look_at", format!("{look_at:?}"), "a point other than the eye"));
+    }
+    let side = view.normalized().cross(up.normalized());
+    if !side.is_finite() || side.length() < 1e-12 {
+        return Err(invalid("camera.up", format!("{up:?}"), "non-zero and not parallel to the view direction"));
+    }
+    Ok(Camera { eye, look_at, up, fov_y_deg: fov })
+}
+
+fn light_to_wire(l: &Light) -> v1::Light {
+    v1::Light {
+        position: Some(vec3_to_wire(l.position)),
+        intensity: Some(rgb_to_wire(l.intensity)),
+        spot: l.spot.as_ref().map(|s| v1::Spot {
+            direction: Some(vec3_to_wire(s.direction)),
+            half_angle_deg: s.half_angle_deg,
+            falloff_deg: s.falloff_deg,
+        }),
+    }
+}
+
+fn light_from_wire(i: usize, l: v1::Light) -> Result<Light, ConvertError> {
+    let f = |name: &str| format!("lights[{i}].{name}");
+    let position = vec3_from_wire(l.position, &f("position"))?;
+    let intensity = rgb_from_wire(l.intensity, &f("intensity"), f64::MAX)?;
+    let spot = match l.spot {
+        None => None,
+        Some(s) => {
+            let direction = vec3_from_wire(s.direction, &f("spot.direction"))?;
+            if direction.length() == 0.0 || !direction.normalized().is_finite() {
+                return Err(invalid(f("spot.direction"), format!("{direction:?}"), "a non-zero vector"));
+            }
+            let half = finite(s.half_angle_deg, &f("spot.half_angle_deg"))?;
+            if !(half > 0.0 && half <= 180.0) {
+                return Err(invalid(f("spot.half_angle_deg"), half, "in (0, 180]"));
+            }
+            let falloff = finite(s.falloff_deg, &f("spot.falloff_deg"))?;
+            if !(0.0..=180.0 - half).contains(&falloff) {
+                return Err(invalid(f("spot.falloff_deg"), falloff, format!("in [0, {}]", 180.0 - half)));
+            }
+            Some(Spot { direction, half_angle_deg: half, falloff_deg: falloff })
+        }
+    };
+    Ok(Light { position, intensity, spot, loc: wire_loc() })
+}
+
+fn material_to_wire(m: &Material) -> v1::Material {
+    v1::Material {
+        name: m.name.clone(),
+        diffuse: Some(rgb_to_wire(m.diffuse)),
+        mirror: Some(rgb_to_wire(m.mirror)),
+        transmit: Some(rgb_to_wire(m.transmit)),
+        ior: m.ior,
+    }
+}
+
+fn material_from_wire(i: usize, m: v1::Material) -> Result<Material, ConvertError> {
+    let f = |name: &str| format!("materials[{i}].{name}");
+    let name = short_string(m.name, &f("name"))?;
+    let diffuse = rgb_from_wire(m.diffuse, &f("diffuse"), 1.0)?;
+    let mirror = rgb_from_wire(m.mirror, &f("mirror"), 1.0)?;
+    let transmit = rgb_from_wire(m.transmit, &f("transmit"), 1.0)?;
+    let ior = finite(m.ior, &f("ior"))?;
+    in_range(ior, 1.0, 4.0, &f("ior"))?;
+    let sum = diffuse.add(mirror).add(transmit);
+    for (k, s) in sum.0.iter().enumerate() {
+        if *s > 1.0 + 1e-9 {
+            let field = f(&format!("diffuse+mirror+transmit[{k}]"));
+            return Err(invalid(field, s, "at most 1 (the rest is absorbed)"));
+        }
+    }
+    Ok(Material { name, diffuse, mirror, transmit, ior, loc: wire_loc() })
+}
+
+fn settings_to_wire(s: &RenderSettings) -> v1::RenderSettings {
+    v1::RenderSettings {
+        width: s.width,
+        height: s.height,
+        pixel_samples: s.pixel_samples,
+        element_size: s.element_size,
+        light_rays: s.light_rays,
+        lrt_depth: s.lrt_depth,
+        vrt_depth: s.vrt_depth,
+        diffuse_bounces: s.diffuse_bounces,
+        ambient: Some(rgb_to_wire(s.ambient)),
+        seed: s.seed,
+        background: Some(rgb_to_wire(s.background)),
+        exposure: match s.exposure {
+            Exposure::Auto => 0.0,
+            Exposure::Fixed(x) => x,
+        },
+        max_elements: s.max_elements,
+        grid: match s.grid {
+            GridSpec::Auto => Vec::new(),
+            GridSpec::Fixed(d) => d.to_vec(),
+        },
+    }
+}
+
+fn settings_from_wire(s: v1::RenderSettings) -> Result<RenderSettings, ConvertError> {
+    let width = in_range(s.width, 1, 16384, "settings.width")?;
+    let height = in_range(s.height, 1, 16384, "settings.height")?;
+    let pixel_samples = in_range(s.pixel_samples, 1, 4096, "settings.pixel_samples")?;
+    let light_rays = in_range(s.light_rays, 1, 1_000_000, "settings.light_rays")?;
+    let lrt_depth = in_range(s.lrt_depth, 0, 32, "settings.lrt_depth")?;
+    let vrt_depth = in_range(s.vrt_depth, 0, 32, "settings.vrt_depth")?;
+    let diffuse_bounces = in_range(s.diffuse_bounces, 0, 16, "settings.diffuse_bounces")?;
+    let element_size = finite(s.element_size, "settings.element_size")?;
+    if element_size <= 0.0 {
+        return Err(invalid("settings.element_size", element_size, "a positive number"));
+    }
+    let ambient = rgb_from_wire(s.ambient, "settings.ambient", f64::MAX)?;
+    let background = rgb_from_wire(s.background, "settings.background", f64::MAX)?;
+    let exposure = match finite(s.exposure, "settings.exposure")? {
+        0.0 => Exposure::Auto,
+        x if x > 0.0 => Exposure::Fixed(x),
+        x => return Err(invalid("settings.exposure", x, "0 (auto) or a positive multiplier")),
+    };
+    if s.max_elements == 0 {
+        return Err(invalid("settings.max_elements", 0, "at least 1"));
+    }
+    let grid = if s.grid.iter().all(|&d| d == 0) {
+        GridSpec::Auto
+    } else {
+        let bad = || invalid("settings.grid", format!("{:?}", s.grid), "empty (auto) or 3 values in 1..=512");
+        let d: [u32; 3] = s.grid.as_slice().try_into().map_err(|_| bad())?;
+        if d.iter().any(|&n| !(1..=512).contains(&n)) {
+            return Err(bad());
+        }
+        if d.iter().map(|&n| n as u64).product::<u64>() > MAX_SUBSPACES {
+            return Err(invalid("settings.grid", format!("{d:?}"), format!("at most {MAX_SUBSPACES} subspaces")));
+        }
+        GridSpec::Fixed(d)
+    };
+    Ok(RenderSettings {
+        width,
+        height,
+        pixel_samples,
+        element_size,
+        light_rays,
+        lrt_depth,
+        vrt_depth,
+        diffuse_bounces,
+        ambient,
+        grid,
+        seed: s.seed,
+        exposure,
+        background,
+        max_elements: s.max_elements,
+    })
+}
+
+fn plan_to_wire(p: &EffectsPlan) -> v1::EffectsPlan {
+    v1::EffectsPlan {
+        lrt: p.lrt,
+        lrt_depth: p.lrt_depth,
+        refraction: p.refraction,
+        diffuse_bounces: p.diffuse_bounces,
+        vrt_depth: p.vrt_depth,
+        ambient: p.ambient,
+        pixel_samples: p.pixel_samples,
+        reasons: p.reasons.clone(),
+    }
+}
+
+fn plan_from_wire(p: v1::EffectsPlan) -> Result<EffectsPlan, ConvertError> {
+    if p.reasons.len() > MAX_REASONS {
+        return Err(invalid("plan.reasons", format!("<{} lines>", p.reasons.len()), format!("at most {MAX_REASONS}")));
+    }
+    let reasons = p
+        .reasons
+        .into_iter()
+        .enumerate()
+        .map(|(i, r)| short_string(r, &format!("plan.reasons[{i}]")))
+        .collect::<Result<Vec<_>, _>>()?;
+    Ok(EffectsPlan {
+        lrt: p.lrt,
+        lrt_depth: in_range(p.lrt_depth, 0, MAX_PLAN_DEPTH, "plan.lrt_depth")?,
+        refraction: p.refraction,
+        diffuse_bounces: in_range(p.diffuse_bounces, 0, MAX_PLAN_DEPTH, "plan.diffuse_bounces")?,
+        vrt_depth: in_range(p.vrt_depth, 0, MAX_PLAN_DEPTH, "plan.vrt_depth")?,
+        ambient: p.ambient,
+        pixel_samples: in_range(p.pixel_samples, 1, 4096, "plan.pixel_samples")?,
+        reasons,
+    })
+}
+
+// ------------------------------------------------------------------ grid, layout, counts
+
+fn counts_from_wire(c: v1::Counts) -> Counts {
+    Counts {
+        patches: c.patches,
+        elements: c.elements,
+        vertices: c.vertices,
+        subspaces: c.subspaces,
+        subspace_blocks: c.subspace_blocks,
+        patch_blocks: c.patch_blocks,
+        element_blocks: c.element_blocks,
+        vertex_blocks: c.vertex_blocks,
+    }
+}
+
+/// Checks that the layout's bases are ordered, that each kind's block count matches the
+/// entity counts, and that the total is bounded.
+fn check_layout(l: &BlockLayout, c: &Counts) -> Result<(), ConvertError> {
+    if l.total > MAX_BLOCKS {
+        return Err(invalid("layout.total", l.total, format!("at most {MAX_BLOCKS} blocks")));
+    }
+    if !(l.patch_base <= l.element_base && l.element_base <= l.vertex_base && l.vertex_base < l.total) {
+        let v = format!("patch {} element {} vertex {} total {}", l.patch_base, l.element_base, l.vertex_base, l.total);
+        return Err(invalid("layout", v, "patch_base <= element_base <= vertex_base < total"));
+    }
+    let blocks_for = |n: u32, per: usize| (n as usize).div_ceil(per) as u64;
+    let checks: [(&str, u64, u64); 8] = [
+        ("counts.subspace_blocks", c.subspace_blocks as u64, l.patch_base as u64),
+        ("counts.patch_blocks", c.patch_blocks as u64, (l.element_base - l.patch_base) as u64),
+        ("counts.element_blocks", c.element_blocks as u64, (l.vertex_base - l.element_base) as u64),
+        ("counts.vertex_blocks", c.vertex_blocks as u64, (l.total - l.vertex_base) as u64),
+        ("counts.patch_blocks", c.patch_blocks as u64, blocks_for(c.patches, PATCHES_PER_BLOCK)),
+        ("counts.element_blocks", c.element_blocks as u64, blocks_for(c.elements, ELEMENTS_PER_BLOCK)),
+        ("counts.vertex_blocks", c.vertex_blocks as u64, blocks_for(c.vertices, VERTICES_PER_BLOCK).max(1)),
+        // A subspace block holds at least one patch id of a non-empty subspace.
+        ("counts.subspace_blocks", (c.subspace_blocks > 0) as u64, (c.subspaces > 0 && c.patches > 0) as u64),
+    ];
+    for (field, got, want) in checks {
+        if got != want {
+            return Err(invalid(field, got, format!("{want} (from the layout and the counts)")));
+        }
+    }
+    if c.elements > MAX_ELEMENTS {
+        return Err(invalid("counts.elements", c.elements, format!("at most {MAX_ELEMENTS}")));
+    }
+    if c.patches == 0 || c.elements < c.patches {
+        let v = format!("{} patches, {} elements", c.patches, c.elements);
+        return Err(invalid("counts", v, "at least one patch and one element per patch"));
+    }
+    Ok(())
+}
+
+fn grid_from_wire(g: v1::GridHeader, layout: &BlockLayout, counts: &Counts) -> Result<GridHeader, ConvertError> {
+    let min = vec3_from_wire(g.min, "grid.min")?;
+    let max = vec3_from_wire(g.max, "grid.max")?;
+    let dims: [u32; 3] =
+        g.dims.as_slice().try_into().map_err(|_| invalid("grid.dims", format!("{:?}", g.dims), "3 values"))?;
+    if dims.contains(&0) {
+        return Err(invalid("grid.dims", format!("{dims:?}"), "no zero"));
+    }
+    let cells = dims.iter().map(|&d| d as u128).product::<u128>();
+    if cells > MAX_SUBSPACES as u128 {
+        return Err(invalid("grid.dims", format!("{dims:?}"), format!("at most {MAX_SUBSPACES} subspaces")));
+    }
+    for a in 0..3 {
+        let cell_positive = min[a] < max[a] && (max[a] - min[a]) / dims[a] as f64 > 0.0;
+        if !cell_positive {
+            let v = format!("min {min:?} max {max:?}");
+            return Err(invalid("grid", v, "min < max on every axis, with non-empty subspaces"));
+        }
+    }
+    let cells = cells as u64;
+    if cells != counts.subspaces as u64 {
+        return Err(invalid("counts.subspaces", counts.subspaces, format!("{cells} (the grid's dims product)")));
+    }
+    if g.cell_first_block.len() as u64 != cells {
+        return Err(invalid(
+            "grid.cell_first_block",
+            format!("<{} entries>", g.cell_first_block.len()),
+            format!("{cells} entries"),
+        ));
+    }
+    if let Some((i, b)) = g.cell_first_block.iter().enumerate().find(|&(_, &b)| b != NO_BLOCK && b >= layout.patch_base)
+    {
+        return Err(invalid(format!("grid.cell_first_block[{i}]"), b, "a subspace block id or NO_BLOCK"));
+    }
+    Ok(GridHeader { min, max, dims, cell_first_block: g.cell_first_block })
+}
+
+// ------------------------------------------------------------------ scene header
+
+impl From<&SceneHeader> for v1::SceneHeader {
+    fn from(h: &SceneHeader) -> Self {
+        let (l, c) = (&h.layout, &h.counts);
+        v1::SceneHeader {
+            camera: Some(camera_to_wire(&h.camera)),
+            settings: Some(settings_to_wire(&h.settings)),
+            lights: h.lights.iter().map(light_to_wire).collect(),
+            materials: h.materials.iter().map(material_to_wire).collect(),
+            grid: Some(v1::GridHeader {
+                min: Some(vec3_to_wire(h.grid.min)),
+                max: Some(vec3_to_wire(h.grid.max)),
+                dims: h.grid.dims.to_vec(),
+                cell_first_block: h.grid.cell_first_block.clone(),
+            }),
+            layout: Some(v1::BlockLayout {
+                patch_base: l.patch_base,
+                element_base: l.element_base,
+                vertex_base: l.vertex_base,
+                total: l.total,
+            }),
+            counts: Some(v1::Counts {
+                patches: c.patches,
+                elements: c.elements,
+                vertices: c.vertices,
+                subspaces: c.subspaces,
+                subspace_blocks: c.subspace_blocks,
+                patch_blocks: c.patch_blocks,
+                element_blocks: c.element_blocks,
+                vertex_blocks: c.vertex_blocks,
+            }),
+            energy_quantum: h.energy_quantum,
+            plan: Some(plan_to_wire(&h.plan)),
+        }
+    }
+}
+
+impl TryFrom<v1::SceneHeader> for SceneHeader {
+    type Error = ConvertError;
+
+    fn try_from(h: v1::SceneHeader) -> Result<Self, ConvertError> {
+        let camera = camera_from_wire(require(h.camera, "camera")?)?;
+        let settings = settings_from_wire(require(h.settings, "settings")?)?;
+        if h.lights.len() > MAX_LIGHTS {
+            return Err(invalid("lights", format!("<{} lights>", h.lights.len()), format!("at most {MAX_LIGHTS}")));
+        }
+        let lights =
+            h.lights.into_iter().enumerate().map(|(i, l)| light_from_wire(i, l)).collect::<Result<Vec<_>, _>>()?;
+        if h.materials.is_empty() || h.materials.len() > MAX_MATERIALS {
+            let v = format!("<{} materials>", h.materials.len());
+            return Err(invalid("materials", v, format!("1..={MAX_MATERIALS} materials")));
+        }
+        let materials = h
+            .materials
+            .into_iter()
+            .enumerate()
+            .map(|(i, m)| material_from_wire(i, m))
+            .collect::<Result<Vec<_>, _>>()?;
+        let counts = counts_from_wire(require(h.counts, "counts")?);
+        let l = require(h.layout, "layout")?;
+        let layout = BlockLayout {
+            patch_base: l.patch_base,
+            element_base: l.element_base,
+            vertex_base: l.vertex_base,
+            total: l.total,
+        };
+        check_layout(&layout, &counts)?;
+        if counts.elements as u64 > settings.max_elements {
+            let expected = format!("at most settings.max_elements = {}", settings.max_elements);
+            return Err(invalid("counts.elements", counts.elements, expected));
+        }
+        let grid = grid_from_wire(require(h.grid, "grid")?, &layout, &counts)?;
+        let q = finite(h.energy_quantum, "energy_quantum")?;
+        if q <= 0.0 {
+            return Err(invalid("energy_quantum", q, "a positive number"));
+        }
+        let plan = plan_from_wire(require(h.plan, "plan")?)?;
+        Ok(SceneHeader { camera, settings, lights, materials, grid, layout, counts, energy_quantum: q, plan })
+    }
+}
+
+// ------------------------------------------------------------------ blocks
+
+/// A block from the wire: its id and its 2 KB payload (refused unless exactly
+/// [`BLOCK_SIZE`] bytes). The id is not range-checked here: the receiver knows the layout.
+pub fn block_from_wire(b: v1::Block) -> Result<(u32, Box<Block>), ConvertError> {
+    let data: Box<Block> = b
+        .data
+        .into_boxed_slice()
+        .try_into()
+        .map_err(|d: Box<[u8]>| ConvertError::BlockSize { id: b.id, len: d.len() })?;
+    Ok((b.id, data))
+}
+
+/// A block for the wire.
+pub fn block_to_wire(id: u32, block: &Block) -> v1::Block {
+    v1::Block { id, data: block.to_vec() }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use prost::Message;
+    use std::sync::Arc;
+
+    fn paper_header() -> Arc<SceneHeader> {
+        let text = include_str!("../../scenes/magg-paper.toml");
+        let read = |p: &std::path::Path| std::fs::read_to_string(p);
+        let scene = magg_core::scene::parse_scene_str("magg-paper.toml", text, "scenes".as_ref(), &read).unwrap();
+        magg_core::preprocess::prepare(&scene).unwrap().header
+    }
+
+    /// The header as it comes back from the wire: source locations are not sent.
+    fn as_received(h: &SceneHeader) -> SceneHeader {
+        let mut h = h.clone();
+        h.lights.iter_mut().for_each(|l| l.loc = wire_loc());
+        h.materials.iter_mut().for_each(|m| m.loc = wire_loc());
+        h
+    }
+
+    #[test]
+    fn prepared_header_round_trips_exactly() {
+        let h = paper_header();
+        let wire = v1::SceneHeader::from(&*h);
+        let bytes = wire.encode_to_vec();
+        let decoded = v1::SceneHeader::decode(bytes.as_slice()).unwrap();
+        assert_eq!(SceneHeader::try_from(decoded).unwrap(), as_received(&h));
+    }
+
+    #[test]
+    fn exposure_spot_and_auto_grid_round_trip() {
+        let mut h = (*paper_header()).clone();
+        h.settings.exposure = Exposure::Fixed(2.5);
+        h.settings.grid = GridSpec::Auto;
+        h.lights[0].spot = Some(Spot { direction: Vec3::new(0.0, -1.0, 0.0), half_angle_deg: 30.0, falloff_deg: 10.0 });
+        let wire = v1::SceneHeader::from(&h);
+        assert!(wire.settings.as_ref().unwrap().grid.is_empty());
+        assert_eq!(SceneHeader::try_from(wire).unwrap(), as_received(&h));
+    }
+
+    /// Converts the paper header after `f` spoils it; returns the error.
+    fn refused(f: impl FnOnce(&mut v1::SceneHeader)) -> ConvertError {
+        let mut wire = v1::SceneHeader::from(&*paper_header());
+        f(&mut wire);
+        SceneHeader::try_from(wire).expect_err("a bad header was accepted")
+    }
+
+    fn field_of(e: &ConvertError) -> &str {
+        match e {
+            ConvertError::Missing { field } | ConvertError::Invalid { field, .. } => field,
+            ConvertError::BlockSize { .. } => "block",
+        }
+    }
+
+    #[test]
+    fn missing_sub_messages_are_refused() {
+        assert_eq!(refused(|h| h.camera = None), ConvertError::Missing { field: "camera".into() });
+        assert_eq!(field_of(&refused(|h| h.settings.as_mut().unwrap().ambient = None)), "settings.ambient");
+        assert_eq!(field_of(&refused(|h| h.grid = None)), "grid");
+        assert_eq!(field_of(&refused(|h| h.layout = None)), "layout");
+        assert_eq!(field_of(&refused(|h| h.counts = None)), "counts");
+        assert_eq!(field_of(&refused(|h| h.plan = None)), "plan");
+        assert_eq!(field_of(&refused(|h| h.lights[0].position = None)), "lights[0].position");
+    }
+
+    #[test]
+    fn non_finite_numbers_are_refused() {
+        let e = refused(|h| h.camera.as_mut().unwrap().eye.as_mut().unwrap().x = f64::NAN);
+        assert_eq!(field_of(&e), "camera.eye.x");
+        assert!(e.to_string().contains("NaN"), "{e}");
+        let e = refused(|h| h.grid.as_mut().unwrap().max.as_mut().unwrap().z = f64::INFINITY);
+        assert_eq!(field_of(&e), "grid.max.z");
+        assert_eq!(field_of(&refused(|h| h.energy_quantum = f64::NAN)), "energy_quantum");
+        assert_eq!(field_of(&refused(|h| h.energy_quantum = 0.0)), "energy_quantum");
+        assert_eq!(field_of(&refused(|h| h.settings.as_mut().unwrap().element_size = -0.1)), "settings.element_size");
+    }
+
+    #[test]
+    fn bad_grids_are_refused() {
+        assert_eq!(field_of(&refused(|h| h.grid.as_mut().unwrap().dims = vec![8, 7])), "grid.dims");
+        assert_eq!(field_of(&refused(|h| h.grid.as_mut().unwrap().dims = vec![8, 0, 6])), "grid.dims");
+        let e = refused(|h| h.grid.as_mut().unwrap().dims = vec![u32::MAX, u32::MAX, u32::MAX]);
+        assert_eq!(field_of(&e), "grid.dims");
+        let e = refused(|h| {
+            h.grid.as_mut().unwrap().cell_first_block.pop();
+        });
+        assert_eq!(field_of(&e), "grid.cell_first_block");
+        let e = refused(|h| h.grid.as_mut().unwrap().cell_first_block[0] = 1_000_000);
+        assert_eq!(field_of(&e), "grid.cell_first_block[0]");
+        let e = refused(|h| h.grid.as_mut().unwrap().min = Some(v1::Vec3 { x: 9.0, y: 9.0, z: 9.0 }));
+        assert_eq!(field_of(&e), "grid");
+        assert_eq!(field_of(&refused(|h| h.counts.as_mut().unwrap().subspaces += 1)), "counts.subspaces");
+    }
+
+    #[test]
+    fn inconsistent_layouts_are_refused() {
+        let e = refused(|h| {
+            let l = h.layout.as_mut().unwrap();
+            std::mem::swap(&mut l.patch_base, &mut l.element_base);
+        });
+        assert_eq!(field_of(&e), "layout");
+        assert_eq!(field_of(&refused(|h| h.layout.as_mut().unwrap().total += 1)), "counts.vertex_blocks");
+        assert_eq!(field_of(&refused(|h| h.counts.as_mut().unwrap().elements += 10_000)), "counts.element_blocks");
+        assert_eq!(field_of(&refused(|h| h.counts.as_mut().unwrap().patches = 0)), "counts.patch_blocks");
+        let e = refused(|h| h.layout.as_mut().unwrap().total = MAX_BLOCKS + 1);
+        assert_eq!(field_of(&e), "layout.total");
+        let e = refused(|h| h.settings.as_mut().unwrap().max_elements = 1000);
+        assert_eq!(field_of(&e), "counts.elements");
+    }
+
+    #[test]
+    fn bad_materials_and_lights_are_refused() {
+        fn m(h: &mut v1::SceneHeader) -> &mut v1::Material {
+            &mut h.materials[0]
+        }
+        let e = refused(|h| m(h).diffuse.as_mut().unwrap().g = 1.5);
+        assert_eq!(field_of(&e), "materials[0].diffuse.g");
+        assert_eq!(field_of(&refused(|h| m(h).mirror.as_mut().unwrap().r = -0.1)), "materials[0].mirror.r");
+        let e = refused(|h| m(h).mirror = Some(v1::Rgb { r: 0.5, g: 0.5, b: 0.5 }));
+        assert!(field_of(&e).starts_with("materials[0].diffuse+mirror+transmit"), "{e}");
+        assert_eq!(field_of(&refused(|h| m(h).ior = 0.5)), "materials[0].ior");
+        assert_eq!(field_of(&refused(|h| m(h).ior = 4.5)), "materials[0].ior");
+        assert_eq!(field_of(&refused(|h| h.materials.clear())), "materials");
+        let e = refused(|h| h.lights[0].intensity.as_mut().unwrap().b = -1.0);
+        assert_eq!(field_of(&e), "lights[0].intensity.b");
+        let e = refused(|h| h.lights[0].intensity.as_mut().unwrap().r = f64::INFINITY);
+        assert_eq!(field_of(&e), "lights[0].intensity.r");
+        let e = refused(|h| {
+            h.lights[0].spot =
+                Some(v1::Spot { direction: Some(v1::Vec3::default()), half_angle_deg: 10.0, falloff_deg: 0.0 })
+        });
+        assert_eq!(field_of(&e), "lights[0].spot.direction");
+        assert_eq!(field_of(&refused(|h| h.camera.as_mut().unwrap().fov_y_deg = 180.0)), "camera.fov_y_deg");
+    }
+
+    #[test]
+    fn settings_out_of_the_parsers_ranges_are_refused() {
+        type Spoil = fn(&mut v1::RenderSettings);
+        let cases: [(Spoil, &str); 12] = [
+            (|s| s.width = 0, "settings.width"),
+            (|s| s.height = 16385, "settings.height"),
+            (|s| s.pixel_samples = 4097, "settings.pixel_samples"),
+            (|s| s.light_rays = 0, "settings.light_rays"),
+            (|s| s.light_rays = 1_000_001, "settings.light_rays"),
+            (|s| s.lrt_depth = 33, "settings.lrt_depth"),
+            (|s| s.vrt_depth = 33, "settings.vrt_depth"),
+            (|s| s.diffuse_bounces = 17, "settings.diffuse_bounces"),
+            (|s| s.exposure = -1.0, "settings.exposure"),
+            (|s| s.grid = vec![4, 4], "settings.grid"),
+            (|s| s.grid = vec![4, 0, 4], "settings.grid"),
+            (|s| s.max_elements = 0, "settings.max_elements"),
+        ];
+        for (spoil, field) in cases {
+            assert_eq!(field_of(&refused(|h| spoil(h.settings.as_mut().unwrap()))), field);
+        }
+    }
+
+    #[test]
+    fn plan_depths_over_the_limit_are_refused() {
+        assert_eq!(field_of(&refused(|h| h.plan.as_mut().unwrap().lrt_depth = 33)), "plan.lrt_depth");
+        assert_eq!(field_of(&refused(|h| h.plan.as_mut().unwrap().vrt_depth = 1000)), "plan.vrt_depth");
+        let e = refused(|h| h.plan.as_mut().unwrap().reasons = vec![String::new(); MAX_REASONS + 1]);
+        assert_eq!(field_of(&e), "plan.reasons");
+    }
+
+    #[test]
+    fn blocks_must_be_exactly_2048_bytes() {
+        let mut b = Box::new([0u8; BLOCK_SIZE]);
+        b[0] = 1;
+        b[BLOCK_SIZE - 1] = 255;
+        let (id, back) = block_from_wire(block_to_wire(42, &b)).unwrap();
+        assert_eq!((id, back), (42, b));
+        for len in [0, BLOCK_SIZE - 1, BLOCK_SIZE + 1] {
+            let e = block_from_wire(v1::Block { id: 7, data: vec![0; len] }).unwrap_err();
+            assert_eq!(e, ConvertError::BlockSize { id: 7, len });
+        }
+    }
+}

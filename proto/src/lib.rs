@@ -1,0 +1,25 @@
+//! # magg-proto: the cluster protocol
+//!
+//! The gRPC services of magg's processes (`Fork`, `Host`) and their messages, generated
+//! from `proto/magg/v1/magg.proto` by tonic and prost at build time (with protox, so no
+//! system `protoc`), plus the one place where protobuf messages are converted to and from
+//! the rendering core's types ([`convert`]). Prost types never enter `magg-core`.
+//!
+//! ```no_run
+//! use magg_proto::v1::fork_client::ForkClient;
+//! # async fn f() -> Result<(), Box<dyn std::error::Error>> {
+//! let mut fork = ForkClient::connect("http://127.0.0.1:7100").await?;
+//! let reply = fork.get_blocks(magg_proto::v1::GetBlocksRequest { ids: vec![0, 1] }).await?;
+//! # Ok(()) }
+//! ```
+
+pub mod convert;
+
+/// Generated code of package `magg.v1`.
+#[allow(missing_docs, clippy::all)]
+pub mod v1 {
+    tonic::include_proto!("magg.v1");
+}
+
+/// Version of the protocol; processes with another version are refused at registration.
+pub const PROTOCOL_VERSION: u32 = 1;

@@ -1,0 +1,156 @@
+//! The cluster: the in-process harness and real processes on localhost give the same
+//! bits as the rendering core driven directly; a slow node's unstarted rows are
+//! redivided; no process is left behind.
+
+use magg_tests::*;
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+
+const SMALL: &[&str] = &["--width", "48", "--height", "40", "--light-rays", "4", "--pixel-samples", "1"];
+const SQUARE: &[&str] = &["--width", "64", "--height", "64", "--light-rays", "4", "--pixel-samples", "1"];
+
+fn with(extra: &[&str]) -> Vec<&'static str> {
+    let mut v: Vec<&'static str> = SMALL.to_vec();
+    for e in extra {
+        v.push(Box::leak(e.to_string().into_boxed_str()));
+    }
+    v
+}
+
+fn same_files(a: &Rendered, b: &Rendered, what: &str) {
+    assert_eq!(std::fs::read(&a.pfm).unwrap(), std::fs::read(&b.pfm).unwrap(), "{what}: image differs");
+    assert_eq!(std::fs::read(&a.energy).unwrap(), std::fs::read(&b.energy).unwrap(), "{what}: energies differ");
+    assert_eq!(std::fs::read(&a.png).unwrap(), std::fs::read(&b.png).unwrap(), "{what}: PNG differs");
+}
+
+#[test]
+fn in_process_cluster_matches_the_embedded_core_bit_for_bit() {
+    let dir = tempfile::tempdir().unwrap();
+    for scene_name in ["magg-paper.toml", "cornell.toml"] {
+        let s = scene(scene_name);
+        let extra_cornell: &[&str] = if scene_name == "cornell.toml" { &["--element-size", "0.25"] } else { &[] };
+        let base = render(&s, dir.path(), "embedded", &with(&[&["--embedded"][..], extra_cornell].concat()));
+        for (i, shape) in [
+            &["--nodes", "1", "--forks", "1"][..],
+            &["--nodes", "4", "--forks", "5"][..],
+            &["--nodes", "16", "--forks", "3", "--cache-blocks", "20"][..],
+        ]
+        .iter()
+        .enumerate()
+        {
+            let args = with(&[*shape, extra_cornell].concat());
+            let r = render(&s, dir.path(), &format!("cluster{i}"), &args);
+            same_files(&base, &r, &format!("{scene_name} {}", shape.join(" ")));
+            let stats = read_json(&r.stats);
+            assert_eq!(stats["mode"], "cluster");
+            assert_eq!(stats["nodes"].as_u64().unwrap(), shape[1].parse::<u64>().unwrap());
+            assert!(stats["traffic"]["rpcs"].as_u64().unwrap() > 0);
+            assert!(stats["traffic"]["dma_bytes"].as_u64().unwrap() > 0);
+        }
+    }
+}
+
+/// Children killed and reaped on drop, so a failing test leaves nothing behind.
+struct Procs(Vec<Child>);
+impl Drop for Procs {
+    fn drop(&mut self) {
+        for c in &mut self.0 {
+            let _ = c.kill();
+            let _ = c.wait();
+        }
+    }
+}
+
+fn free_port() -> u16 {
+    std::net::TcpListener::bind("127.0.0.1:0").unwrap().local_addr().unwrap().port()
+}
+
+fn spawn(bin: &str, args: &[String]) -> Child {
+    Command::new(magg_bin(bin)).args(args).stdout(Stdio::null()).stderr(Stdio::null()).spawn().expect("spawn")
+}
+
+#[test]
+fn separate_processes_on_localhost_give_the_same_bits_and_slow_nodes_are_redivided() {
+    let dir = tempfile::tempdir().unwrap();
+    let s = scene("magg-paper.toml");
+    let base = render(&s, dir.path(), "embedded", &[SQUARE, &["--embedded"]].concat());
+
+    let mut procs = Procs(Vec::new());
+    let fork_addrs: Vec<String> = (0..3).map(|_| format!("127.0.0.1:{}", free_port())).collect();
+    for a in &fork_addrs {
+        procs.0.push(spawn("magg-fork", &["--listen".into(), a.clone()]));
+    }
+    let host_addr = format!("127.0.0.1:{}", free_port());
+    // A very slow node starts first and takes the only subscreen; a normal node joins
+    // later and must get the unstarted rows by redivision.
+    procs.0.push(spawn("magg-node", &["--host".into(), host_addr.clone(), "--slow-row-ms".into(), "40".into()]));
+    let forks_at = fork_addrs.join(",");
+    let args: Vec<&str> =
+        [SQUARE, &["--subscreen", "64", "--forks-at", &forks_at, "--listen", &host_addr, "--external-nodes"]].concat();
+    let host = {
+        let mut c = magg_host();
+        c.arg("render").arg(&s).arg("--out").arg(dir.path().join("multi.png"));
+        c.arg("--linear").arg(dir.path().join("multi.pfm")).arg("--energy").arg(dir.path().join("multi.csv"));
+        c.arg("--stats").arg(dir.path().join("multi.json")).arg("--quiet").args(&args);
+        c.stdout(Stdio::null()).stderr(Stdio::piped()).spawn().unwrap()
+    };
+    std::thread::sleep(Duration::from_millis(1500));
+    procs.0.push(spawn("magg-node", &["--host".into(), host_addr.clone()]));
+    let out = host.wait_with_output().unwrap();
+    assert!(out.status.success(), "host failed: {}", String::from_utf8_lossy(&out.stderr));
+    let multi = Rendered {
+        png: dir.path().join("multi.png"),
+        pfm: dir.path().join("multi.pfm"),
+        energy: dir.path().join("multi.csv"),
+        stats: dir.path().join("multi.json"),
+    };
+    same_files(&base, &multi, "multi-process");
+    let stats = read_json(&multi.stats);
+    assert!(stats["work"]["redivisions"].as_u64().unwrap() > 0, "the slow node's rows were not redivided: {stats}");
+    assert_eq!(stats["nodes"].as_u64().unwrap(), 2);
+    // Both nodes exit by themselves once the host says done.
+    let deadline = Instant::now() + Duration::from_secs(10);
+    for c in procs.0.iter_mut().skip(3) {
+        loop {
+            if let Some(st) = c.try_wait().unwrap() {
+                assert!(st.success(), "a node exited with {st}");
+                break;
+            }
+            assert!(Instant::now() < deadline, "a node did not stop after the render");
+            std::thread::sleep(Duration::from_millis(20));
+        }
+    }
+}
+
+#[test]
+fn local_cluster_script_renders_and_leaves_no_process_behind() {
+    let dir = tempfile::tempdir().unwrap();
+    let base_port = free_port().saturating_sub(20).max(20000);
+    let bin_dir = magg_bin("magg-fork").parent().unwrap().to_path_buf();
+    let out_png = dir.path().join("script.png");
+    let out = Command::new("bash")
+        .current_dir(workspace_root())
+        .arg("deploy/local-cluster.sh")
+        .arg("scenes/magg-paper.toml")
+        .arg(&out_png)
+        .args(["--forks", "2", "--nodes", "3", "--base-port", &base_port.to_string(), "--"])
+        .args(SMALL)
+        .arg("--quiet")
+        .env("MAGG_BIN", &bin_dir)
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "script failed: {}", String::from_utf8_lossy(&out.stderr));
+    assert!(out_png.is_file());
+    // No magg-fork or magg-node of this run is alive.
+    std::thread::sleep(Duration::from_millis(200));
+    let ps = Command::new("ps").args(["-eo", "args"]).output().unwrap();
+    let listing = String::from_utf8_lossy(&ps.stdout);
+    let leftovers: Vec<&str> = listing
+        .lines()
+        .filter(|l| {
+            (l.contains("magg-fork") || l.contains("magg-node"))
+                && (0..=2).any(|k| l.split_whitespace().any(|w| w == format!("127.0.0.1:{}", base_port + k)))
+        })
+        .collect();
+    assert!(leftovers.is_empty(), "processes left behind: {leftovers:?}");
+}
