@@ -34,6 +34,7 @@ fn in_process_cluster_matches_the_embedded_core_bit_for_bit() {
             &["--nodes", "1", "--forks", "1"][..],
             &["--nodes", "4", "--forks", "5"][..],
             &["--nodes", "16", "--forks", "3", "--cache-blocks", "20"][..],
+            &["--nodes", "80", "--forks", "5", "--cache-blocks", "40"][..],
         ]
         .iter()
         .enumerate()

@@ -21,6 +21,30 @@ impl ForkBlocks {
 }
 
 impl BlockSource for ForkBlocks {
+    fn fetch_batch(&self, ids: &[u32], out: &mut [Box<Block>]) -> Result<(), BlockError> {
+        let first = ids.first().copied().unwrap_or(0);
+        let mut client = self.client.clone();
+        let req = GetBlocksRequest { ids: ids.to_vec() };
+        let reply = self
+            .rt
+            .block_on(async move { client.get_blocks(req).await })
+            .map_err(|s| BlockError::Unavailable { id: first, reason: s.message().to_string() })?
+            .into_inner();
+        if reply.blocks.len() != ids.len() {
+            return Err(BlockError::Unavailable {
+                id: first,
+                reason: "the fork sent the wrong number of blocks".into(),
+            });
+        }
+        for ((id, b), slot) in ids.iter().zip(reply.blocks).zip(out.iter_mut()) {
+            if b.id != *id || b.data.len() != BLOCK_SIZE {
+                return Err(BlockError::Unavailable { id: *id, reason: "the fork sent a malformed block".into() });
+            }
+            slot.copy_from_slice(&b.data);
+        }
+        Ok(())
+    }
+
     fn fetch(&self, id: u32, out: &mut Block) -> Result<(), BlockError> {
         let mut client = self.client.clone();
         let reply = self

@@ -15,6 +15,10 @@ use magg_proto::PROTOCOL_VERSION;
 use std::sync::Arc;
 use tokio::runtime::Handle;
 
+/// Blocks fetched per cache miss when the cache is unlimited (the missed one and the
+/// following ones of the same kind on the same fork): 16 KB per request.
+pub const PREFETCH_BLOCKS: u32 = 32;
+
 /// How to run a node.
 #[derive(Clone, Debug)]
 pub struct NodeConfig {
@@ -101,7 +105,12 @@ pub fn run_with_runtime(rt: Handle, cfg: &NodeConfig) -> Result<NodeSummary, Nod
     let handles: Vec<_> = (0..threads)
         .map(|index| {
             let source: Arc<dyn BlockSource> = Arc::new(ForkBlocks::new(forks[home].clone(), rt.clone()));
-            let cache = BlockCache::new(source, per_worker).with_home(home as u32, forks.len() as u32);
+            let l = header.layout;
+            let cache = BlockCache::new(source, per_worker).with_home(home as u32, forks.len() as u32).with_prefetch(
+                PREFETCH_BLOCKS,
+                forks.len() as u32,
+                vec![0, l.patch_base, l.element_base, l.vertex_base, l.total],
+            );
             let worker = Worker {
                 index,
                 node: reg.node,

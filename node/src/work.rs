@@ -14,17 +14,21 @@ use magg_proto::v1::next_work_reply::Kind;
 use magg_proto::v1::{
     self, Deposit, DepositRequest, NextWorkRequest, PairDeposits, Row, SubmitRowsRequest, TakePairsRequest,
 };
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, VecDeque};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 use tokio::runtime::Handle;
+use tokio::task::JoinHandle;
 use tonic::transport::Channel;
 
 /// Longest time a node keeps finished rows before sending them to the host.
 pub const ROW_REPORT: Duration = Duration::from_millis(5);
 
 /// Pairs asked for per request (batched hand-out, DESIGN.md §4 `--scheme magg`).
-pub const PAIR_BATCH: u32 = 16;
+pub const PAIR_BATCH: u32 = 128;
+
+/// Batches whose deposits may still be on their way while the next batch is traced.
+pub const DEPOSITS_IN_FLIGHT: usize = 2;
 
 /// Everything a worker needs.
 pub struct Worker {
@@ -59,16 +63,22 @@ impl Worker {
 
     /// Asks the host for work until it says done.
     pub fn run(mut self) -> Result<(), NodeError> {
+        let mut handed: Option<v1::NextWorkReply> = None;
         loop {
             self.publish();
-            let mut host = self.host.clone();
-            let req = NextWorkRequest { node: self.node, report: Some(self.totals.report()) };
-            let reply = self.rt.block_on(host.next_work(req)).map_err(NodeError::rpc("NextWork"))?.into_inner();
+            let reply = match handed.take() {
+                Some(r) => r,
+                None => {
+                    let mut host = self.host.clone();
+                    let req = NextWorkRequest { node: self.node, report: Some(self.totals.report()) };
+                    self.rt.block_on(host.next_work(req)).map_err(NodeError::rpc("NextWork"))?.into_inner()
+                }
+            };
             match Kind::try_from(reply.kind).unwrap_or(Kind::Wait) {
                 Kind::Wait => std::thread::sleep(Duration::from_millis(reply.wait_ms.clamp(1, 1000) as u64)),
                 Kind::Pairs => self.pairs()?,
                 Kind::Subscreen => match reply.subscreen {
-                    Some(s) => self.subscreen(s)?,
+                    Some(s) => handed = self.subscreen(s)?,
                     None => return Err(NodeError::Convert("SUBSCREEN work without a subscreen".into())),
                 },
                 Kind::Done => {
@@ -88,26 +98,41 @@ impl Worker {
         (self.view.header.layout.element_slot(element).0 % forks) as usize
     }
 
-    /// Pulls pairs from the home fork until no fork has any left.
+    /// Pulls pairs from the home fork until no fork has any left. Communication overlaps
+    /// computation, as the paper's higher-priority communication process did: the next
+    /// batch of pairs is requested while this one is traced, and a batch's deposits are
+    /// sent in the background (at most [`DEPOSITS_IN_FLIGHT`] batches behind).
     fn pairs(&mut self) -> Result<(), NodeError> {
         let h = self.view.header.clone();
         let elements = h.counts.elements as u64;
         let total = elements * h.lights.len() as u64;
         let mut scratch = TraceScratch::default();
+        let take = |home: ForkClient<Channel>, node: u32| async move {
+            let mut home = home;
+            home.take_pairs(TakePairsRequest { max: PAIR_BATCH, node }).await.map(|r| r.into_inner())
+        };
+        let mut in_flight: VecDeque<JoinHandle<Result<(), NodeError>>> = VecDeque::new();
+        let mut next = self.rt.spawn(take(self.forks[self.home].clone(), self.node));
         loop {
-            let mut home = self.forks[self.home].clone();
-            let take = TakePairsRequest { max: PAIR_BATCH, node: self.node };
-            let got = self.rt.block_on(home.take_pairs(take)).map_err(NodeError::rpc("TakePairs"))?.into_inner();
+            let got = self
+                .rt
+                .block_on(next)
+                .map_err(|e| NodeError::Worker(e.to_string()))?
+                .map_err(NodeError::rpc("TakePairs"))?;
             if got.pairs.is_empty() {
                 if got.exhausted {
-                    return Ok(());
+                    break;
                 }
                 std::thread::sleep(Duration::from_millis(2));
+                next = self.rt.spawn(take(self.forks[self.home].clone(), self.node));
                 continue;
             }
-            // Per fork: the deposits of every pair of the batch.
-            let mut per_fork: BTreeMap<usize, Vec<PairDeposits>> = BTreeMap::new();
-            let mut owners = Vec::with_capacity(got.pairs.len());
+            next = self.rt.spawn(take(self.forks[self.home].clone(), self.node));
+            // Per fork: round 1 carries deposits on forks other than the pair's owner;
+            // round 2 carries the owner's deposits and marks the pair complete, so that a
+            // pair counted as done has all its energy in place.
+            let mut round1: BTreeMap<usize, Vec<PairDeposits>> = BTreeMap::new();
+            let mut round2: BTreeMap<usize, Vec<PairDeposits>> = BTreeMap::new();
             for &pair in &got.pairs {
                 if pair >= total || elements == 0 {
                     return Err(NodeError::Convert(format!("pair {pair} out of range ({total} pairs)")));
@@ -116,37 +141,35 @@ impl Worker {
                 let r = trace_pair(&mut self.view, &mut scratch, light, element)?;
                 self.mine.pairs += 1;
                 self.mine.tally = self.mine.tally.add(r.tally);
+                let owner = self.owner_of(element);
                 let mut split: BTreeMap<usize, Vec<Deposit>> = BTreeMap::new();
                 for (e, f) in r.deposits {
                     split.entry(self.owner_of(e)).or_default().push(deposit(e, f));
                 }
+                let own = split.remove(&owner).unwrap_or_default();
                 for (fork, deposits) in split {
-                    per_fork.entry(fork).or_default().push(PairDeposits { pair, deposits, complete: false });
+                    round1.entry(fork).or_default().push(PairDeposits { pair, deposits, complete: false });
                 }
-                owners.push((self.owner_of(element), pair));
+                round2.entry(owner).or_default().push(PairDeposits { pair, deposits: own, complete: true });
             }
-            // Round 1: the energies, to every owning fork.
-            for (fork, pairs) in per_fork {
-                let mut c = self.forks[fork].clone();
-                self.rt.block_on(c.deposit(DepositRequest { pairs })).map_err(NodeError::rpc("Deposit"))?;
+            while in_flight.len() >= DEPOSITS_IN_FLIGHT {
+                if let Some(t) = in_flight.pop_front() {
+                    self.rt.block_on(t).map_err(|e| NodeError::Worker(e.to_string()))??;
+                }
             }
-            // Round 2: mark each pair done at the fork that owns it, once its energy is
-            // everywhere (a pair marked done has lost nothing).
-            let mut done: BTreeMap<usize, Vec<PairDeposits>> = BTreeMap::new();
-            for (fork, pair) in owners {
-                done.entry(fork).or_default().push(PairDeposits { pair, deposits: vec![], complete: true });
-            }
-            for (fork, pairs) in done {
-                let mut c = self.forks[fork].clone();
-                self.rt.block_on(c.deposit(DepositRequest { pairs })).map_err(NodeError::rpc("Deposit"))?;
-            }
+            in_flight.push_back(self.rt.spawn(send_deposits(self.forks.clone(), round1, round2)));
             self.publish();
         }
+        for t in in_flight {
+            self.rt.block_on(t).map_err(|e| NodeError::Worker(e.to_string()))??;
+        }
+        Ok(())
     }
 
-    /// Traces a subscreen row by row, sending each row; stops early when the host asks
-    /// for the unstarted rows back.
-    fn subscreen(&mut self, s: v1::Subscreen) -> Result<(), NodeError> {
+    /// Traces a subscreen row by row, sending rows as it goes; stops early when the host
+    /// asks for the unstarted rows back. Returns the next work if the host sent it with
+    /// the reply to the last rows.
+    fn subscreen(&mut self, s: v1::Subscreen) -> Result<Option<v1::NextWorkReply>, NodeError> {
         let h = self.view.header.clone();
         let (w, hgt) = (h.settings.width, h.settings.height);
         if s.w == 0 || s.h == 0 || s.x.saturating_add(s.w) > w || s.y.saturating_add(s.h) > hgt {
@@ -178,7 +201,12 @@ impl Worker {
                 continue;
             }
             let mut host = self.host.clone();
-            let req = SubmitRowsRequest { node: self.node, subscreen: s.id, rows: std::mem::take(&mut rows) };
+            let last = y >= end;
+            if last {
+                self.mine.tiles += 1;
+                self.publish();
+            }
+            let req = SubmitRowsRequest { node: self.node, subscreen: s.id, rows: std::mem::take(&mut rows), last };
             let reply = self.rt.block_on(host.submit_rows(req)).map_err(NodeError::rpc("SubmitRows"))?.into_inner();
             since = Instant::now();
             if let Some(from) = reply.give_back_from {
@@ -186,10 +214,31 @@ impl Worker {
                     end = from;
                 }
             }
+            if last {
+                return Ok(reply.next);
+            }
         }
         self.mine.tiles += 1;
-        Ok(())
+        Ok(None)
     }
+}
+
+/// Sends a batch's deposits: every round-1 message, then every round-2 message.
+async fn send_deposits(
+    forks: Vec<ForkClient<Channel>>,
+    round1: BTreeMap<usize, Vec<PairDeposits>>,
+    round2: BTreeMap<usize, Vec<PairDeposits>>,
+) -> Result<(), NodeError> {
+    for round in [round1, round2] {
+        for (fork, pairs) in round {
+            let Some(client) = forks.get(fork) else {
+                return Err(NodeError::Convert(format!("fork {fork} of {}", forks.len())));
+            };
+            let mut c = client.clone();
+            c.deposit(DepositRequest { pairs }).await.map_err(NodeError::rpc("Deposit"))?;
+        }
+    }
+    Ok(())
 }
 
 fn deposit(element: u32, f: Fixed) -> Deposit {

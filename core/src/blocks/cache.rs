@@ -17,6 +17,9 @@ pub struct CacheStats {
     /// Misses of blocks whose owning fork is not the node's home fork (they cross the
     /// G-bus in the paper's machine).
     pub remote_misses: u64,
+    /// Blocks fetched ahead of demand, along with a missed block (not counted as misses;
+    /// a later access to one is a hit).
+    pub prefetched: u64,
 }
 
 impl CacheStats {
@@ -35,6 +38,7 @@ impl CacheStats {
             hits: self.hits + o.hits,
             misses: self.misses + o.misses,
             remote_misses: self.remote_misses + o.remote_misses,
+            prefetched: self.prefetched + o.prefetched,
         }
     }
 }
@@ -53,6 +57,10 @@ pub struct BlockCache {
     stats: CacheStats,
     /// (home fork, number of forks), to count remote misses.
     home: (u32, u32),
+    /// Blocks fetched per miss (1 = no prefetch), the id stride between them, and the
+    /// first ids of each kind of block (a prefetch stays within one kind); see
+    /// [`BlockCache::with_prefetch`].
+    prefetch: (u32, u32, Vec<u32>),
 }
 
 impl BlockCache {
@@ -62,7 +70,19 @@ impl BlockCache {
             Some(c) => Slots::Bounded(LruCache::new(NonZeroUsize::new(c.max(1)).unwrap_or(NonZeroUsize::MIN))),
             None => Slots::Unlimited { table: Vec::new(), held: 0 },
         };
-        BlockCache { source, slots, stats: CacheStats::default(), home: (0, 1) }
+        BlockCache { source, slots, stats: CacheStats::default(), home: (0, 1), prefetch: (1, 1, Vec::new()) }
+    }
+
+    /// With an unlimited cache, fetch up to `window` blocks per miss in one request: the
+    /// missed block b and the uncached blocks b + stride, b + 2 stride, ... without
+    /// crossing any of `boundaries` (the first ids of each kind of block). With the stride
+    /// equal to the number of forks, they all live on the missed block's fork (no extra
+    /// G-bus transfers) and, for the element blocks of a node's home fork, they are the
+    /// blocks of the pairs it traces next. A bounded cache ignores this: prefetched blocks
+    /// would evict ones still in use.
+    pub fn with_prefetch(mut self, window: u32, stride: u32, boundaries: Vec<u32>) -> Self {
+        self.prefetch = (window.max(1), stride.max(1), boundaries);
+        self
     }
 
     /// Declares the node's home fork among `forks` (block `b` lives on fork `b mod forks`),
@@ -102,15 +122,32 @@ impl BlockCache {
                 if table.get(i).is_some_and(|s| s.is_some()) {
                     self.stats.hits += 1;
                 } else {
-                    let mut buf = Box::new([0u8; BLOCK_SIZE]);
-                    self.source.fetch(id, &mut buf)?;
+                    // The missed block and the uncached ones after it, up to the window,
+                    // within the same kind of block.
+                    let (window, stride) = (self.prefetch.0 as usize, self.prefetch.1);
+                    let limit = self.prefetch.2.iter().copied().filter(|&b| b > id).min().unwrap_or(u32::MAX);
+                    let mut ids = vec![id];
+                    let mut next = id.saturating_add(stride);
+                    while ids.len() < window && next < limit {
+                        if !table.get(next as usize).is_some_and(|s| s.is_some()) {
+                            ids.push(next);
+                        }
+                        next = next.saturating_add(stride);
+                    }
+                    let mut bufs: Vec<Box<Block>> = ids.iter().map(|_| Box::new([0u8; BLOCK_SIZE])).collect();
+                    self.source.fetch_batch(&ids, &mut bufs)?;
                     self.stats.misses += 1;
                     self.stats.remote_misses += remote as u64;
-                    if table.len() <= i {
-                        table.resize_with(i + 1, || None);
+                    self.stats.prefetched += ids.len() as u64 - 1;
+                    for (b, buf) in ids.iter().zip(bufs) {
+                        let k = *b as usize;
+                        if table.len() <= k {
+                            table.resize_with(k + 1, || None);
+                        }
+                        if table[k].replace(buf).is_none() {
+                            *held += 1;
+                        }
                     }
-                    table[i] = Some(buf);
-                    *held += 1;
                 }
                 match table.get(i) {
                     Some(Some(b)) => Ok(&**b),
@@ -199,6 +236,29 @@ mod tests {
             }
         }
         assert_eq!((c.stats().hits, c.stats().misses), (8, 4));
+    }
+
+    #[test]
+    fn prefetch_fetches_following_blocks_within_a_kind() {
+        let mut c = BlockCache::new(store(8), None).with_prefetch(4, 1, vec![0, 3, 8]);
+        c.get(0).unwrap(); // fetches 0, 1, 2 (3 starts another kind)
+        assert_eq!((c.stats().misses, c.stats().prefetched), (1, 2));
+        c.get(2).unwrap();
+        assert_eq!(c.stats().hits, 1);
+        c.get(4).unwrap(); // fetches 4..8
+        assert_eq!((c.stats().misses, c.stats().prefetched), (2, 5));
+        assert_eq!(c.get(7).unwrap()[0], 7);
+        c.get(3).unwrap(); // 3 alone: 4 is cached
+        assert_eq!((c.stats().misses, c.stats().prefetched), (3, 5));
+    }
+
+    #[test]
+    fn strided_prefetch_stays_on_one_fork() {
+        let mut c = BlockCache::new(store(8), None).with_prefetch(8, 3, vec![0, 8]);
+        c.get(1).unwrap(); // 1, 4, 7
+        assert_eq!(c.stats().prefetched, 2);
+        assert_eq!(c.len(), 3);
+        assert_eq!(c.get(7).unwrap()[0], 7);
     }
 
     #[test]

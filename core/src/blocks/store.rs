@@ -41,6 +41,15 @@ pub enum BlockError {
 pub trait BlockSource: Send + Sync {
     /// Copies block `id` into `out`.
     fn fetch(&self, id: u32, out: &mut Block) -> Result<(), BlockError>;
+
+    /// Copies blocks `ids` into `out` (same length), in one transfer where the source
+    /// can (a single request to a fork). The default fetches them one by one.
+    fn fetch_batch(&self, ids: &[u32], out: &mut [Box<Block>]) -> Result<(), BlockError> {
+        for (id, b) in ids.iter().zip(out.iter_mut()) {
+            self.fetch(*id, b)?;
+        }
+        Ok(())
+    }
 }
 
 /// Every block of a scene, in memory. Vertex-energy blocks are rewritten after energy

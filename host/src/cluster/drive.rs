@@ -19,6 +19,9 @@ use std::time::{Duration, Instant};
 use tokio::net::TcpListener;
 use tonic::transport::Channel;
 
+/// Interval of the host's LRT progress polls.
+const LRT_POLL: Duration = Duration::from_millis(25);
+
 /// How to drive a render.
 #[derive(Clone, Debug)]
 pub struct DriveOptions {
@@ -144,7 +147,7 @@ pub async fn drive(
                 opts.stall_timeout
             );
         }
-        tokio::time::sleep(Duration::from_millis(5)).await;
+        tokio::time::sleep(LRT_POLL).await; // one RPC per fork per poll: keep it gentle
     }
     progress.end();
     let lrt_s = t_lrt.elapsed().as_secs_f64();
@@ -245,6 +248,7 @@ pub async fn drive(
             hits: r.cache_hits,
             misses: r.cache_misses,
             remote_misses: r.cache_remote_misses,
+            prefetched: 0,
         };
         cache = cache.add(c);
         light = light.add(LrtTally {

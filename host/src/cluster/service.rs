@@ -88,6 +88,43 @@ impl HostService {
 
 const WAIT_MS: u32 = 5;
 
+impl HostService {
+    /// The next work of `node` in `phase` (shared by NextWork and the reply to the rows
+    /// that end a subscreen).
+    fn assign(&self, s: &mut HostState, node: u32, phase: Phase) -> NextWorkReply {
+        let wait = NextWorkReply { kind: Kind::Wait as i32, subscreen: None, wait_ms: WAIT_MS };
+        match phase {
+            Phase::Lrt => match s.nodes.get_mut(node as usize) {
+                Some(e) if !e.told_pairs => {
+                    e.told_pairs = true;
+                    NextWorkReply { kind: Kind::Pairs as i32, subscreen: None, wait_ms: 0 }
+                }
+                _ => wait,
+            },
+            Phase::Interp => wait,
+            Phase::Vrt => match s.schedule.as_mut().map(|sc| sc.next(node)) {
+                Some(Next::Trace(id, t)) => NextWorkReply {
+                    kind: Kind::Subscreen as i32,
+                    subscreen: Some(v1::Subscreen { x: t.x, y: t.y, w: t.w, h: t.h, id }),
+                    wait_ms: 0,
+                },
+                Some(Next::Wait) | None => wait,
+                Some(Next::Done) => {
+                    self.changed.notify_waiters();
+                    wait
+                }
+            },
+            Phase::Done => {
+                if let Some(e) = s.nodes.get_mut(node as usize) {
+                    e.told_done += 1;
+                }
+                self.changed.notify_waiters();
+                NextWorkReply { kind: Kind::Done as i32, subscreen: None, wait_ms: 0 }
+            }
+        }
+    }
+}
+
 #[tonic::async_trait]
 impl Host for HostService {
     async fn register(&self, req: Request<RegisterRequest>) -> Result<Response<RegisterReply>, Status> {
@@ -131,33 +168,7 @@ impl Host for HostService {
         if let Some(rep) = r.report {
             entry.report = rep;
         }
-        let wait = NextWorkReply { kind: Kind::Wait as i32, subscreen: None, wait_ms: WAIT_MS };
-        let reply = match phase {
-            Phase::Lrt if !entry.told_pairs => {
-                entry.told_pairs = true;
-                NextWorkReply { kind: Kind::Pairs as i32, subscreen: None, wait_ms: 0 }
-            }
-            Phase::Lrt | Phase::Interp => wait,
-            Phase::Vrt => match s.schedule.as_mut().map(|sc| sc.next(r.node)) {
-                Some(Next::Trace(id, t)) => NextWorkReply {
-                    kind: Kind::Subscreen as i32,
-                    subscreen: Some(v1::Subscreen { x: t.x, y: t.y, w: t.w, h: t.h, id }),
-                    wait_ms: 0,
-                },
-                Some(Next::Wait) | None => wait,
-                Some(Next::Done) => {
-                    self.changed.notify_waiters();
-                    wait
-                }
-            },
-            Phase::Done => {
-                if let Some(e) = s.nodes.get_mut(r.node as usize) {
-                    e.told_done += 1;
-                }
-                self.changed.notify_waiters();
-                NextWorkReply { kind: Kind::Done as i32, subscreen: None, wait_ms: 0 }
-            }
-        };
+        let reply = self.assign(&mut s, r.node, phase);
         s.link_bytes += prost::Message::encoded_len(&reply) as u64;
         Ok(Response::new(reply))
     }
@@ -178,6 +189,16 @@ impl Host for HostService {
         if schedule.is_done() {
             self.changed.notify_waiters();
         }
-        Ok(Response::new(SubmitRowsReply { give_back_from: give_back }))
+        // Rows that end the node's part come back with its next work, unless the host has
+        // just taken rows back (then the node still has rows to trace).
+        let next = if r.last && give_back.is_none() {
+            let phase = s.phase;
+            Some(self.assign(&mut s, r.node, phase))
+        } else {
+            None
+        };
+        let reply = SubmitRowsReply { give_back_from: give_back, next };
+        s.link_bytes += prost::Message::encoded_len(&reply) as u64;
+        Ok(Response::new(reply))
     }
 }
