@@ -7,9 +7,22 @@ use serde_json::Value;
 use std::path::Path;
 
 /// Cornell box at a tiny size: mirror block and glass sphere, so specular light rays,
-/// refraction and recursive viewing rays all run.
-const CORNELL: &[&str] =
-    &["--width", "48", "--height", "48", "--element-size", "0.25", "--light-rays", "4", "--pixel-samples", "2"];
+/// refraction and recursive viewing rays all run. On the embedded renderer, whose node
+/// workers share memory: tiny caches here cost a memory copy per miss, where in the
+/// cluster they cost a round trip (tests/cluster.rs checks the cluster's shapes).
+const CORNELL: &[&str] = &[
+    "--embedded",
+    "--width",
+    "48",
+    "--height",
+    "48",
+    "--element-size",
+    "0.25",
+    "--light-rays",
+    "4",
+    "--pixel-samples",
+    "2",
+];
 
 fn with<'a>(base: &[&'a str], more: &[&'a str]) -> Vec<&'a str> {
     base.iter().chain(more).copied().collect()

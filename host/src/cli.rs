@@ -28,6 +28,10 @@ pub enum Command {
     /// Print a scene's counts (patches, elements, vertices, subspaces, blocks of each
     /// kind) and its effects plan, without rendering.
     Info(InfoArgs),
+    /// Measure error against a converged reference versus render time over a grid of
+    /// accuracy settings (docs/ACCURACY.md): writes accuracy.csv and prints the Pareto
+    /// front as a markdown table.
+    Accuracy(crate::commands::accuracy::AccuracyArgs),
 }
 
 /// Arguments of `render`.
@@ -87,6 +91,12 @@ pub struct RenderArgs {
     /// No progress bars or summary.
     #[arg(short, long)]
     pub quiet: bool,
+    /// Accuracy preset, applied before the knob flags below (which override it).
+    /// draft: elements x2 the scene's size (fixed subdivisions halved), 8 light rays,
+    /// 1 pixel sample; good: the scene's own settings; final: elements x0.5, 128 light
+    /// rays, 16 pixel samples. See docs/ACCURACY.md.
+    #[arg(long, value_enum)]
+    pub quality: Option<crate::accuracy::preset::Quality>,
     /// Scene overrides: accuracy knobs and output size.
     #[command(flatten)]
     pub knobs: Knobs,
@@ -185,6 +195,8 @@ pub struct RenderConfig {
     pub subscreen: u32,
     /// No bars or summary.
     pub quiet: bool,
+    /// Accuracy preset, applied before `knobs`.
+    pub quality: Option<crate::accuracy::preset::Quality>,
     /// Scene overrides.
     pub knobs: Knobs,
     /// Where the cluster runs.
@@ -267,6 +279,7 @@ impl RenderArgs {
             all_effects: self.all_effects,
             subscreen: self.subscreen,
             quiet: self.quiet,
+            quality: self.quality,
             knobs: self.knobs,
             mode: if self.embedded {
                 Mode::Embedded

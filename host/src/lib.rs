@@ -5,6 +5,7 @@
 //! inside this process (the embedded renderer of `magg-core`), so one command renders a
 //! scene with no set-up.
 
+pub mod accuracy;
 pub mod cli;
 pub mod cluster;
 pub mod commands;
@@ -19,5 +20,6 @@ pub fn run(cli: cli::Cli) -> anyhow::Result<()> {
     match cli.command {
         cli::Command::Render(args) => commands::render::run(args.validate()?),
         cli::Command::Info(args) => commands::info::run(&args),
+        cli::Command::Accuracy(args) => commands::accuracy::run(&args),
     }
 }

@@ -21,6 +21,9 @@ use tokio::runtime::Handle;
 use tokio::task::JoinHandle;
 use tonic::transport::Channel;
 
+/// Longest pause between work requests of an idle node.
+pub const MAX_WAIT: Duration = Duration::from_millis(50);
+
 /// Longest time a node keeps finished rows before sending them to the host.
 pub const ROW_REPORT: Duration = Duration::from_millis(5);
 
@@ -64,6 +67,9 @@ impl Worker {
     /// Asks the host for work until it says done.
     pub fn run(mut self) -> Result<(), NodeError> {
         let mut handed: Option<v1::NextWorkReply> = None;
+        // Consecutive WAITs: the pause doubles each time (up to MAX_WAIT), so that many
+        // idle nodes do not flood the host while a phase ends.
+        let mut waits = 0u32;
         loop {
             self.publish();
             let reply = match handed.take() {
@@ -74,8 +80,17 @@ impl Worker {
                     self.rt.block_on(host.next_work(req)).map_err(NodeError::rpc("NextWork"))?.into_inner()
                 }
             };
-            match Kind::try_from(reply.kind).unwrap_or(Kind::Wait) {
-                Kind::Wait => std::thread::sleep(Duration::from_millis(reply.wait_ms.clamp(1, 1000) as u64)),
+            let kind = Kind::try_from(reply.kind).unwrap_or(Kind::Wait);
+            if kind != Kind::Wait {
+                waits = 0;
+            }
+            match kind {
+                Kind::Wait => {
+                    let base = Duration::from_millis(reply.wait_ms.clamp(1, 1000) as u64);
+                    std::thread::sleep((base * 2u32.saturating_pow(waits.min(16))).min(MAX_WAIT.max(base)));
+                    waits += 1;
+                    continue;
+                }
                 Kind::Pairs => self.pairs()?,
                 Kind::Subscreen => match reply.subscreen {
                     Some(s) => handed = self.subscreen(s)?,

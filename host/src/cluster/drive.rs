@@ -228,8 +228,14 @@ pub async fn drive(
         gbus_bytes += r.gbus_bytes;
         fork_rpcs += r.rpcs;
     }
+    // Graceful shutdown waits for clients to hang up; a client that never does (a stuck
+    // or hostile peer) must not keep the host alive: give them a moment, then stop.
     let _ = stop_tx.send(());
-    let _ = server.await;
+    let abort = server.abort_handle();
+    if tokio::time::timeout(Duration::from_secs(1), server).await.is_err() {
+        abort.abort();
+        tracing::warn!("a client kept its connection to the host open after the render: closed it");
+    }
 
     let st = service.lock();
     let frame = st

@@ -96,7 +96,10 @@ pub fn render_in_process(
     }
     let _ = stop_tx.send(());
     for t in fork_tasks {
-        let _ = rt.block_on(t);
+        let abort = t.abort_handle();
+        if rt.block_on(async { tokio::time::timeout(Duration::from_secs(1), t).await }).is_err() {
+            abort.abort();
+        }
     }
     let out = result?;
     if let Some(e) = node_err {

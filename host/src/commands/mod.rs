@@ -1,4 +1,5 @@
 //! The subcommands of `magg-host`.
 
+pub mod accuracy;
 pub mod info;
 pub mod render;

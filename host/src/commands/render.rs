@@ -10,6 +10,9 @@ use magg_core::{preprocess, render};
 /// Renders per `cfg` and writes every requested output.
 pub fn run(cfg: RenderConfig) -> anyhow::Result<()> {
     let mut scene = scene_file::load(&cfg.scene)?;
+    if let Some(q) = cfg.quality {
+        q.apply(&mut scene);
+    }
     cfg.knobs.apply(&mut scene.settings)?;
     let plan = if cfg.all_effects { EffectsPlan::forced_on(&scene) } else { EffectsPlan::for_scene(&scene) };
     let prepared = preprocess::prepare_with_plan(&scene, plan)?;

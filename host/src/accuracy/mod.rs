@@ -1,0 +1,11 @@
+//! What accuracy costs in time (DESIGN §1): the settings grid of the accuracy study, its
+//! error metrics against a converged reference, the Pareto front of error against render
+//! time, and the `--quality` presets of `magg-host render` that sit on that front.
+//!
+//! `magg-host accuracy SCENE` ([`crate::commands::accuracy`]) drives them; docs/ACCURACY.md
+//! has the measured tables.
+
+pub mod grid;
+pub mod metrics;
+pub mod pareto;
+pub mod preset;

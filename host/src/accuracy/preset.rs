@@ -1,0 +1,135 @@
+//! Quality presets (`magg-host render --quality draft|good|final`) and the element-size
+//! scaling they share with the accuracy study.
+
+use magg_core::scene::Scene;
+
+/// A named point on the accuracy/time front.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum Quality {
+    /// Quick look: elements twice the scene's size, 8 light rays, 1 pixel sample.
+    Draft,
+    /// The scene's own `[render]` settings.
+    Good,
+    /// Near the converged reference: elements half the scene's size, 128 light rays,
+    /// 16 pixel samples.
+    Final,
+}
+
+/// What a preset changes; `None` keeps the scene's value.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Preset {
+    /// Element edge multiplier (see [`scale_elements`]).
+    pub element_scale: f64,
+    /// Light rays per (light, element) pair.
+    pub light_rays: Option<u32>,
+    /// Viewing rays per pixel.
+    pub pixel_samples: Option<u32>,
+}
+
+impl Quality {
+    /// The settings this preset stands for.
+    pub fn preset(self) -> Preset {
+        match self {
+            Quality::Draft => Preset { element_scale: 2.0, light_rays: Some(8), pixel_samples: Some(1) },
+            Quality::Good => Preset { element_scale: 1.0, light_rays: None, pixel_samples: None },
+            Quality::Final => Preset { element_scale: 0.5, light_rays: Some(128), pixel_samples: Some(16) },
+        }
+    }
+
+    /// Applies the preset to a loaded scene (before any explicit knob flag, which wins).
+    pub fn apply(self, scene: &mut Scene) {
+        let p = self.preset();
+        scale_elements(scene, p.element_scale);
+        if let Some(v) = p.light_rays {
+            scene.settings.light_rays = v;
+        }
+        if let Some(v) = p.pixel_samples {
+            scene.settings.pixel_samples = v;
+        }
+    }
+}
+
+/// Multiplies the element edge length by `factor`: the scene's `element_size`, and the
+/// fixed subdivision count n of patches that set one (n becomes round(n / factor), at
+/// least 1), so that scenes such as magg-paper, whose patches all fix n, refine too.
+pub fn scale_elements(scene: &mut Scene, factor: f64) {
+    if !(factor.is_finite() && factor > 0.0) || factor == 1.0 {
+        return;
+    }
+    scene.settings.element_size *= factor;
+    for p in &mut scene.patches {
+        if let Some(n) = p.subdivisions {
+            p.subdivisions = Some(((n as f64 / factor).round() as u32).max(1));
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use magg_core::math::Vec3;
+    use magg_core::scene::{Camera, PatchDef, RenderSettings, SourceLoc};
+
+    fn scene() -> Scene {
+        let patch = |subdivisions| PatchDef {
+            vertices: [Vec3::ZERO, Vec3::new(1.0, 0.0, 0.0), Vec3::new(0.0, 1.0, 0.0)],
+            material: 0,
+            subdivisions,
+            size_hint: None,
+            loc: SourceLoc::default(),
+        };
+        Scene {
+            name: "t".into(),
+            camera: Camera {
+                eye: Vec3::ZERO,
+                look_at: Vec3::new(0.0, 0.0, -1.0),
+                up: Vec3::new(0.0, 1.0, 0.0),
+                fov_y_deg: 45.0,
+            },
+            settings: RenderSettings { element_size: 0.2, light_rays: 16, pixel_samples: 2, ..Default::default() },
+            lights: vec![],
+            materials: vec![],
+            patches: vec![patch(Some(16)), patch(None), patch(Some(1))],
+        }
+    }
+
+    #[test]
+    fn draft_coarsens_and_cuts_rays() {
+        let mut s = scene();
+        Quality::Draft.apply(&mut s);
+        assert_eq!(s.settings.element_size, 0.4);
+        assert_eq!(s.settings.light_rays, 8);
+        assert_eq!(s.settings.pixel_samples, 1);
+        assert_eq!(s.patches[0].subdivisions, Some(8));
+        assert_eq!(s.patches[1].subdivisions, None);
+        assert_eq!(s.patches[2].subdivisions, Some(1), "never below one subdivision");
+    }
+
+    #[test]
+    fn good_keeps_the_scene() {
+        let mut s = scene();
+        Quality::Good.apply(&mut s);
+        assert_eq!(s, scene());
+    }
+
+    #[test]
+    fn final_refines_and_adds_rays() {
+        let mut s = scene();
+        Quality::Final.apply(&mut s);
+        assert_eq!(s.settings.element_size, 0.1);
+        assert_eq!(s.settings.light_rays, 128);
+        assert_eq!(s.settings.pixel_samples, 16);
+        assert_eq!(s.patches[0].subdivisions, Some(32));
+        assert_eq!(s.patches[2].subdivisions, Some(2));
+    }
+
+    #[test]
+    fn explicit_knobs_override_the_preset() {
+        let mut s = scene();
+        Quality::Final.apply(&mut s);
+        let knobs = crate::cli::Knobs { light_rays: Some(4), ..Default::default() };
+        knobs.apply(&mut s.settings).unwrap();
+        assert_eq!(s.settings.light_rays, 4);
+        assert_eq!(s.settings.pixel_samples, 16);
+    }
+}

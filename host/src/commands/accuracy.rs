@@ -1,0 +1,322 @@
+//! `magg-host accuracy SCENE`: what accuracy costs in time (DESIGN §1). Renders the scene
+//! with the embedded renderer over a grid of accuracy settings, measures each against a
+//! converged reference at the same resolution, writes `accuracy.csv` and prints the
+//! Pareto front of error against time as a markdown table.
+//!
+//! ```text
+//! magg-host accuracy scenes/magg-paper.toml --seeds 2 --grid small   # about a minute
+//! ```
+
+use crate::accuracy::grid::{self, GridSize, Point, Setting};
+use crate::accuracy::{metrics, pareto};
+use crate::{cli::ImageFormat, images, scene_file};
+use anyhow::{bail, Context};
+use clap::Args;
+use magg_core::frame::Frame;
+use magg_core::math::Rgb;
+use magg_core::progress::NoProgress;
+use magg_core::scene::Scene;
+use magg_core::{energy, preprocess, render};
+use std::fmt::Write as _;
+use std::path::PathBuf;
+
+/// Seed of the reference render, apart from the study's seeds 1..=N so that no setting
+/// shares its random numbers with the reference.
+pub const REFERENCE_SEED: u64 = 0x5eed_0000;
+
+/// Arguments of `accuracy`.
+#[derive(Debug, Args)]
+pub struct AccuracyArgs {
+    /// Scene file (TOML), e.g. scenes/magg-paper.toml.
+    pub scene: PathBuf,
+    /// Where accuracy.csv and reference.png go (default: accuracy-<scene stem>).
+    #[arg(long)]
+    pub out_dir: Option<PathBuf>,
+    /// Independent seeds (1..=N) each error is averaged over.
+    #[arg(long, default_value_t = 2)]
+    pub seeds: u32,
+    /// small: one knob at a time plus a few combined points; full: also every element
+    /// size x light rays x pixel samples combination.
+    #[arg(long, value_enum, default_value_t = GridSize::Small)]
+    pub grid: GridSize,
+    /// Image width of the study (and of the reference).
+    #[arg(long, default_value_t = 128)]
+    pub width: u32,
+    /// Image height of the study (and of the reference).
+    #[arg(long, default_value_t = 128)]
+    pub height: u32,
+    /// Node workers (0 = one per core).
+    #[arg(long, default_value_t = 0)]
+    pub nodes: u32,
+    /// No per-setting lines on stderr.
+    #[arg(short, long)]
+    pub quiet: bool,
+}
+
+/// One measured row of the study.
+#[derive(Clone, Debug)]
+pub struct Row {
+    /// The setting.
+    pub setting: Setting,
+    /// Effective `element_size` (the scene's times the multiplier).
+    pub element_size: f64,
+    /// Elements after preprocessing.
+    pub elements: u32,
+    /// Mean wall time of a render (stats `total_s`, preprocessing included).
+    pub seconds: f64,
+    /// RMSE of the linear image.
+    pub image_rmse: Option<f64>,
+    /// Relative MSE of the linear image.
+    pub image_rel_mse: Option<f64>,
+    /// PSNR of the tone-mapped 8-bit image, dB (capped).
+    pub png_psnr: Option<f64>,
+    /// RMSE of element irradiance (only at the reference's element size).
+    pub element_rmse: Option<f64>,
+}
+
+struct Measured {
+    seconds: f64,
+    frame: Frame,
+    irradiance: Vec<Rgb>,
+    elements: u32,
+}
+
+fn render_point(scene: &Scene, point: &Point, seed: u64, nodes: u32) -> anyhow::Result<Measured> {
+    let mut s = point.apply(scene);
+    s.settings.seed = seed;
+    let prepared = preprocess::prepare(&s)?;
+    let opts = render::RenderOptions { nodes, ..Default::default() };
+    let out = render::render(&prepared, &opts, &NoProgress)?;
+    let irradiance = energy::element_irradiance(&prepared.elements, &out.element_flux, prepared.header.energy_quantum);
+    Ok(Measured {
+        seconds: out.stats.stages.total_s,
+        frame: out.frame,
+        irradiance,
+        elements: prepared.header.counts.elements,
+    })
+}
+
+/// Runs the study.
+pub fn run(args: &AccuracyArgs) -> anyhow::Result<()> {
+    if args.seeds == 0 || args.seeds > 64 {
+        bail!("--seeds {}: must be 1..=64", args.seeds);
+    }
+    for (name, v) in [("width", args.width), ("height", args.height)] {
+        if v == 0 || v > 16384 {
+            bail!("--{name} {v}: must be 1..=16384");
+        }
+    }
+    let mut scene = scene_file::load(&args.scene)?;
+    scene.settings.width = args.width;
+    scene.settings.height = args.height;
+    let out_dir = args.out_dir.clone().unwrap_or_else(|| {
+        let stem = args.scene.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_else(|| "scene".into());
+        PathBuf::from(format!("accuracy-{stem}"))
+    });
+    std::fs::create_dir_all(&out_dir).with_context(|| format!("cannot create {}", out_dir.display()))?;
+
+    let ref_point = Point::reference(&scene);
+    let reference = render_point(&scene, &ref_point, REFERENCE_SEED, args.nodes)?;
+    let scale = reference.frame.exposure_scale(scene.settings.exposure);
+    let ref_srgb = reference.frame.to_srgb8(scale);
+    images::write(&reference.frame, &out_dir.join("reference.png"), ImageFormat::Png, scene.settings.exposure)?;
+    if !args.quiet {
+        eprintln!(
+            "reference: {} elements, {} light rays, {} pixel samples, {}x{}: {:.2}s",
+            reference.elements,
+            ref_point.light_rays,
+            ref_point.pixel_samples,
+            args.width,
+            args.height,
+            reference.seconds
+        );
+    }
+
+    let settings = grid::settings(&scene, args.grid);
+    let mut rows = Vec::with_capacity(settings.len());
+    for setting in settings {
+        let (mut secs, mut mse, mut rel, mut png, mut el) = (0.0, Some(0.0), Some(0.0), Some(0.0), Some(0.0));
+        let mut elements = 0;
+        let comparable = setting.point.element_scale == ref_point.element_scale;
+        for seed in 1..=args.seeds as u64 {
+            let m = render_point(&scene, &setting.point, seed, args.nodes)?;
+            secs += m.seconds;
+            elements = m.elements;
+            let add = |acc: Option<f64>, x: Option<f64>| Some(acc? + x?);
+            mse = add(mse, metrics::image_mse(&m.frame, &reference.frame));
+            rel = add(rel, metrics::image_rel_mse(&m.frame, &reference.frame));
+            png = add(png, metrics::srgb8_mse(&m.frame.to_srgb8(scale), &ref_srgb));
+            el = if comparable { add(el, metrics::irradiance_mse(&m.irradiance, &reference.irradiance)) } else { None };
+        }
+        let n = args.seeds as f64;
+        let row = Row {
+            element_size: scene.settings.element_size * setting.point.element_scale,
+            elements,
+            seconds: secs / n,
+            image_rmse: mse.map(|v| (v / n).sqrt()),
+            image_rel_mse: rel.map(|v| v / n),
+            png_psnr: png.map(|v| metrics::psnr_db(v / n)),
+            element_rmse: el.map(|v| (v / n).sqrt()),
+            setting,
+        };
+        if !args.quiet {
+            eprintln!(
+                "{:>16} {:<24} {:>7} el  {:>8.3}s  rel_mse {}  psnr {}",
+                row.setting.knob,
+                row.setting.value,
+                row.elements,
+                row.seconds,
+                opt(row.image_rel_mse, 3),
+                row.png_psnr.map(|x| format!("{x:.2} dB")).unwrap_or_default()
+            );
+        }
+        rows.push(row);
+    }
+
+    let csv_path = out_dir.join("accuracy.csv");
+    std::fs::write(&csv_path, csv(&rows)).with_context(|| format!("cannot write {}", csv_path.display()))?;
+    let front = pareto::pareto_front(
+        &rows.iter().map(|r| (r.seconds, r.image_rel_mse.unwrap_or(f64::NAN))).collect::<Vec<_>>(),
+    );
+    println!(
+        "# Accuracy study: {} at {}x{}, {} seed(s), reference {} elements / {} light rays / {} pixel samples\n",
+        args.scene.display(),
+        args.width,
+        args.height,
+        args.seeds,
+        reference.elements,
+        ref_point.light_rays,
+        ref_point.pixel_samples
+    );
+    println!("## All settings\n\n{}", markdown(&rows, 0..rows.len()));
+    println!("## Pareto front (cheapest setting for each image_rel_mse level)\n\n{}", markdown(&rows, front));
+    if !args.quiet {
+        eprintln!("-> {} and {}", csv_path.display(), out_dir.join("reference.png").display());
+    }
+    Ok(())
+}
+
+/// An optional figure in scientific notation with `digits` decimals, or empty.
+fn opt(v: Option<f64>, digits: usize) -> String {
+    match v {
+        Some(x) if x.is_finite() => format!("{x:.digits$e}"),
+        _ => String::new(),
+    }
+}
+
+/// A CSV field, quoted when it holds a comma or a quote.
+fn field(s: &str) -> String {
+    if s.contains([',', '"']) {
+        format!("\"{}\"", s.replace('"', "\"\""))
+    } else {
+        s.to_string()
+    }
+}
+
+/// The CSV text of `rows`: one line per setting; a missing error is an empty field.
+pub fn csv(rows: &[Row]) -> String {
+    let mut s = String::from(
+        "knob,value,element_size,light_rays,pixel_samples,lrt_depth,vrt_depth,diffuse_bounces,seconds,image_rmse,image_rel_mse,png_psnr,element_rmse,elements\n",
+    );
+    for r in rows {
+        let p = &r.setting.point;
+        let _ = writeln!(
+            s,
+            "{},{},{},{},{},{},{},{},{:.6},{},{},{},{},{}",
+            field(&r.setting.knob),
+            field(&r.setting.value),
+            r.element_size,
+            p.light_rays,
+            p.pixel_samples,
+            p.lrt_depth,
+            p.vrt_depth,
+            p.diffuse_bounces,
+            r.seconds,
+            opt(r.image_rmse, 6),
+            opt(r.image_rel_mse, 6),
+            r.png_psnr.filter(|x| x.is_finite()).map(|x| format!("{x:.3}")).unwrap_or_default(),
+            opt(r.element_rmse, 6),
+            r.elements
+        );
+    }
+    s
+}
+
+/// A markdown table of the rows at `idx`, in that order.
+pub fn markdown(rows: &[Row], idx: impl IntoIterator<Item = usize>) -> String {
+    let mut s = String::from(
+        "| knob | value | elements | light rays | pixel samples | lrt/vrt depth | diffuse | seconds | image RMSE | image rel. MSE | PNG PSNR (dB) | element RMSE |\n\
+         | --- | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |\n",
+    );
+    for i in idx {
+        let r = &rows[i];
+        let p = &r.setting.point;
+        let _ = writeln!(
+            s,
+            "| {} | {} | {} | {} | {} | {}/{} | {} | {:.3} | {} | {} | {} | {} |",
+            r.setting.knob,
+            r.setting.value,
+            r.elements,
+            p.light_rays,
+            p.pixel_samples,
+            p.lrt_depth,
+            p.vrt_depth,
+            p.diffuse_bounces,
+            r.seconds,
+            opt(r.image_rmse, 2),
+            opt(r.image_rel_mse, 2),
+            r.png_psnr.map(|x| format!("{x:.2}")).unwrap_or_default(),
+            opt(r.element_rmse, 2)
+        );
+    }
+    s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn row(knob: &str, value: &str, rel: Option<f64>) -> Row {
+        Row {
+            setting: Setting {
+                knob: knob.into(),
+                value: value.into(),
+                point: Point {
+                    element_scale: 1.0,
+                    light_rays: 16,
+                    pixel_samples: 1,
+                    lrt_depth: 1,
+                    vrt_depth: 1,
+                    diffuse_bounces: 0,
+                },
+            },
+            element_size: 0.1,
+            elements: 1664,
+            seconds: 0.5,
+            image_rmse: rel,
+            image_rel_mse: rel,
+            png_psnr: Some(metrics::psnr_db(0.0)),
+            element_rmse: None,
+        }
+    }
+
+    #[test]
+    fn csv_has_no_nan_and_quotes_commas() {
+        let text = csv(&[row("combined", "x0.5, 16 rays", Some(0.25)), row("base", "scene", Some(f64::NAN))]);
+        assert!(!text.to_ascii_lowercase().contains("nan"), "{text}");
+        let lines: Vec<&str> = text.lines().collect();
+        assert_eq!(lines.len(), 3);
+        assert!(lines[1].starts_with("combined,\"x0.5, 16 rays\",0.1,16,1,1,1,0,0.500000,"));
+        assert!(lines[2].contains(",100.000,,1664"), "{}", lines[2]);
+        let cols = lines[0].split(',').count();
+        assert_eq!(lines[2].split(',').count(), cols);
+    }
+
+    #[test]
+    fn markdown_lists_the_rows_asked_for() {
+        let rows = [row("base", "scene", Some(1.0)), row("light_rays", "64", Some(0.5))];
+        let t = markdown(&rows, [1]);
+        assert_eq!(t.lines().count(), 3);
+        assert!(t.contains("| light_rays | 64 |"));
+    }
+}
