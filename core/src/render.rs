@@ -92,8 +92,15 @@ pub fn subscreens(width: u32, height: u32, edge: u32) -> Vec<Subscreen> {
 
 struct NodeOut {
     stats: NodeStats,
-    tally: LrtTally,
     tiles: Vec<(Subscreen, Vec<Rgb>)>,
+}
+
+/// The result of a node worker thread; a panic becomes an error, not a crash.
+fn join_worker<T>(h: std::thread::ScopedJoinHandle<'_, Result<T, BlockError>>) -> Result<T, RenderError> {
+    match h.join() {
+        Ok(r) => r.map_err(RenderError::from),
+        Err(_) => Err(RenderError::Worker("a node worker thread panicked".into())),
+    }
 }
 
 /// Renders a prepared scene in this process.
@@ -124,7 +131,7 @@ pub fn render(
     let next_pair = AtomicU64::new(0);
     const PAIR_BATCH: u64 = 8;
     progress.begin("light ray tracing", total_pairs);
-    let lrt_results: Vec<Result<(u64, LrtTally), BlockError>> = std::thread::scope(|s| {
+    let lrt_results: Vec<Result<(u64, LrtTally), RenderError>> = std::thread::scope(|s| {
         let handles: Vec<_> = views
             .iter_mut()
             .map(|view| {
@@ -158,13 +165,7 @@ pub fn render(
                 })
             })
             .collect();
-        handles
-            .into_iter()
-            .map(|h| {
-                h.join()
-                    .unwrap_or_else(|_| Err(BlockError::Unavailable { id: 0, reason: "node worker panicked".into() }))
-            })
-            .collect()
+        handles.into_iter().map(join_worker).collect()
     });
     progress.end();
     let mut node_pairs = Vec::with_capacity(nodes as usize);
@@ -199,7 +200,7 @@ pub fn render(
     let tiles = subscreens(s.width, s.height, opts.subscreen);
     let queue = Mutex::new(tiles.iter().copied().rev().collect::<Vec<_>>());
     progress.begin("viewing ray tracing", s.width as u64 * s.height as u64);
-    let vrt_results: Vec<Result<Vec<(Subscreen, Vec<Rgb>)>, BlockError>> = std::thread::scope(|sc| {
+    let vrt_results: Vec<Result<Vec<(Subscreen, Vec<Rgb>)>, RenderError>> = std::thread::scope(|sc| {
         let handles: Vec<_> = views
             .iter_mut()
             .map(|view| {
@@ -226,13 +227,7 @@ pub fn render(
                 })
             })
             .collect();
-        handles
-            .into_iter()
-            .map(|h| {
-                h.join()
-                    .unwrap_or_else(|_| Err(BlockError::Unavailable { id: 0, reason: "node worker panicked".into() }))
-            })
-            .collect()
+        handles.into_iter().map(join_worker).collect()
     });
     progress.end();
     let mut frame = Frame::new(s.width, s.height);
@@ -249,7 +244,6 @@ pub fn render(
                 cache: view.cache_stats().into(),
                 ops: view.counters,
             },
-            tally: LrtTally::default(),
             tiles: done,
         });
     }
@@ -269,7 +263,6 @@ pub fn render(
 
     let cache_total = views.iter().fold(crate::blocks::CacheStats::default(), |a, v| a.add(v.cache_stats()));
     let ops = views.iter().fold(crate::view::OpCounters::default(), |a, v| a.add(v.counters));
-    let _ = outs.iter().map(|o| o.tally).count();
     let stats = RenderStats {
         scene: prepared.name.clone(),
         mode: "embedded".into(),
