@@ -176,7 +176,9 @@ impl Fork for ForkService {
     async fn take_pairs(&self, req: Request<v1::TakePairsRequest>) -> Result<Response<v1::TakePairsReply>, Status> {
         let shard = self.shard()?;
         let r = req.into_inner();
-        Ok(Response::new(take_pairs(shard, r.max, r.node).await?))
+        let reply = take_pairs(shard.clone(), r.max, r.node).await?;
+        shard.count_link(prost::Message::encoded_len(&r) + prost::Message::encoded_len(&reply));
+        Ok(Response::new(reply))
     }
 
     async fn steal_pairs(&self, req: Request<v1::TakePairsRequest>) -> Result<Response<v1::TakePairsReply>, Status> {
@@ -189,8 +191,11 @@ impl Fork for ForkService {
 
     async fn deposit(&self, req: Request<v1::DepositRequest>) -> Result<Response<v1::DepositReply>, Status> {
         let shard = self.shard()?;
-        let (applied, duplicates) = shard.deposit(&req.into_inner().pairs)?;
-        Ok(Response::new(v1::DepositReply { applied, duplicates }))
+        let r = req.into_inner();
+        let (applied, duplicates) = shard.deposit(&r.pairs)?;
+        let reply = v1::DepositReply { applied, duplicates };
+        shard.count_link(prost::Message::encoded_len(&r) + prost::Message::encoded_len(&reply));
+        Ok(Response::new(reply))
     }
 
     async fn get_energies(

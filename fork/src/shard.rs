@@ -56,6 +56,8 @@ pub struct Traffic {
     pub gbus_bytes: AtomicU64,
     /// RPCs handled.
     pub rpcs: AtomicU64,
+    /// Encoded bytes of pair and deposit messages with nodes (the link path).
+    pub link_bytes: AtomicU64,
 }
 
 /// Pair and energy bookkeeping, under one lock.
@@ -152,6 +154,11 @@ impl Shard {
     /// Traffic counters of this render.
     pub fn traffic(&self) -> &Traffic {
         &self.traffic
+    }
+
+    /// Counts `bytes` of node <-> fork control messages (the link path).
+    pub fn count_link(&self, bytes: usize) {
+        self.traffic.link_bytes.fetch_add(bytes as u64, Ordering::Relaxed);
     }
 
     /// Elements owned by this fork, ascending.
@@ -348,6 +355,7 @@ impl Shard {
             dma_bytes: self.traffic.dma_bytes.load(Ordering::Relaxed),
             gbus_bytes: self.traffic.gbus_bytes.load(Ordering::Relaxed),
             rpcs: self.traffic.rpcs.load(Ordering::Relaxed),
+            link_bytes: self.traffic.link_bytes.load(Ordering::Relaxed),
         }
     }
 

@@ -8,4 +8,5 @@
 pub mod grid;
 pub mod metrics;
 pub mod pareto;
+pub mod plot;
 pub mod preset;

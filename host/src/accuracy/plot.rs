@@ -98,10 +98,15 @@ fn decades(values: impl Iterator<Item = f64>) -> (i32, i32) {
 
 /// Text of the tick at 10^e: plain for 1e-3..=1e4, else `1e<e>`.
 fn decade_label(e: i32) -> String {
+    tick_label(1, e)
+}
+
+/// Text of the tick at m * 10^e (m a digit): plain for e in -3..=4, else `<m>e<e>`.
+fn tick_label(m: u32, e: i32) -> String {
     match e {
-        0..=4 => format!("1{}", "0".repeat(e as usize)),
-        -3..=-1 => format!("0.{}1", "0".repeat((-e - 1) as usize)),
-        _ => format!("1e{e}"),
+        0..=4 => format!("{m}{}", "0".repeat(e as usize)),
+        -3..=-1 => format!("0.{}{m}", "0".repeat((-e - 1) as usize)),
+        _ => format!("{m}e{e}"),
     }
 }
 
@@ -160,6 +165,10 @@ impl Plot {
                 for m in 2..10 {
                     let px = xpix(e as f64 + (m as f64).log10()).round() as i32;
                     c.line(px, b, px, b + 3, BLACK, 1);
+                    if x1 - x0 == 1 && (m == 2 || m == 5) {
+                        let s = tick_label(m, e);
+                        c.text(px - text_width(&s, 1) / 2, b + 10, &s, 1, BLACK);
+                    }
                 }
             }
         }
@@ -173,6 +182,10 @@ impl Plot {
                 for m in 2..10 {
                     let py = ypix(e as f64 + (m as f64).log10()).round() as i32;
                     c.line(l - 3, py, l, py, BLACK, 1);
+                    if y1 - y0 == 1 && (m == 2 || m == 5) {
+                        let s = tick_label(m, e);
+                        c.text(l - 9 - text_width(&s, 1), py - 3, &s, 1, BLACK);
+                    }
                 }
             }
         }
@@ -441,7 +454,11 @@ mod tests {
     fn empty_and_invalid_series_still_plot() {
         let mut p = Plot::new("", "", "");
         p.series.push(Series::new("empty", vec![], PALETTE[2]));
-        p.series.push(Series::new("bad", vec![(0.0, 1.0), (-1.0, 2.0), (f64::NAN, 1.0), (1.0, f64::INFINITY)], PALETTE[3]));
+        p.series.push(Series::new(
+            "bad",
+            vec![(0.0, 1.0), (-1.0, 2.0), (f64::NAN, 1.0), (1.0, f64::INFINITY)],
+            PALETTE[3],
+        ));
         let (w, h, _) = decode(&p.png().unwrap());
         assert_eq!((w, h), (WIDTH, HEIGHT));
         let none = Plot::new("nothing", "x", "y");
@@ -454,6 +471,8 @@ mod tests {
         assert_eq!(decade_label(3), "1000");
         assert_eq!(decade_label(-2), "0.01");
         assert_eq!(decade_label(-5), "1e-5");
+        assert_eq!(tick_label(5, -3), "0.005");
+        assert_eq!(tick_label(2, 1), "20");
         assert_eq!(decades([0.5, 3.0].into_iter()), (-1, 1));
         assert_eq!(decades([10.0].into_iter()), (1, 2));
         assert_eq!(decades(std::iter::empty()), (0, 1));

@@ -157,7 +157,7 @@ pub async fn drive(
     let t_interp = Instant::now();
     let n_el = h.counts.elements as usize;
     let mut element_flux: Vec<Fixed> = vec![[0; 3]; n_el];
-    let (mut dma_bytes, mut gbus_bytes, mut fork_rpcs) = (0, 0, 0);
+    let (mut dma_bytes, mut gbus_bytes, mut fork_rpcs, mut fork_link) = (0, 0, 0, 0);
     for (i, fork) in forks.iter_mut().enumerate() {
         let r = fork.get_energies(GetEnergiesRequest { summary_only: false }).await?.into_inner();
         for e in r.energies {
@@ -227,6 +227,7 @@ pub async fn drive(
         dma_bytes += r.dma_bytes;
         gbus_bytes += r.gbus_bytes;
         fork_rpcs += r.rpcs;
+        fork_link += r.link_bytes;
     }
     // Graceful shutdown waits for clients to hang up; a client that never does (a stuck
     // or hostile peer) must not keep the host alive: give them a moment, then stop.
@@ -297,7 +298,7 @@ pub async fn drive(
             total_s: prepared.preprocess_s + t_start.elapsed().as_secs_f64(),
         },
         cache: cache.into(),
-        traffic: Traffic { link_bytes: st.link_bytes, dma_bytes, gbus_bytes, rpcs: st.rpcs + fork_rpcs },
+        traffic: Traffic { link_bytes: st.link_bytes + fork_link, dma_bytes, gbus_bytes, rpcs: st.rpcs + fork_rpcs },
         work: Work { pairs: total_pairs, tiles: n_tiles, redivisions, light_rays, view_rays },
         plan: PlanSummary { passes: h.plan.passes(), plan: h.plan.clone() },
         counts: h.counts,

@@ -8,6 +8,7 @@
 //! ```
 
 use crate::accuracy::grid::{self, GridSize, Point, Setting};
+use crate::accuracy::plot::{Plot, Series, PALETTE};
 use crate::accuracy::{metrics, pareto};
 use crate::{cli::ImageFormat, images, scene_file};
 use anyhow::{bail, Context};
@@ -18,7 +19,7 @@ use magg_core::progress::NoProgress;
 use magg_core::scene::Scene;
 use magg_core::{energy, preprocess, render};
 use std::fmt::Write as _;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 /// Seed of the reference render, apart from the study's seeds 1..=N so that no setting
 /// shares its random numbers with the reference.
@@ -178,6 +179,7 @@ pub fn run(args: &AccuracyArgs) -> anyhow::Result<()> {
     let front = pareto::pareto_front(
         &rows.iter().map(|r| (r.seconds, r.image_rel_mse.unwrap_or(f64::NAN))).collect::<Vec<_>>(),
     );
+    let plots = write_plots(&out_dir, &rows, &front)?;
     println!(
         "# Accuracy study: {} at {}x{}, {} seed(s), reference {} elements / {} light rays / {} pixel samples\n",
         args.scene.display(),
@@ -192,8 +194,78 @@ pub fn run(args: &AccuracyArgs) -> anyhow::Result<()> {
     println!("## Pareto front (cheapest setting for each image_rel_mse level)\n\n{}", markdown(&rows, front));
     if !args.quiet {
         eprintln!("-> {} and {}", csv_path.display(), out_dir.join("reference.png").display());
+        for p in &plots {
+            eprintln!("-> {}", p.display());
+        }
     }
     Ok(())
+}
+
+/// The knobs varied one at a time, with their value of a row on a log axis (depths and
+/// bounces plus one, since they can be 0) and the axis title.
+pub const PLOT_KNOBS: [(&str, &str); 6] = [
+    ("element_size", "element size (m)"),
+    ("light_rays", "light rays per pair"),
+    ("pixel_samples", "pixel samples"),
+    ("lrt_depth", "lrt depth + 1"),
+    ("vrt_depth", "vrt depth + 1"),
+    ("diffuse_bounces", "diffuse bounces + 1"),
+];
+
+/// The value of `knob` in `row`, as plotted (see [`PLOT_KNOBS`]).
+pub fn knob_value(row: &Row, knob: &str) -> f64 {
+    let p = &row.setting.point;
+    match knob {
+        "element_size" => row.element_size,
+        "light_rays" => p.light_rays as f64,
+        "pixel_samples" => p.pixel_samples as f64,
+        "lrt_depth" => p.lrt_depth as f64 + 1.0,
+        "vrt_depth" => p.vrt_depth as f64 + 1.0,
+        "diffuse_bounces" => p.diffuse_bounces as f64 + 1.0,
+        _ => f64::NAN,
+    }
+}
+
+/// Writes `error_vs_time.png` (image relative MSE against seconds: one series per knob,
+/// each with the base point, and the Pareto `front` as a line) and `error_vs_<knob>.png`
+/// for each knob of [`PLOT_KNOBS`] that `rows` vary. Returns the paths written.
+pub fn write_plots(out_dir: &Path, rows: &[Row], front: &[usize]) -> anyhow::Result<Vec<PathBuf>> {
+    let err = |r: &Row| r.image_rel_mse.unwrap_or(f64::NAN);
+    let base: Vec<&Row> = rows.iter().filter(|r| r.setting.knob == "base").collect();
+    let mut knobs: Vec<&str> = Vec::new();
+    for r in rows {
+        if r.setting.knob != "base" && !knobs.contains(&r.setting.knob.as_str()) {
+            knobs.push(&r.setting.knob);
+        }
+    }
+    let mut written = Vec::new();
+    let mut plot = Plot::new("error against render time", "render time (s)", "image relative mse");
+    let mut front_pts: Vec<(f64, f64)> = front.iter().map(|&i| (rows[i].seconds, err(&rows[i]))).collect();
+    front_pts.sort_by(|a, b| a.0.total_cmp(&b.0));
+    plot.series.push(Series { markers: false, ..Series::new("pareto front", front_pts, [0, 0, 0]) });
+    for (i, knob) in knobs.iter().enumerate() {
+        let pts = rows.iter().filter(|r| r.setting.knob == *knob).chain(base.iter().copied());
+        plot.series.push(Series::new(*knob, pts.map(|r| (r.seconds, err(r))).collect(), PALETTE[i % PALETTE.len()]));
+    }
+    plot.series.push(Series {
+        lines: false,
+        ..Series::new("base", base.iter().map(|r| (r.seconds, err(r))).collect(), [0, 0, 0])
+    });
+    let path = out_dir.join("error_vs_time.png");
+    plot.write(&path)?;
+    written.push(path);
+    for (i, (knob, title)) in PLOT_KNOBS.iter().enumerate() {
+        if !rows.iter().any(|r| r.setting.knob == *knob) {
+            continue;
+        }
+        let pts = rows.iter().filter(|r| r.setting.knob == *knob).chain(base.iter().copied());
+        let mut plot = Plot::new(format!("error against {knob}"), *title, "image relative mse");
+        plot.series.push(Series::new(*knob, pts.map(|r| (knob_value(r, knob), err(r))).collect(), PALETTE[i]));
+        let path = out_dir.join(format!("error_vs_{knob}.png"));
+        plot.write(&path)?;
+        written.push(path);
+    }
+    Ok(written)
 }
 
 /// An optional figure in scientific notation with `digits` decimals, or empty.
@@ -310,6 +382,22 @@ mod tests {
         assert!(lines[2].contains(",100.000,,1664"), "{}", lines[2]);
         let cols = lines[0].split(',').count();
         assert_eq!(lines[2].split(',').count(), cols);
+    }
+
+    #[test]
+    fn plots_are_written_per_varied_knob() {
+        let dir = std::env::temp_dir().join(format!("magg-accuracy-plots-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let mut depth = row("lrt_depth", "0", Some(0.5));
+        depth.setting.point.lrt_depth = 0;
+        assert_eq!(knob_value(&depth, "lrt_depth"), 1.0);
+        let rows = [row("base", "scene", Some(0.1)), row("light_rays", "64", Some(0.05)), depth, row("x", "y", None)];
+        let written = write_plots(&dir, &rows, &[0]).unwrap();
+        let names: Vec<String> =
+            written.iter().map(|p| p.file_name().unwrap().to_string_lossy().into_owned()).collect();
+        assert_eq!(names, ["error_vs_time.png", "error_vs_light_rays.png", "error_vs_lrt_depth.png"]);
+        assert!(written.iter().all(|p| p.exists()));
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 
     #[test]
