@@ -39,7 +39,9 @@ pub async fn connect(addr: &str) -> Result<ForkClient<Channel>, ForkError> {
         .map_err(|e| unavailable(format!("bad address: {e}")))?
         .connect_timeout(CONNECT_TIMEOUT)
         .timeout(PEER_CALL_TIMEOUT)
-        .tcp_nodelay(true);
+        .tcp_nodelay(true)
+        .initial_stream_window_size(Some(4 << 20))
+        .initial_connection_window_size(Some(16 << 20));
     let channel = endpoint.connect().await.map_err(|e| unavailable(error_chain(&e)))?;
     Ok(ForkClient::new(channel)
         .max_decoding_message_size(MAX_MESSAGE_BYTES)

@@ -37,6 +37,8 @@ pub async fn serve_service(
         })
     });
     tonic::transport::Server::builder()
+        .initial_stream_window_size(Some(4 << 20))
+        .initial_connection_window_size(Some(16 << 20))
         .tcp_nodelay(true)
         .add_service(fork_server(service))
         .serve_with_incoming_shutdown(incoming, shutdown)

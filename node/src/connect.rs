@@ -38,7 +38,11 @@ pub async fn connect_with_backoff(addr: &str, backoff: Backoff) -> Result<Channe
     let endpoint = Endpoint::from_shared(uri.clone())
         .map_err(|e| NodeError::Connect { addr: addr.to_string(), reason: e.to_string() })?
         .connect_timeout(Duration::from_secs(2))
-        .tcp_nodelay(true);
+        .tcp_nodelay(true)
+        // Block replies are up to 64 KB and more: windows large enough that HTTP/2 flow
+        // control never stalls a reply waiting for a WINDOW_UPDATE round trip.
+        .initial_stream_window_size(Some(4 << 20))
+        .initial_connection_window_size(Some(16 << 20));
     let start = std::time::Instant::now();
     let mut delay = backoff.initial;
     let mut attempt = 0u64;

@@ -108,6 +108,8 @@ pub async fn drive(
     });
     let (stop_tx, stop_rx) = tokio::sync::oneshot::channel::<()>();
     let server = tonic::transport::Server::builder()
+        .initial_stream_window_size(Some(4 << 20))
+        .initial_connection_window_size(Some(16 << 20))
         .add_service(HostServer::new(service.clone()).max_decoding_message_size(16 << 20))
         .serve_with_incoming_shutdown(nodelay_incoming(listener), async {
             let _ = stop_rx.await;
