@@ -22,8 +22,11 @@ pub struct Cli {
 pub enum Command {
     /// Render a scene to an image (PNG tone-mapped; EXR or PFM linear, by extension).
     ///
-    /// Runs the light pass (LRT), energy interpolation and the viewing pass (VRT) on an
-    /// embedded cluster of node workers in this process.
+    /// Runs the light pass (LRT), energy interpolation and the viewing pass (VRT) on the
+    /// cluster: by default forks and nodes started inside this process, talking gRPC over
+    /// 127.0.0.1 ports; `--forks-at` and `--external-nodes` use separate magg-fork and
+    /// magg-node processes; `--embedded` drives the rendering core directly. The image is
+    /// the same, bit for bit, in every case.
     Render(RenderArgs),
     /// Print a scene's counts (patches, elements, vertices, subspaces, blocks of each
     /// kind) and its effects plan, without rendering.

@@ -2,8 +2,8 @@
 //!
 //! Reads a scene, preprocesses it, runs the render phases and writes the image, the
 //! stats and the energies. `magg-host render SCENE --out IMAGE` runs the whole cluster
-//! inside this process (the embedded renderer of `magg-core`), so one command renders a
-//! scene with no set-up.
+//! (forks, nodes and this host, over gRPC on 127.0.0.1) inside this process, so one
+//! command renders a scene with no set-up; [`cluster`] also drives separate processes.
 
 pub mod accuracy;
 pub mod cli;

@@ -1,4 +1,4 @@
-//! `magg-host`: render a scene (embedded cluster in one process), or describe it.
+//! `magg-host`: render a scene on the cluster (in this process by default), or describe it.
 //!
 //! ```text
 //! magg-host render scenes/cornell.toml --out cornell.png
