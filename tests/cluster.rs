@@ -115,7 +115,9 @@ fn separate_processes_on_localhost_give_the_same_bits_and_slow_nodes_are_redivid
         c.stdout(Stdio::null()).stderr(Stdio::piped()).spawn().unwrap()
     };
     std::thread::sleep(Duration::from_millis(1500));
-    procs.0.push(spawn("magg-node", &["--host".into(), host_addr.clone()]));
+    // The second node is fast but not instant (5 ms a row), so that whichever node holds
+    // the subscreen when the other asks, there are unstarted rows to hand over.
+    procs.0.push(spawn("magg-node", &["--host".into(), host_addr.clone(), "--slow-row-ms".into(), "5".into()]));
     let out = host.wait_with_output().unwrap();
     assert!(out.status.success(), "host failed: {}", String::from_utf8_lossy(&out.stderr));
     let multi = Rendered {
