@@ -73,24 +73,9 @@ fn slanted_rays_through_a_shared_edge_pick_one_patch_by_the_stated_rule() {
     }
 }
 
-/// An octahedron of 8 patches (closed), n = 4 elements per edge, light inside.
+/// An octahedron of 8 patches (closed), n elements per edge, light inside.
 fn diamond(n: u32) -> Scene {
-    let (px, nx, py, ny, pz, nz) =
-        (v(1.0, 0.0, 0.0), v(-1.0, 0.0, 0.0), v(0.0, 1.0, 0.0), v(0.0, -1.0, 0.0), v(0.0, 0.0, 1.0), v(0.0, 0.0, -1.0));
-    let faces = [
-        [px, py, pz],
-        [py, nx, pz],
-        [nx, ny, pz],
-        [ny, px, pz],
-        [py, px, nz],
-        [nx, py, nz],
-        [ny, nx, nz],
-        [px, ny, nz],
-    ];
-    let patches = faces.iter().map(|f| tri(f[0], f[1], f[2], 0, n)).collect();
-    let mut s = scene(patches, vec![material("white", 0.5, 0.0, 0.0)], vec![light(v(0.1, 0.05, -0.02), 1.0)]);
-    s.settings.grid = GridSpec::Fixed([4, 4, 4]);
-    s
+    octahedron(n, v(0.1, 0.05, -0.02), [4, 4, 4])
 }
 
 #[test]

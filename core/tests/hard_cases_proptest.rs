@@ -11,6 +11,7 @@ mod common;
 #[path = "common/hard.rs"]
 mod hard;
 
+use common::view_of;
 use hard::*;
 use magg_core::geometry::{intersect_watertight, Ray};
 use magg_core::math::Vec3;

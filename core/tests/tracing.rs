@@ -3,47 +3,15 @@
 
 mod common;
 use common::*;
-use magg_core::blocks::{BlockCache, MemStore};
 use magg_core::geometry::Ray;
 use magg_core::math::Vec3;
-use magg_core::preprocess::{prepare, PreparedScene};
+use magg_core::preprocess::prepare;
 use magg_core::scene::GridSpec;
 use magg_core::trace::{cast, TraceScratch, NO_PATCH};
-use magg_core::view::SceneView;
-use std::sync::Arc;
 
-fn view_of(p: &PreparedScene) -> SceneView {
-    let store = Arc::new(MemStore::new(p.blocks.clone()));
-    SceneView::new(p.header.clone(), BlockCache::new(store, None))
-}
-
-/// An octahedron-like closed mesh of 8 triangles (a "diamond"), plus a floor far away.
+/// The octahedron of 8 patches (n = 3), light outside, 3x3x3 subspaces.
 fn diamond() -> magg_core::scene::Scene {
-    let (px, nx, py, ny, pz, nz) =
-        (v(1.0, 0.0, 0.0), v(-1.0, 0.0, 0.0), v(0.0, 1.0, 0.0), v(0.0, -1.0, 0.0), v(0.0, 0.0, 1.0), v(0.0, 0.0, -1.0));
-    let tris = [
-        [px, py, pz],
-        [py, nx, pz],
-        [nx, ny, pz],
-        [ny, px, pz],
-        [py, px, nz],
-        [nx, py, nz],
-        [ny, nx, nz],
-        [px, ny, nz],
-    ];
-    let patches = tris
-        .iter()
-        .map(|t| magg_core::scene::PatchDef {
-            vertices: *t,
-            material: 0,
-            subdivisions: Some(3),
-            size_hint: None,
-            loc: loc(),
-        })
-        .collect();
-    let mut s = scene(patches, vec![material("white", 0.5, 0.0, 0.0)], vec![light(v(3.0, 3.0, 3.0), 1.0)]);
-    s.settings.grid = GridSpec::Fixed([3, 3, 3]);
-    s
+    octahedron(3, v(3.0, 3.0, 3.0), [3, 3, 3])
 }
 
 #[test]

@@ -3,28 +3,15 @@
 #![allow(dead_code)]
 
 use crate::common::*;
-use magg_core::blocks::{BlockCache, MemStore};
 use magg_core::energy::from_fixed;
 use magg_core::geometry::{intersect_watertight, Ray};
 use magg_core::lrt::LrtTally;
 use magg_core::math::{Rgb, Vec3};
 use magg_core::preprocess::PreparedScene;
 use magg_core::render::RenderOutput;
-use magg_core::scene::{PatchDef, Scene};
+use magg_core::scene::Scene;
 use magg_core::trace::{cast, Hit, TraceScratch};
 use magg_core::view::SceneView;
-use std::sync::Arc;
-
-/// A node's view of a prepared scene with an unlimited cache.
-pub fn view_of(p: &PreparedScene) -> SceneView {
-    let store = Arc::new(MemStore::new(p.blocks.clone()));
-    SceneView::new(p.header.clone(), BlockCache::new(store, None))
-}
-
-/// A single triangle patch with a fixed subdivision count.
-pub fn tri(a: Vec3, b: Vec3, c: Vec3, material: u32, n: u32) -> PatchDef {
-    PatchDef { vertices: [a, b, c], material, subdivisions: Some(n), size_hint: None, loc: loc() }
-}
 
 /// Flux (channel 0, W) of every element.
 pub fn fluxes(p: &PreparedScene, out: &RenderOutput) -> Vec<f64> {

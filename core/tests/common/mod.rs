@@ -1,11 +1,14 @@
 //! Scene builders for the core's integration tests.
 #![allow(dead_code)]
 
+use magg_core::blocks::{BlockCache, MemStore};
 use magg_core::math::{Rgb, Vec3};
 use magg_core::preprocess::{prepare, PreparedScene};
 use magg_core::progress::NoProgress;
 use magg_core::render::{render, RenderOptions, RenderOutput};
 use magg_core::scene::*;
+use magg_core::view::SceneView;
+use std::sync::Arc;
 
 pub fn v(x: f64, y: f64, z: f64) -> Vec3 {
     Vec3::new(x, y, z)
@@ -89,4 +92,37 @@ pub fn prepare_and_run(s: &Scene) -> (PreparedScene, RenderOutput) {
     let p = prepare(s).expect("prepare");
     let o = run(&p, 2, None);
     (p, o)
+}
+
+/// A node's view of a prepared scene with an unlimited cache.
+pub fn view_of(p: &PreparedScene) -> SceneView {
+    let store = Arc::new(MemStore::new(p.blocks.clone()));
+    SceneView::new(p.header.clone(), BlockCache::new(store, None))
+}
+
+/// A single triangle patch with a fixed subdivision count.
+pub fn tri(a: Vec3, b: Vec3, c: Vec3, material: u32, n: u32) -> PatchDef {
+    PatchDef { vertices: [a, b, c], material, subdivisions: Some(n), size_hint: None, loc: loc() }
+}
+
+/// A closed octahedron of 8 patches (vertices at +-1 on each axis, outward winding),
+/// n elements per patch edge, one white material, one light at `light_at`, and a fixed
+/// `grid` of subspaces.
+pub fn octahedron(n: u32, light_at: Vec3, grid: [u32; 3]) -> Scene {
+    let (px, nx, py, ny, pz, nz) =
+        (v(1.0, 0.0, 0.0), v(-1.0, 0.0, 0.0), v(0.0, 1.0, 0.0), v(0.0, -1.0, 0.0), v(0.0, 0.0, 1.0), v(0.0, 0.0, -1.0));
+    let faces = [
+        [px, py, pz],
+        [py, nx, pz],
+        [nx, ny, pz],
+        [ny, px, pz],
+        [py, px, nz],
+        [nx, py, nz],
+        [ny, nx, nz],
+        [px, ny, nz],
+    ];
+    let patches = faces.iter().map(|f| tri(f[0], f[1], f[2], 0, n)).collect();
+    let mut s = scene(patches, vec![material("white", 0.5, 0.0, 0.0)], vec![light(light_at, 1.0)]);
+    s.settings.grid = GridSpec::Fixed(grid);
+    s
 }
