@@ -270,13 +270,7 @@ pub fn render(
         forks,
         cache_blocks: opts.cache_blocks,
         profile: "native".into(),
-        stages: Stages {
-            preprocess_s: prepared.preprocess_s,
-            lrt_s,
-            interp_s,
-            vrt_s,
-            total_s: prepared.preprocess_s + t_start.elapsed().as_secs_f64(),
-        },
+        stages: Stages::measured(prepared.preprocess_s, lrt_s, interp_s, vrt_s, t_start),
         cache: cache_total.into(),
         traffic: Traffic {
             link_bytes: 0,
@@ -291,7 +285,7 @@ pub fn render(
             light_rays: ops.light_rays,
             view_rays: ops.view_rays,
         },
-        plan: PlanSummary { passes: header.plan.passes(), plan: header.plan.clone() },
+        plan: (&header.plan).into(),
         counts: header.counts,
         light: tally,
         per_node: outs.into_iter().map(|o| o.stats).collect(),

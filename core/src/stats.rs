@@ -22,6 +22,13 @@ pub struct Stages {
     pub total_s: f64,
 }
 
+impl Stages {
+    /// Stage times of a render that started (after preprocessing) at `start`.
+    pub fn measured(preprocess_s: f64, lrt_s: f64, interp_s: f64, vrt_s: f64, start: std::time::Instant) -> Stages {
+        Stages { preprocess_s, lrt_s, interp_s, vrt_s, total_s: preprocess_s + start.elapsed().as_secs_f64() }
+    }
+}
+
 /// Cache totals.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
 pub struct CacheSummary {
@@ -92,6 +99,12 @@ pub struct PlanSummary {
     /// The decisions.
     #[serde(flatten)]
     pub plan: EffectsPlan,
+}
+
+impl From<&EffectsPlan> for PlanSummary {
+    fn from(plan: &EffectsPlan) -> Self {
+        PlanSummary { passes: plan.passes(), plan: plan.clone() }
+    }
 }
 
 /// Everything a run reports.
