@@ -243,6 +243,7 @@ pub fn render(
                 tiles: done.len() as u64,
                 cache: view.cache_stats().into(),
                 ops: view.counters,
+                ..Default::default()
             },
             tiles: done,
         });
@@ -270,6 +271,7 @@ pub fn render(
         forks,
         cache_blocks: opts.cache_blocks,
         profile: "native".into(),
+        scheme: "magg".into(),
         stages: Stages::measured(prepared.preprocess_s, lrt_s, interp_s, vrt_s, t_start),
         cache: cache_total.into(),
         traffic: Traffic {
@@ -289,6 +291,7 @@ pub fn render(
         counts: header.counts,
         light: tally,
         per_node: outs.into_iter().map(|o| o.stats).collect(),
+        emulation: None,
     };
     Ok(RenderOutput { frame, element_flux, vertex_irradiance, stats })
 }

@@ -89,6 +89,49 @@ pub struct NodeStats {
     pub cache: CacheSummary,
     /// Its kernel operation counts.
     pub ops: OpCounters,
+    /// Modelled seconds its processor and its link were busy (throttled profiles).
+    #[serde(skip_serializing_if = "is_zero")]
+    pub cpu_s: f64,
+    /// See `cpu_s`.
+    #[serde(skip_serializing_if = "is_zero")]
+    pub link_s: f64,
+}
+
+fn is_zero(x: &f64) -> bool {
+    *x == 0.0
+}
+
+/// What the throttling layer emulated (DESIGN.md §4; throttled profiles only). Stage
+/// times of such a run are modelled seconds: real seconds divided by `dilation`.
+#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+pub struct Emulation {
+    /// Real seconds per modelled second.
+    pub dilation: f64,
+    /// Real CPU time of the host process (which holds every fork and node of an
+    /// in-process run) over the run, as a share of all cores' wall time: the emulation is
+    /// faithful while this stays well below 1 (the sweeps keep it under 0.5).
+    pub real_cpu_share: Option<f64>,
+    /// Modelled busy seconds, summed over the resources of each kind.
+    pub busy: EmulatedBusy,
+}
+
+/// Modelled busy seconds per emulated resource kind.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
+pub struct EmulatedBusy {
+    /// Preprocessing (on one fork processor in the paper's scheme, on every fork in
+    /// ours): wall time of the stage.
+    pub preprocess_s: f64,
+    /// Node processors, from the cost model (deterministic: the same scene and settings
+    /// give the same figure whatever the cluster's shape).
+    pub node_cpu_s: f64,
+    /// Node links, both directions.
+    pub link_s: f64,
+    /// Fork DMA engines.
+    pub dma_s: f64,
+    /// The G-bus.
+    pub gbus_s: f64,
+    /// Fork processors serving requests.
+    pub fork_s: f64,
 }
 
 /// The plan as written to the stats file.
@@ -122,6 +165,8 @@ pub struct RenderStats {
     pub cache_blocks: Option<u64>,
     /// Hardware profile.
     pub profile: String,
+    /// Schedule: `paper` or `magg` (DESIGN.md §4).
+    pub scheme: String,
     /// Stage times.
     pub stages: Stages,
     /// Cache totals over all nodes.
@@ -138,4 +183,7 @@ pub struct RenderStats {
     pub light: LrtTally,
     /// Per-node figures.
     pub per_node: Vec<NodeStats>,
+    /// What the throttling layer emulated (absent under the native profile).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub emulation: Option<Emulation>,
 }

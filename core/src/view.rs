@@ -23,6 +23,17 @@ pub struct OpCounters {
 }
 
 impl OpCounters {
+    /// The counts done since `earlier` (a snapshot of the same counters).
+    pub fn since(self, earlier: OpCounters) -> OpCounters {
+        OpCounters {
+            grid_steps: self.grid_steps.saturating_sub(earlier.grid_steps),
+            patch_tests: self.patch_tests.saturating_sub(earlier.patch_tests),
+            light_rays: self.light_rays.saturating_sub(earlier.light_rays),
+            view_rays: self.view_rays.saturating_sub(earlier.view_rays),
+            shades: self.shades.saturating_sub(earlier.shades),
+        }
+    }
+
     /// Sum of two counts.
     pub fn add(self, o: OpCounters) -> OpCounters {
         OpCounters {

@@ -3,7 +3,7 @@
 //!
 //! | error | code |
 //! | --- | --- |
-//! | [`ForkError::NotLoaded`], [`ForkError::ProtocolVersion`], [`ForkError::BlockNotLoaded`] | `FAILED_PRECONDITION` |
+//! | [`ForkError::NotLoaded`], [`ForkError::ProtocolVersion`], [`ForkError::ProfileMismatch`], [`ForkError::BlockNotLoaded`] | `FAILED_PRECONDITION` |
 //! | [`ForkError::BadHeader`], [`ForkError::BadBlock`], [`ForkError::BadRequest`], [`ForkError::BlockOutOfRange`], [`ForkError::BlockNotOwned`], [`ForkError::PairOutOfRange`], [`ForkError::ElementOutOfRange`], [`ForkError::ElementNotOwned`] | `INVALID_ARGUMENT` |
 //! | [`ForkError::TooMany`] | `RESOURCE_EXHAUSTED` |
 //! | [`ForkError::PeerUnavailable`] | `UNAVAILABLE` |
@@ -19,6 +19,14 @@ pub enum ForkError {
     /// An RPC other than `LoadShard` arrived before any scene was loaded.
     #[error("no scene loaded")]
     NotLoaded,
+    /// `LoadShard` with another hardware profile than the one this fork was started with.
+    #[error("the host runs hardware profile {host:?} but this fork was started with --profile {fork:?}")]
+    ProfileMismatch {
+        /// The host's profile.
+        host: String,
+        /// This fork's.
+        fork: String,
+    },
     /// `LoadShard` from a process speaking another protocol version.
     #[error("protocol version {got} is not this fork's version {want}")]
     ProtocolVersion {
@@ -135,9 +143,10 @@ impl ForkError {
     /// The gRPC code of this error.
     pub fn code(&self) -> Code {
         match self {
-            ForkError::NotLoaded | ForkError::ProtocolVersion { .. } | ForkError::BlockNotLoaded { .. } => {
-                Code::FailedPrecondition
-            }
+            ForkError::NotLoaded
+            | ForkError::ProtocolVersion { .. }
+            | ForkError::ProfileMismatch { .. }
+            | ForkError::BlockNotLoaded { .. } => Code::FailedPrecondition,
             ForkError::BadHeader(_)
             | ForkError::BadBlock(_)
             | ForkError::BadRequest(_)

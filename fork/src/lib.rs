@@ -30,6 +30,7 @@
 //! ```
 
 pub mod error;
+pub mod hardware;
 mod locks;
 pub mod pairs;
 pub mod peers;
@@ -38,6 +39,7 @@ pub mod service;
 pub mod shard;
 
 pub use error::ForkError;
+pub use hardware::ForkHardware;
 pub use peers::connect;
 pub use server::{fork_server, serve, serve_service, MAX_MESSAGE_BYTES};
 pub use service::ForkService;

@@ -21,6 +21,11 @@ struct Args {
     /// Address to listen on for gRPC (HOST:PORT; port 0 picks a free port).
     #[arg(long, default_value = "127.0.0.1:7100")]
     listen: SocketAddr,
+    /// Hardware profile (DESIGN.md §4): a built-in name (native, magg1993) or a profile
+    /// file. The host sends the profile of each render with the shard; with this flag the
+    /// fork refuses a render that runs another one. Without it, it runs the host's.
+    #[arg(long, env = "MAGG_PROFILE")]
+    profile: Option<String>,
     /// More log output (-v: debug, -vv: trace); RUST_LOG overrides.
     #[arg(short, long, action = clap::ArgAction::Count)]
     verbose: u8,
@@ -57,7 +62,13 @@ fn run(args: Args) -> anyhow::Result<()> {
             .with_context(|| format!("cannot listen on {}", args.listen))?;
         let local = listener.local_addr().context("reading the bound address")?;
         tracing::info!(%local, "fork listening");
-        magg_fork::serve(listener, shutdown_signal()).await.context("serving")?;
+        let mut hw = magg_fork::ForkHardware::default();
+        if let Some(p) = &args.profile {
+            let profile = magg_throttle::Profile::named(p)?;
+            hw = hw.pinned_to(&profile.name);
+        }
+        let service = magg_fork::ForkService::with_hardware(hw);
+        magg_fork::serve_service(service, listener, shutdown_signal()).await.context("serving")?;
         tracing::info!("fork stopped");
         Ok(())
     })

@@ -50,9 +50,37 @@ impl PairQueue {
     }
 }
 
+/// Pairs to hand out for a request of `max` (guided self-scheduling, Polychronopoulos
+/// and Kuck 1987): a quarter of each node's share of the remaining pairs, so that batches
+/// are large while there is much left and shrink to single pairs at the end (pairs of
+/// neighbouring elements cost alike, so a late large batch would leave its node working
+/// alone), and every one of `nodes` nodes gets work even when there are few pairs.
+/// `nodes == 0` (unknown) hands out `max`.
+pub fn guided_batch(max: u32, remaining: u64, forks: u32, nodes: u32) -> u32 {
+    if nodes == 0 {
+        return max;
+    }
+    let share = (remaining * forks.max(1) as u64).div_ceil(GUIDED_PARTS * nodes as u64);
+    (max as u64).min(share.max(1)) as u32
+}
+
+/// Parts of a node's share of the remaining pairs handed out at once.
+const GUIDED_PARTS: u64 = 4;
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn guided_batches_shrink_and_spread_over_nodes() {
+        // 1664 pairs on 5 forks (333 here) and 80 nodes: batches of 6, not 128, so that
+        // the 16 nodes of this fork all get work.
+        assert_eq!(guided_batch(128, 333, 5, 80), 6);
+        assert_eq!(guided_batch(128, 100_000, 5, 80), 128);
+        assert_eq!(guided_batch(128, 1, 5, 80), 1);
+        assert_eq!(guided_batch(128, 0, 5, 80), 1);
+        assert_eq!(guided_batch(7, 5000, 1, 0), 7);
+    }
 
     #[test]
     fn pops_every_pair_once_in_ascending_order() {

@@ -121,6 +121,18 @@ impl Peers {
         Ok(reply.blocks)
     }
 
+    /// Books the G-bus at fork 0, the arbiter, for a transfer of `cost` (real time);
+    /// returns how long to wait until the transfer has ended.
+    pub async fn reserve_gbus(&self, cost: Duration) -> Result<Duration, ForkError> {
+        let mut client = self.client(0).await?;
+        let reply = client
+            .reserve_gbus(v1::ReserveGbusRequest { cost_ns: cost.as_nanos() as u64 })
+            .await
+            .map_err(|s| self.failed(0, s))?
+            .into_inner();
+        Ok(Duration::from_nanos(reply.wait_ns))
+    }
+
     /// Up to `max` unassigned pairs of fork `fork`, taken on behalf of `node`.
     pub async fn steal(&self, fork: u32, max: u32, node: u32) -> Result<Vec<u64>, ForkError> {
         let mut client = self.client(fork).await?;

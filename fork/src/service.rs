@@ -6,25 +6,34 @@
 //! [`ForkError`] to a `Status` through the one mapping in [`crate::error`].
 
 use crate::error::ForkError;
+use crate::hardware::ForkHardware;
 use crate::locks::{read, write};
 use crate::shard::{Shard, MAX_IDS_PER_REQUEST, MAX_PAIRS_PER_REQUEST};
 use magg_proto::v1;
 use magg_proto::v1::fork_server::Fork;
+use magg_throttle::Profile;
 use std::collections::BTreeMap;
 use std::sync::{Arc, RwLock};
 use tokio::task::JoinSet;
 use tonic::{Request, Response, Status};
 
-/// A fork process's service: the shard of the current render, if one is loaded.
+/// A fork process's service: the shard of the current render, if one is loaded, and
+/// the fork's emulated hardware (throttling layer).
 #[derive(Debug, Default)]
 pub struct ForkService {
     shard: RwLock<Option<Arc<Shard>>>,
+    hw: Arc<ForkHardware>,
 }
 
 impl ForkService {
     /// A fork with no scene loaded.
     pub fn new() -> ForkService {
         ForkService::default()
+    }
+
+    /// A fork on the given hardware (forks of one process share one G-bus this way).
+    pub fn with_hardware(hw: ForkHardware) -> ForkService {
+        ForkService { shard: RwLock::new(None), hw: Arc::new(hw) }
     }
 
     /// The loaded shard, counting the RPC against it.
@@ -40,13 +49,17 @@ impl ForkService {
     }
 }
 
+/// Longest single G-bus booking accepted (a whole shard at 1 KB/s would be far less).
+const MAX_GBUS_BOOKING: std::time::Duration = std::time::Duration::from_secs(60);
+
 fn too_many(what: &'static str, got: usize, max: usize) -> ForkError {
     ForkError::TooMany { what, got: got as u64, max: max as u64 }
 }
 
 /// `GetBlocks`: owned blocks from memory, the others from their forks (one
-/// `PeerBlocks` per owner, concurrently), in request order.
-async fn get_blocks(shard: Arc<Shard>, ids: Vec<u32>) -> Result<Vec<v1::Block>, ForkError> {
+/// `PeerBlocks` per owner over the G-bus, concurrently), in request order; the reply
+/// goes to the node through the DMA engine.
+async fn get_blocks(shard: Arc<Shard>, hw: Arc<ForkHardware>, ids: Vec<u32>) -> Result<Vec<v1::Block>, ForkError> {
     if ids.len() > MAX_IDS_PER_REQUEST {
         return Err(too_many("block ids in a request", ids.len(), MAX_IDS_PER_REQUEST));
     }
@@ -66,8 +79,12 @@ async fn get_blocks(shard: Arc<Shard>, ids: Vec<u32>) -> Result<Vec<v1::Block>, 
     let mut calls = JoinSet::new();
     for (owner, positions) in remote {
         let shard = shard.clone();
+        let hw = hw.clone();
         let wanted: Vec<u32> = positions.iter().map(|&p| ids[p]).collect();
-        calls.spawn(async move { (positions, shard.peers().blocks(owner, wanted).await) });
+        calls.spawn(async move {
+            hw.gbus(me, shard.peers(), wanted.len() * magg_core::blocks::BLOCK_SIZE).await;
+            (positions, shard.peers().blocks(owner, wanted).await)
+        });
     }
     let local_ids: Vec<u32> = local.iter().map(|&p| ids[p]).collect();
     for (pos, b) in local.into_iter().zip(shard.owned_blocks(&local_ids)?) {
@@ -85,12 +102,18 @@ async fn get_blocks(shard: Arc<Shard>, ids: Vec<u32>) -> Result<Vec<v1::Block>, 
     let blocks: Vec<v1::Block> = out.into_iter().flatten().collect();
     shard.count_gbus(fetched);
     shard.count_dma(blocks.len());
+    hw.dma(blocks.len() * magg_core::blocks::BLOCK_SIZE).await;
     Ok(blocks)
 }
 
 /// `TakePairs`: the fork's own queue first; when it is empty, the other forks in turn
 /// (index+1, index+2, ...) are asked to give some away (paper §4.4).
-async fn take_pairs(shard: Arc<Shard>, max: u32, node: u32) -> Result<v1::TakePairsReply, ForkError> {
+async fn take_pairs(
+    shard: Arc<Shard>,
+    hw: &ForkHardware,
+    max: u32,
+    node: u32,
+) -> Result<v1::TakePairsReply, ForkError> {
     let max = max.clamp(1, MAX_PAIRS_PER_REQUEST);
     let pairs = shard.take_own_pairs(max, node);
     if !pairs.is_empty() {
@@ -100,7 +123,10 @@ async fn take_pairs(shard: Arc<Shard>, max: u32, node: u32) -> Result<v1::TakePa
     let mut failure = None;
     for k in 1..forks {
         let peer = (me + k) % forks;
-        match shard.peers().steal(peer, max, node).await {
+        let stolen = shard.peers().steal(peer, max, node).await;
+        // A request and a reply of pair ids cross the G-bus.
+        hw.gbus(me, shard.peers(), 16 + 8 * stolen.as_ref().map_or(0, Vec::len)).await;
+        match stolen {
             Ok(pairs) if pairs.is_empty() => {}
             Ok(pairs) => {
                 check_stolen(&shard, peer, &pairs)?;
@@ -135,8 +161,19 @@ fn check_stolen(shard: &Shard, peer: u32, pairs: &[u64]) -> Result<(), ForkError
 #[tonic::async_trait]
 impl Fork for ForkService {
     async fn load_shard(&self, req: Request<v1::LoadShardRequest>) -> Result<Response<v1::LoadShardReply>, Status> {
-        let shard = Shard::load(req.into_inner())?;
+        let req = req.into_inner();
+        let bytes = prost::Message::encoded_len(&req);
+        let profile = if req.profile.is_empty() {
+            None
+        } else {
+            Some(Profile::from_wire(&req.profile).map_err(|e| ForkError::BadRequest(e.to_string()))?)
+        };
+        self.hw.check_profile(profile.as_ref())?;
+        let shard = Shard::load(req)?;
         shard.count_rpc();
+        self.hw.set_profile(profile);
+        // The host's upload crosses the G-bus.
+        self.hw.gbus(shard.placement().index, shard.peers(), bytes).await;
         let (blocks, pairs) = (shard.stored_blocks(), shard.pairs_total());
         let place = shard.placement();
         tracing::info!(
@@ -153,18 +190,23 @@ impl Fork for ForkService {
 
     async fn put_blocks(&self, req: Request<v1::PutBlocksRequest>) -> Result<Response<v1::PutBlocksReply>, Status> {
         let shard = self.shard()?;
-        let stored = shard.put_blocks(req.into_inner().blocks)?;
+        self.hw.serve(0).await;
+        let req = req.into_inner();
+        self.hw.gbus(shard.placement().index, shard.peers(), prost::Message::encoded_len(&req)).await;
+        let stored = shard.put_blocks(req.blocks)?;
         Ok(Response::new(v1::PutBlocksReply { stored }))
     }
 
     async fn get_blocks(&self, req: Request<v1::GetBlocksRequest>) -> Result<Response<v1::GetBlocksReply>, Status> {
         let shard = self.shard()?;
-        let blocks = get_blocks(shard, req.into_inner().ids).await?;
+        self.hw.serve(0).await;
+        let blocks = get_blocks(shard, self.hw.clone(), req.into_inner().ids).await?;
         Ok(Response::new(v1::GetBlocksReply { blocks }))
     }
 
     async fn peer_blocks(&self, req: Request<v1::GetBlocksRequest>) -> Result<Response<v1::GetBlocksReply>, Status> {
         let shard = self.shard()?;
+        self.hw.serve(0).await;
         let ids = req.into_inner().ids;
         if ids.len() > MAX_IDS_PER_REQUEST {
             return Err(too_many("block ids in a request", ids.len(), MAX_IDS_PER_REQUEST).into());
@@ -175,14 +217,16 @@ impl Fork for ForkService {
 
     async fn take_pairs(&self, req: Request<v1::TakePairsRequest>) -> Result<Response<v1::TakePairsReply>, Status> {
         let shard = self.shard()?;
+        self.hw.serve(0).await;
         let r = req.into_inner();
-        let reply = take_pairs(shard.clone(), r.max, r.node).await?;
+        let reply = take_pairs(shard.clone(), &self.hw, r.max, r.node).await?;
         shard.count_link(prost::Message::encoded_len(&r) + prost::Message::encoded_len(&reply));
         Ok(Response::new(reply))
     }
 
     async fn steal_pairs(&self, req: Request<v1::TakePairsRequest>) -> Result<Response<v1::TakePairsReply>, Status> {
         let shard = self.shard()?;
+        self.hw.serve(0).await;
         let r = req.into_inner();
         let pairs = shard.take_own_pairs(r.max, r.node);
         let exhausted = pairs.is_empty();
@@ -192,6 +236,7 @@ impl Fork for ForkService {
     async fn deposit(&self, req: Request<v1::DepositRequest>) -> Result<Response<v1::DepositReply>, Status> {
         let shard = self.shard()?;
         let r = req.into_inner();
+        self.hw.serve(r.pairs.iter().map(|p| p.deposits.len()).sum()).await;
         let (applied, duplicates) = shard.deposit(&r.pairs)?;
         let reply = v1::DepositReply { applied, duplicates };
         shard.count_link(prost::Message::encoded_len(&r) + prost::Message::encoded_len(&reply));
@@ -203,6 +248,31 @@ impl Fork for ForkService {
         req: Request<v1::GetEnergiesRequest>,
     ) -> Result<Response<v1::GetEnergiesReply>, Status> {
         let shard = self.shard()?;
-        Ok(Response::new(shard.energies(req.into_inner().summary_only)))
+        let summary_only = req.into_inner().summary_only;
+        let mut reply = shard.energies(summary_only);
+        // The energies go back to the host over the G-bus. The host's progress polls
+        // (summaries) are our monitoring, not the paper's protocol: they cost nothing.
+        if !summary_only {
+            self.hw.serve(0).await;
+            self.hw.gbus(shard.placement().index, shard.peers(), prost::Message::encoded_len(&reply)).await;
+        }
+        (reply.service_busy_s, reply.dma_busy_s, reply.gbus_busy_s) = self.hw.busy_s();
+        Ok(Response::new(reply))
+    }
+
+    async fn reserve_gbus(
+        &self,
+        req: Request<v1::ReserveGbusRequest>,
+    ) -> Result<Response<v1::ReserveGbusReply>, Status> {
+        let cost_ns = req.into_inner().cost_ns;
+        if cost_ns > MAX_GBUS_BOOKING.as_nanos() as u64 {
+            return Err(ForkError::BadRequest(format!(
+                "cost_ns {cost_ns}: a G-bus booking is at most {} s",
+                MAX_GBUS_BOOKING.as_secs()
+            ))
+            .into());
+        }
+        let wait = self.hw.reserve_gbus(std::time::Duration::from_nanos(cost_ns));
+        Ok(Response::new(v1::ReserveGbusReply { wait_ns: wait.as_nanos() as u64 }))
     }
 }

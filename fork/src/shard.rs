@@ -88,6 +88,8 @@ pub struct Shard {
     work: Mutex<Work>,
     traffic: Traffic,
     peers: Peers,
+    /// Nodes the host expects (sizes guided pair batches; 0 = unknown).
+    nodes: u32,
 }
 
 impl Shard {
@@ -131,6 +133,7 @@ impl Shard {
             traffic: Traffic::default(),
             peers: Peers::new(place.addrs.clone()),
             place,
+            nodes: req.nodes,
         };
         shard.put_blocks(req.blocks)?;
         Ok(shard)
@@ -242,8 +245,9 @@ impl Shard {
 
     /// Takes up to `max` unassigned pairs of this fork's own queue for `node`.
     pub fn take_own_pairs(&self, max: u32, node: u32) -> Vec<u64> {
-        let max = max.clamp(1, MAX_PAIRS_PER_REQUEST) as usize;
         let mut work = lock(&self.work);
+        let max = max.clamp(1, MAX_PAIRS_PER_REQUEST);
+        let max = crate::pairs::guided_batch(max, work.queue.remaining(), self.place.forks(), self.nodes) as usize;
         let pairs = work.queue.pop(max, &self.owned, self.header.counts.elements);
         for &p in &pairs {
             work.leased.insert(p, node);
@@ -356,6 +360,7 @@ impl Shard {
             gbus_bytes: self.traffic.gbus_bytes.load(Ordering::Relaxed),
             rpcs: self.traffic.rpcs.load(Ordering::Relaxed),
             link_bytes: self.traffic.link_bytes.load(Ordering::Relaxed),
+            ..Default::default()
         }
     }
 

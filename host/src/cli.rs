@@ -35,6 +35,10 @@ pub enum Command {
     /// accuracy settings (docs/ACCURACY.md): writes accuracy.csv and prints the Pareto
     /// front as a markdown table.
     Accuracy(crate::commands::accuracy::AccuracyArgs),
+    /// Redo the paper's experiments (its figures 4-11): render on the cluster under a
+    /// hardware profile over nodes x cache blocks x forks x schedule; writes sweep.csv,
+    /// one PNG per figure and a markdown table (docs/EXPERIMENTS.md).
+    Sweep(crate::commands::sweep::SweepArgs),
 }
 
 /// Arguments of `render`.
@@ -58,9 +62,20 @@ pub struct RenderArgs {
     /// LRU cache size per node, in 2 KB blocks, or "unlimited".
     #[arg(long, default_value = "unlimited")]
     pub cache_blocks: String,
-    /// Hardware profile (only "native" until the throttling layer lands).
-    #[arg(long, default_value = "native")]
+    /// Hardware profile (DESIGN.md §4): a built-in name, "native" (nothing throttled) or
+    /// "magg1993" (the paper's transputers, links, DMA and G-bus), or a profile file
+    /// (deploy/profiles/*.toml). Stage times of a throttled run are modelled seconds.
+    #[arg(long, default_value = "native", env = "MAGG_PROFILE")]
     pub profile: String,
+    /// Real seconds per modelled second, overriding the profile's: raise it when the
+    /// stats' emulation.real_cpu_share passes 0.5.
+    #[arg(long)]
+    pub dilation: Option<f64>,
+    /// Schedule: "magg" (ours: batched and guided pair hand-out, batched deposits,
+    /// prefetched blocks, preprocessing over every fork) or "paper" (one pair per
+    /// request, one block per request, preprocessing on one fork). Same image.
+    #[arg(long, default_value = "magg")]
+    pub scheme: String,
     /// Write run statistics (JSON) here.
     #[arg(long)]
     pub stats: Option<PathBuf>,
@@ -186,8 +201,10 @@ pub struct RenderConfig {
     pub forks: u32,
     /// Cache blocks per node (`None` = unlimited).
     pub cache_blocks: Option<u64>,
-    /// Profile name.
-    pub profile: String,
+    /// Hardware profile.
+    pub profile: magg_throttle::Profile,
+    /// Schedule.
+    pub scheme: magg_throttle::Scheme,
     /// Stats file.
     pub stats: Option<PathBuf>,
     /// Energy file.
@@ -266,9 +283,19 @@ impl RenderArgs {
         if self.stall_timeout == 0 {
             bail!("--stall-timeout 0: must be at least 1 second");
         }
-        if self.profile != "native" {
-            bail!("--profile {}: only the \"native\" profile exists in this build", self.profile);
+        let mut profile = magg_throttle::Profile::named(&self.profile)?;
+        if let Some(d) = self.dilation {
+            if !(d.is_finite() && d > 0.0) {
+                bail!("--dilation {d}: must be a positive number");
+            }
+            profile = profile.with_dilation(d);
         }
+        if self.embedded && !profile.is_native() {
+            bail!("--profile {}: the embedded renderer runs natively; profiles apply to the cluster", profile.name);
+        }
+        let Some(scheme) = magg_throttle::Scheme::parse(&self.scheme) else {
+            bail!("--scheme {:?}: expected \"magg\" or \"paper\"", self.scheme);
+        };
         Ok(RenderConfig {
             scene: self.scene,
             out: (self.out, out_fmt),
@@ -276,7 +303,8 @@ impl RenderArgs {
             nodes: self.nodes,
             forks: self.forks,
             cache_blocks: parse_cache_blocks(&self.cache_blocks)?,
-            profile: self.profile,
+            profile,
+            scheme,
             stats: self.stats,
             energy: self.energy,
             all_effects: self.all_effects,

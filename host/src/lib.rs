@@ -14,6 +14,7 @@ pub mod images;
 pub mod logging;
 pub mod progress;
 pub mod scene_file;
+pub mod sweep;
 
 /// Runs a parsed command line.
 pub fn run(cli: cli::Cli) -> anyhow::Result<()> {
@@ -21,5 +22,6 @@ pub fn run(cli: cli::Cli) -> anyhow::Result<()> {
         cli::Command::Render(args) => commands::render::run(args.validate()?),
         cli::Command::Info(args) => commands::info::run(&args),
         cli::Command::Accuracy(args) => commands::accuracy::run(&args),
+        cli::Command::Sweep(args) => commands::sweep::run(&args),
     }
 }

@@ -1,22 +1,40 @@
 //! The node's block source: its home fork over gRPC (the paper's DMA path).
 
+use crate::pace::NodePace;
 use magg_core::blocks::{Block, BlockError, BlockSource, BLOCK_SIZE};
 use magg_proto::v1::fork_client::ForkClient;
 use magg_proto::v1::GetBlocksRequest;
+use prost::Message;
+use std::sync::Arc;
 use tokio::runtime::Handle;
 use tonic::transport::Channel;
 
 /// Fetches blocks from the node's home fork. Called from the kernels' worker threads
-/// (not from async code): each fetch blocks on the runtime.
+/// (not from async code): each fetch blocks on the runtime. Under a throttled profile
+/// the request pays the node's link (the paper's request packet); the blocks come back
+/// over the fork's DMA engine, which the fork pays.
 pub struct ForkBlocks {
     client: ForkClient<Channel>,
     rt: Handle,
+    pace: Option<Arc<NodePace>>,
 }
 
 impl ForkBlocks {
     /// A source reading through `client` on runtime `rt`.
     pub fn new(client: ForkClient<Channel>, rt: Handle) -> Self {
-        ForkBlocks { client, rt }
+        ForkBlocks { client, rt, pace: None }
+    }
+
+    /// The same, paying the link of `pace` for each request.
+    pub fn paced(mut self, pace: Option<Arc<NodePace>>) -> Self {
+        self.pace = pace;
+        self
+    }
+
+    fn request(&self, req: &GetBlocksRequest) {
+        if let Some(p) = &self.pace {
+            p.send_blocking(req.encoded_len());
+        }
     }
 }
 
@@ -25,6 +43,7 @@ impl BlockSource for ForkBlocks {
         let first = ids.first().copied().unwrap_or(0);
         let mut client = self.client.clone();
         let req = GetBlocksRequest { ids: ids.to_vec() };
+        self.request(&req);
         let reply = self
             .rt
             .block_on(async move { client.get_blocks(req).await })
@@ -47,9 +66,11 @@ impl BlockSource for ForkBlocks {
 
     fn fetch(&self, id: u32, out: &mut Block) -> Result<(), BlockError> {
         let mut client = self.client.clone();
+        let req = GetBlocksRequest { ids: vec![id] };
+        self.request(&req);
         let reply = self
             .rt
-            .block_on(async move { client.get_blocks(GetBlocksRequest { ids: vec![id] }).await })
+            .block_on(async move { client.get_blocks(req).await })
             .map_err(|s| BlockError::Unavailable { id, reason: s.message().to_string() })?
             .into_inner();
         match reply.blocks.into_iter().next() {

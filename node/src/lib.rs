@@ -20,6 +20,7 @@ mod connect;
 mod error;
 mod fork_blocks;
 mod node;
+mod pace;
 mod report;
 mod work;
 
@@ -27,3 +28,4 @@ pub use connect::{connect_with_backoff, Backoff};
 pub use error::NodeError;
 pub use fork_blocks::ForkBlocks;
 pub use node::{run, run_with_runtime, NodeConfig, NodeSummary};
+pub use pace::{NodePace, Processor};

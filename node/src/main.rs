@@ -30,6 +30,11 @@ struct Args {
     /// redivision move its unstarted rows to others).
     #[arg(long, default_value_t = 0)]
     slow_row_ms: u64,
+    /// Hardware profile (DESIGN.md §4): a built-in name (native, magg1993) or a profile
+    /// file. The host sends each render's profile; with this flag the node refuses a
+    /// render that runs another one. Without it, it runs the host's.
+    #[arg(long, env = "MAGG_PROFILE")]
+    profile: Option<String>,
     /// More log output.
     #[arg(short, long, action = clap::ArgAction::Count)]
     verbose: u8,
@@ -76,6 +81,10 @@ fn run(args: Args) -> anyhow::Result<()> {
             ..Default::default()
         },
         row_delay: std::time::Duration::from_millis(args.slow_row_ms),
+        profile: match &args.profile {
+            Some(p) => Some(magg_throttle::Profile::named(p)?.name),
+            None => None,
+        },
     };
     let s = magg_node::run(&cfg)?;
     tracing::info!("node {} done: {} pairs, {} subscreens", s.node, s.pairs, s.tiles);

@@ -2,6 +2,7 @@
 
 use crate::connect::{connect_with_backoff, Backoff};
 use crate::fork_blocks::ForkBlocks;
+use crate::pace::{NodePace, Processor};
 use crate::report::{Totals, WorkerTotals};
 use crate::work::Worker;
 use crate::NodeError;
@@ -12,6 +13,8 @@ use magg_proto::v1::fork_client::ForkClient;
 use magg_proto::v1::host_client::HostClient;
 use magg_proto::v1::RegisterRequest;
 use magg_proto::PROTOCOL_VERSION;
+use magg_throttle::{Profile, Scheme};
+use prost::Message;
 use std::sync::Arc;
 use tokio::runtime::Handle;
 
@@ -35,6 +38,9 @@ pub struct NodeConfig {
     /// Extra time spent per pixel row: emulates a slow or overloaded node (to watch
     /// adaptive redivision and straggler handling).
     pub row_delay: std::time::Duration,
+    /// The hardware profile this node was started with (`--profile`): a render with
+    /// another one is refused. `None`: run whatever the host sends.
+    pub profile: Option<String>,
 }
 
 impl Default for NodeConfig {
@@ -46,6 +52,7 @@ impl Default for NodeConfig {
             name: "node".into(),
             backoff: Backoff::default(),
             row_delay: std::time::Duration::ZERO,
+            profile: None,
         }
     }
 }
@@ -79,6 +86,25 @@ pub fn run_with_runtime(rt: Handle, cfg: &NodeConfig) -> Result<NodeSummary, Nod
     let req =
         RegisterRequest { protocol_version: PROTOCOL_VERSION, name: cfg.name.clone(), threads: cfg.threads.max(1) };
     let reg = rt.block_on(host.register(req)).map_err(NodeError::rpc("Register"))?.into_inner();
+    let profile = if reg.profile.is_empty() {
+        Profile::native()
+    } else {
+        Profile::from_wire(&reg.profile).map_err(|e| NodeError::Convert(e.to_string()))?
+    };
+    if let Some(mine) = &cfg.profile {
+        if *mine != profile.name {
+            return Err(NodeError::Convert(format!(
+                "the host runs hardware profile {:?} but this node was started with --profile {mine:?}",
+                profile.name
+            )));
+        }
+    }
+    let scheme = Scheme::parse(&reg.scheme).unwrap_or_default();
+    let pace = NodePace::new(profile).map(Arc::new);
+    if let Some(p) = &pace {
+        // The scene header came down the link.
+        p.recv_blocking(reg.encoded_len());
+    }
     let wire_header = reg.header.ok_or_else(|| NodeError::Convert("registration without a scene header".into()))?;
     let header: Arc<SceneHeader> =
         Arc::new(SceneHeader::try_from(wire_header).map_err(|e| NodeError::Convert(e.to_string()))?);
@@ -99,18 +125,23 @@ pub fn run_with_runtime(rt: Handle, cfg: &NodeConfig) -> Result<NodeSummary, Nod
     let threads = cfg.threads.max(1) as usize;
     // The node's cache is split evenly over its workers.
     let per_worker = cache_blocks.map(|c| (c as usize / threads).max(1));
-    let totals = Arc::new(Totals::new(threads));
+    let totals = Arc::new(Totals::new(threads).paced(pace.clone()));
     tracing::info!(node = reg.node, home, threads, ?cache_blocks, "registered with {}", cfg.host);
 
     let handles: Vec<_> = (0..threads)
         .map(|index| {
-            let source: Arc<dyn BlockSource> = Arc::new(ForkBlocks::new(forks[home].clone(), rt.clone()));
+            let source: Arc<dyn BlockSource> =
+                Arc::new(ForkBlocks::new(forks[home].clone(), rt.clone()).paced(pace.clone()));
             let l = header.layout;
-            let cache = BlockCache::new(source, per_worker).with_home(home as u32, forks.len() as u32).with_prefetch(
-                PREFETCH_BLOCKS,
-                forks.len() as u32,
-                vec![0, l.patch_base, l.element_base, l.vertex_base, l.total],
-            );
+            let mut cache = BlockCache::new(source, per_worker).with_home(home as u32, forks.len() as u32);
+            // The paper's scheme asks for one block per request.
+            if scheme == Scheme::Magg {
+                cache = cache.with_prefetch(
+                    PREFETCH_BLOCKS,
+                    forks.len() as u32,
+                    vec![0, l.patch_base, l.element_base, l.vertex_base, l.total],
+                );
+            }
             let worker = Worker {
                 index,
                 node: reg.node,
@@ -122,6 +153,9 @@ pub fn run_with_runtime(rt: Handle, cfg: &NodeConfig) -> Result<NodeSummary, Nod
                 totals: totals.clone(),
                 mine: WorkerTotals::default(),
                 row_delay: cfg.row_delay,
+                pace: pace.clone(),
+                cpu: Processor::default(),
+                scheme,
             };
             std::thread::Builder::new()
                 .name(format!("magg-node-{}-{index}", reg.node))

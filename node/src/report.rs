@@ -1,11 +1,12 @@
 //! What a node tells the host about its work: cumulative counters over its workers.
 
+use crate::pace::NodePace;
 use magg_core::blocks::CacheStats;
 use magg_core::lrt::LrtTally;
 use magg_core::math::Rgb;
 use magg_core::view::OpCounters;
 use magg_proto::v1;
-use std::sync::Mutex;
+use std::sync::{Arc, Mutex};
 
 /// One worker's totals.
 #[derive(Clone, Copy, Debug, Default)]
@@ -26,6 +27,7 @@ pub struct WorkerTotals {
 #[derive(Debug, Default)]
 pub struct Totals {
     workers: Mutex<Vec<WorkerTotals>>,
+    pace: Option<Arc<NodePace>>,
 }
 
 fn rgb(c: Rgb) -> Option<v1::Rgb> {
@@ -35,7 +37,13 @@ fn rgb(c: Rgb) -> Option<v1::Rgb> {
 impl Totals {
     /// Room for `n` workers.
     pub fn new(n: usize) -> Self {
-        Totals { workers: Mutex::new(vec![WorkerTotals::default(); n]) }
+        Totals { workers: Mutex::new(vec![WorkerTotals::default(); n]), pace: None }
+    }
+
+    /// The same, reporting the link and processor time of `pace`.
+    pub fn paced(mut self, pace: Option<Arc<NodePace>>) -> Self {
+        self.pace = pace;
+        self
     }
     /// Records worker `i`'s totals.
     pub fn set(&self, i: usize, t: WorkerTotals) {
@@ -75,6 +83,8 @@ impl Totals {
             diffuse_end: rgb(s.tally.diffuse_end),
             escaped: rgb(s.tally.escaped),
             cut: rgb(s.tally.cut),
+            link_busy_s: self.pace.as_ref().map_or(0.0, |p| p.link_busy_s()),
+            cpu_busy_s: self.pace.as_ref().map_or(0.0, |p| p.compute_cost(&s.ops).as_secs_f64()),
         }
     }
 }

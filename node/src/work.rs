@@ -1,5 +1,6 @@
 //! The work loops of one node worker: pairs from the home fork, subscreens from the host.
 
+use crate::pace::{NodePace, Processor};
 use crate::report::{Totals, WorkerTotals};
 use crate::NodeError;
 use magg_core::camera::CameraRig;
@@ -14,6 +15,8 @@ use magg_proto::v1::next_work_reply::Kind;
 use magg_proto::v1::{
     self, Deposit, DepositRequest, NextWorkRequest, PairDeposits, Row, SubmitRowsRequest, TakePairsRequest,
 };
+use magg_throttle::Scheme;
+use prost::Message;
 use std::collections::{BTreeMap, VecDeque};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
@@ -27,8 +30,10 @@ pub const MAX_WAIT: Duration = Duration::from_millis(50);
 /// Longest time a node keeps finished rows before sending them to the host.
 pub const ROW_REPORT: Duration = Duration::from_millis(5);
 
-/// Pairs asked for per request (batched hand-out, DESIGN.md §4 `--scheme magg`).
-pub const PAIR_BATCH: u32 = 128;
+/// Pairs asked for per request (batched hand-out, DESIGN.md §4 `--scheme magg`; the
+/// fork may hand out fewer, see `magg_fork::pairs::guided_batch`). The paper's scheme
+/// asks for one pair per request.
+pub const PAIR_BATCH: u32 = 64;
 
 /// Batches whose deposits may still be on their way while the next batch is traced.
 pub const DEPOSITS_IN_FLIGHT: usize = 2;
@@ -55,9 +60,30 @@ pub struct Worker {
     pub mine: WorkerTotals,
     /// Emulated extra time per pixel row.
     pub row_delay: Duration,
+    /// The throttling layer's link and cost model (`None`: native profile).
+    pub pace: Option<Arc<NodePace>>,
+    /// This worker's emulated processor.
+    pub cpu: Processor,
+    /// The paper's schedule or ours.
+    pub scheme: Scheme,
 }
 
 impl Worker {
+    /// Pays the emulated processor for the operations done since the last payment.
+    fn compute(&mut self) {
+        if let Some(p) = &self.pace {
+            self.cpu.pay(p, self.view.counters);
+        }
+    }
+
+    /// Pays the link for a message sent and its reply, from the worker thread.
+    fn link_blocking(&self, sent: usize, received: usize) {
+        if let Some(p) = &self.pace {
+            p.send_blocking(sent);
+            p.recv_blocking(received);
+        }
+    }
+
     fn publish(&mut self) {
         self.mine.cache = self.view.cache_stats();
         self.mine.ops = self.view.counters;
@@ -77,7 +103,10 @@ impl Worker {
                 None => {
                     let mut host = self.host.clone();
                     let req = NextWorkRequest { node: self.node, report: Some(self.totals.report()) };
-                    self.rt.block_on(host.next_work(req)).map_err(NodeError::rpc("NextWork"))?.into_inner()
+                    let sent = req.encoded_len();
+                    let reply = self.rt.block_on(host.next_work(req)).map_err(NodeError::rpc("NextWork"))?.into_inner();
+                    self.link_blocking(sent, reply.encoded_len());
+                    reply
                 }
             };
             let kind = Kind::try_from(reply.kind).unwrap_or(Kind::Wait);
@@ -122,9 +151,22 @@ impl Worker {
         let elements = h.counts.elements as u64;
         let total = elements * h.lights.len() as u64;
         let mut scratch = TraceScratch::default();
-        let take = |home: ForkClient<Channel>, node: u32| async move {
-            let mut home = home;
-            home.take_pairs(TakePairsRequest { max: PAIR_BATCH, node }).await.map(|r| r.into_inner())
+        let max = if self.scheme == Scheme::Paper { 1 } else { PAIR_BATCH };
+        let pace = self.pace.clone();
+        let take = move |home: ForkClient<Channel>, node: u32| {
+            let pace = pace.clone();
+            async move {
+                let mut home = home;
+                let req = TakePairsRequest { max, node };
+                if let Some(p) = &pace {
+                    p.send(req.encoded_len()).await;
+                }
+                let reply = home.take_pairs(req).await.map(|r| r.into_inner());
+                if let (Some(p), Ok(r)) = (&pace, &reply) {
+                    p.recv(r.encoded_len()).await;
+                }
+                reply
+            }
         };
         let mut in_flight: VecDeque<JoinHandle<Result<(), NodeError>>> = VecDeque::new();
         let mut next = self.rt.spawn(take(self.forks[self.home].clone(), self.node));
@@ -154,6 +196,7 @@ impl Worker {
                 }
                 let (light, element) = ((pair / elements) as u32, (pair % elements) as u32);
                 let r = trace_pair(&mut self.view, &mut scratch, light, element)?;
+                self.compute();
                 self.mine.pairs += 1;
                 self.mine.tally = self.mine.tally.add(r.tally);
                 let owner = self.owner_of(element);
@@ -172,7 +215,7 @@ impl Worker {
                     self.rt.block_on(t).map_err(|e| NodeError::Worker(e.to_string()))??;
                 }
             }
-            in_flight.push_back(self.rt.spawn(send_deposits(self.forks.clone(), round1, round2)));
+            in_flight.push_back(self.rt.spawn(send_deposits(self.forks.clone(), self.pace.clone(), round1, round2)));
             self.publish();
         }
         for t in in_flight {
@@ -207,6 +250,7 @@ impl Worker {
                 let c = shade_pixel(&mut self.view, &mut scratch, &rig, x, y)?;
                 rgb.extend([c.0[0] as f32, c.0[1] as f32, c.0[2] as f32]);
             }
+            self.compute();
             if !self.row_delay.is_zero() {
                 std::thread::sleep(self.row_delay);
             }
@@ -222,7 +266,9 @@ impl Worker {
                 self.publish();
             }
             let req = SubmitRowsRequest { node: self.node, subscreen: s.id, rows: std::mem::take(&mut rows), last };
+            let sent = req.encoded_len();
             let reply = self.rt.block_on(host.submit_rows(req)).map_err(NodeError::rpc("SubmitRows"))?.into_inner();
+            self.link_blocking(sent, reply.encoded_len());
             since = Instant::now();
             if let Some(from) = reply.give_back_from {
                 if from >= y && from < end {
@@ -241,6 +287,7 @@ impl Worker {
 /// Sends a batch's deposits: every round-1 message, then every round-2 message.
 async fn send_deposits(
     forks: Vec<ForkClient<Channel>>,
+    pace: Option<Arc<NodePace>>,
     round1: BTreeMap<usize, Vec<PairDeposits>>,
     round2: BTreeMap<usize, Vec<PairDeposits>>,
 ) -> Result<(), NodeError> {
@@ -250,7 +297,14 @@ async fn send_deposits(
                 return Err(NodeError::Convert(format!("fork {fork} of {}", forks.len())));
             };
             let mut c = client.clone();
-            c.deposit(DepositRequest { pairs }).await.map_err(NodeError::rpc("Deposit"))?;
+            let req = DepositRequest { pairs };
+            if let Some(p) = &pace {
+                p.send(req.encoded_len()).await;
+            }
+            let reply = c.deposit(req).await.map_err(NodeError::rpc("Deposit"))?.into_inner();
+            if let Some(p) = &pace {
+                p.recv(reply.encoded_len()).await;
+            }
         }
     }
     Ok(())

@@ -17,6 +17,8 @@ pub(super) struct Grid {
     pub dims: [u32; 3],
     /// Patch ids of each cell, ascending.
     pub cells: Vec<Vec<u32>>,
+    /// Triangle/cell overlap tests made.
+    pub box_tests: u64,
 }
 
 /// Padded scene bounds: a little margin everywhere, and some thickness on flat axes.
@@ -72,6 +74,7 @@ pub(super) fn build(scene: &Scene, mesh: &Mesh) -> Grid {
         }
     };
     let ncells = dims.iter().map(|&d| d as usize).product::<usize>();
+    let box_tests = std::sync::atomic::AtomicU64::new(0);
     let mut pairs: Vec<(u32, u32)> = mesh
         .patches
         .par_iter()
@@ -90,6 +93,8 @@ pub(super) fn build(scene: &Scene, mesh: &Mesh) -> Grid {
             let (bmin, bmax) = (bb.min - eps, bb.max + eps);
             let lo = [cell_of(bmin.x, 0), cell_of(bmin.y, 1), cell_of(bmin.z, 2)];
             let hi = [cell_of(bmax.x, 0), cell_of(bmax.y, 1), cell_of(bmax.z, 2)];
+            let tests = (0..3).map(|a| (hi[a] - lo[a] + 1) as u64).product::<u64>();
+            box_tests.fetch_add(tests, std::sync::atomic::Ordering::Relaxed);
             let mut out = Vec::new();
             for z in lo[2]..=hi[2] {
                 for y in lo[1]..=hi[1] {
@@ -113,5 +118,6 @@ pub(super) fn build(scene: &Scene, mesh: &Mesh) -> Grid {
     for (c, p) in pairs {
         cells[c as usize].push(p);
     }
-    Grid { min: b.min, max: b.max, dims, cells }
+    let box_tests = box_tests.into_inner();
+    Grid { min: b.min, max: b.max, dims, cells, box_tests }
 }

@@ -79,6 +79,22 @@ pub struct PreparedScene {
     pub vertex_positions: Vec<Vec3>,
     /// Wall-clock seconds spent preparing.
     pub preprocess_s: f64,
+    /// Operations preprocessing did (for the throttling layer's cost model).
+    pub ops: PrepareOps,
+}
+
+/// What preprocessing did, counted: the cost model of the throttling layer prices it as
+/// the paper's fork processor would have spent it. Deterministic for a scene.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct PrepareOps {
+    /// Triangle/subspace overlap tests.
+    pub box_tests: u64,
+    /// Elements made.
+    pub elements: u64,
+    /// Vertices welded.
+    pub vertices: u64,
+    /// 2 KB blocks packed.
+    pub blocks: u64,
 }
 
 /// Prepares `scene` with the plan derived from it.
@@ -106,11 +122,18 @@ pub fn prepare_with_plan(scene: &Scene, plan: EffectsPlan) -> Result<PreparedSce
         energy_quantum: crate::energy::quantum_for(&scene.lights),
         plan,
     };
+    let ops = PrepareOps {
+        box_tests: grid.box_tests,
+        elements: mesh.elements.len() as u64,
+        vertices: mesh.vertex_positions.len() as u64,
+        blocks: packed.blocks.len() as u64,
+    };
     Ok(PreparedScene {
         name: scene.name.clone(),
         header: Arc::new(header),
         blocks: packed.blocks,
         elements: mesh.elements,
+        ops,
         vertex_positions: mesh.vertex_positions,
         preprocess_s: start.elapsed().as_secs_f64(),
     })

@@ -1,5 +1,6 @@
 //! Running the phases against a set of forks, with nodes connecting to our Host service.
 
+use super::emulation::{cpu_share, preprocess_time, process_cpu_s};
 use super::schedule::Scheduler;
 use super::service::{HostService, HostState, Phase};
 use anyhow::{bail, Context};
@@ -15,12 +16,16 @@ use magg_proto::v1::fork_client::ForkClient;
 use magg_proto::v1::host_server::HostServer;
 use magg_proto::v1::{self, GetEnergiesRequest, LoadShardRequest, PutBlocksRequest};
 use magg_proto::PROTOCOL_VERSION;
+use magg_throttle::{Profile, Scheme};
 use std::time::{Duration, Instant};
 use tokio::net::TcpListener;
 use tonic::transport::Channel;
 
 /// Interval of the host's LRT progress polls.
 const LRT_POLL: Duration = Duration::from_millis(25);
+/// The same under a throttled profile, where the poll sets the resolution of the
+/// modelled LRT time (the polls cost the forks nothing there).
+const LRT_POLL_THROTTLED: Duration = Duration::from_millis(5);
 
 /// How to drive a render.
 #[derive(Clone, Debug)]
@@ -35,6 +40,10 @@ pub struct DriveOptions {
     pub nodes: u32,
     /// Give up if a phase makes no progress for this long.
     pub stall_timeout: Duration,
+    /// Hardware profile (DESIGN.md §4), sent to every fork and node.
+    pub profile: Profile,
+    /// The paper's schedule or ours.
+    pub scheme: Scheme,
 }
 
 /// Accepted connections with Nagle's algorithm off: the protocol is many small
@@ -66,11 +75,19 @@ pub async fn drive(
     progress: &dyn Progress,
 ) -> anyhow::Result<RenderOutput> {
     let t_start = Instant::now();
+    let cpu0 = process_cpu_s();
     let h = prepared.header.clone();
     let f = opts.forks.len();
     if f == 0 {
         bail!("no fork to render with");
     }
+    let throttled = !opts.profile.is_native();
+    let wire_profile = if throttled { opts.profile.to_wire() } else { String::new() };
+    // Preprocessing as the emulated machine spends it (the real one took
+    // `prepared.preprocess_s`, a thousandth of that or less).
+    let preprocess_model =
+        if throttled { preprocess_time(&opts.profile, opts.scheme, prepared, f as u32) } else { Duration::ZERO };
+    tokio::time::sleep(opts.profile.dilate(preprocess_model)).await;
     let mut forks = Vec::with_capacity(f);
     for addr in &opts.forks {
         forks.push(connect_fork(addr).await?);
@@ -91,6 +108,8 @@ pub async fn drive(
             fork_addrs: opts.forks.clone(),
             header: Some(wire_header.clone()),
             blocks,
+            profile: wire_profile.clone(),
+            nodes: opts.nodes,
         };
         fork.load_shard(req).await.with_context(|| format!("loading the shard of fork {i} at {}", opts.forks[i]))?;
     }
@@ -103,6 +122,8 @@ pub async fn drive(
         header: wire_header,
         fork_addrs: opts.forks.clone(),
         cache_blocks: opts.cache_blocks.unwrap_or(0),
+        profile: wire_profile.clone(),
+        scheme: opts.scheme.name().to_string(),
         link_bytes: 0,
         rpcs: 0,
     });
@@ -115,6 +136,10 @@ pub async fn drive(
             let _ = stop_rx.await;
         });
     let server = tokio::spawn(server);
+
+    // Preprocessing ends when every shard is loaded.
+    let preprocess_wall = t_start.elapsed().as_secs_f64();
+    let poll = if throttled { LRT_POLL_THROTTLED } else { LRT_POLL };
 
     // --- LRT: wait for every fork's pairs.
     let t_lrt = Instant::now();
@@ -149,7 +174,7 @@ pub async fn drive(
                 opts.stall_timeout
             );
         }
-        tokio::time::sleep(LRT_POLL).await; // one RPC per fork per poll: keep it gentle
+        tokio::time::sleep(poll).await; // one RPC per fork per poll: keep it gentle
     }
     progress.end();
     let lrt_s = t_lrt.elapsed().as_secs_f64();
@@ -160,6 +185,7 @@ pub async fn drive(
     let n_el = h.counts.elements as usize;
     let mut element_flux: Vec<Fixed> = vec![[0; 3]; n_el];
     let (mut dma_bytes, mut gbus_bytes, mut fork_rpcs, mut fork_link) = (0, 0, 0, 0);
+    let mut busy = EmulatedBusy { preprocess_s: preprocess_model.as_secs_f64(), ..Default::default() };
     for (i, fork) in forks.iter_mut().enumerate() {
         let r = fork.get_energies(GetEnergiesRequest { summary_only: false }).await?.into_inner();
         for e in r.energies {
@@ -230,7 +256,12 @@ pub async fn drive(
         gbus_bytes += r.gbus_bytes;
         fork_rpcs += r.rpcs;
         fork_link += r.link_bytes;
+        busy.fork_s += r.service_busy_s;
+        busy.dma_s += r.dma_busy_s;
+        busy.gbus_s += r.gbus_busy_s;
     }
+    let wall_s = t_start.elapsed().as_secs_f64();
+    let cpu1 = process_cpu_s();
     // Graceful shutdown waits for clients to hang up; a client that never does (a stuck
     // or hostile peer) must not keep the host alive: give them a moment, then stop.
     let _ = stop_tx.send(());
@@ -270,6 +301,8 @@ pub async fn drive(
         });
         light_rays += r.light_rays;
         view_rays += r.view_rays;
+        busy.node_cpu_s += r.cpu_busy_s;
+        busy.link_s += r.link_busy_s;
         per_node.push(NodeStats {
             node: i as u32,
             home_fork: i as u32 % f as u32,
@@ -283,6 +316,8 @@ pub async fn drive(
                 view_rays: r.view_rays,
                 shades: r.shades,
             },
+            cpu_s: r.cpu_busy_s,
+            link_s: r.link_busy_s,
         });
     }
     let stats = RenderStats {
@@ -291,8 +326,22 @@ pub async fn drive(
         nodes: st.nodes.len() as u32,
         forks: f as u32,
         cache_blocks: opts.cache_blocks,
-        profile: "native".into(),
-        stages: Stages::measured(prepared.preprocess_s, lrt_s, interp_s, vrt_s, t_start),
+        profile: opts.profile.name.clone(),
+        scheme: opts.scheme.name().into(),
+        stages: if throttled {
+            // Modelled seconds: every real duration divided by the dilation.
+            let d = opts.profile.dilation;
+            let pre = (prepared.preprocess_s + preprocess_wall) / d;
+            Stages {
+                preprocess_s: pre,
+                lrt_s: lrt_s / d,
+                interp_s: interp_s / d,
+                vrt_s: vrt_s / d,
+                total_s: (prepared.preprocess_s + wall_s) / d,
+            }
+        } else {
+            Stages::measured(prepared.preprocess_s, lrt_s, interp_s, vrt_s, t_start)
+        },
         cache: cache.into(),
         traffic: Traffic { link_bytes: st.link_bytes + fork_link, dma_bytes, gbus_bytes, rpcs: st.rpcs + fork_rpcs },
         work: Work { pairs: total_pairs, tiles: n_tiles, redivisions, light_rays, view_rays },
@@ -300,6 +349,11 @@ pub async fn drive(
         counts: h.counts,
         light,
         per_node,
+        emulation: throttled.then(|| Emulation {
+            dilation: opts.profile.dilation,
+            real_cpu_share: cpu_share(cpu0, cpu1, wall_s),
+            busy,
+        }),
     };
     Ok(RenderOutput { frame, element_flux, vertex_irradiance, stats })
 }

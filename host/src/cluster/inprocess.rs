@@ -27,6 +27,10 @@ pub struct InProcessOptions {
     pub subscreen: u32,
     /// Abort a phase that makes no progress for this long.
     pub stall_timeout: Duration,
+    /// Hardware profile (DESIGN.md §4).
+    pub profile: magg_throttle::Profile,
+    /// The paper's schedule or ours.
+    pub scheme: magg_throttle::Scheme,
 }
 
 /// Runs the cluster and returns the render.
@@ -42,11 +46,14 @@ pub fn render_in_process(
     let mut fork_addrs = opts.forks_at.clone();
     let mut fork_tasks = Vec::new();
     if fork_addrs.is_empty() {
+        // The forks of this process share one G-bus, as the paper's shared one.
+        let gbus = std::sync::Arc::new(magg_throttle::Resource::new());
         for _ in 0..opts.forks.max(1) {
             let listener = rt.block_on(TcpListener::bind("127.0.0.1:0")).context("binding a fork port on 127.0.0.1")?;
             fork_addrs.push(listener.local_addr()?.to_string());
             let mut stop = stop_tx.subscribe();
-            fork_tasks.push(rt.spawn(magg_fork::serve(listener, async move {
+            let service = magg_fork::ForkService::with_hardware(magg_fork::ForkHardware::new(gbus.clone(), true));
+            fork_tasks.push(rt.spawn(magg_fork::serve_service(service, listener, async move {
                 let _ = stop.recv().await;
             })));
         }
@@ -69,6 +76,7 @@ pub fn render_in_process(
                 name: format!("in-process-{i}"),
                 backoff: magg_node::Backoff::default(),
                 row_delay: Duration::ZERO,
+                profile: None,
             };
             let handle = rt.handle().clone();
             std::thread::Builder::new()
@@ -84,6 +92,8 @@ pub fn render_in_process(
         subscreen: opts.subscreen,
         nodes: opts.nodes,
         stall_timeout: opts.stall_timeout,
+        profile: opts.profile.clone(),
+        scheme: opts.scheme,
     };
     let result = rt.block_on(drive(prepared, &drive_opts, listener, progress));
     let mut node_err = None;

@@ -58,6 +58,10 @@ pub struct HostState {
     pub header: v1::SceneHeader,
     /// Fork addresses.
     pub fork_addrs: Vec<String>,
+    /// Hardware profile sent to nodes (`Profile::to_wire`; empty: native).
+    pub profile: String,
+    /// Schedule sent to nodes (`paper` or `magg`).
+    pub scheme: String,
     /// Cache blocks per node (0 = unlimited).
     pub cache_blocks: u64,
     /// Bytes of node <-> host messages (the link path).
@@ -153,6 +157,8 @@ impl Host for HostService {
             fork_addrs: s.fork_addrs.clone(),
             header: Some(s.header.clone()),
             cache_blocks: s.cache_blocks,
+            profile: s.profile.clone(),
+            scheme: s.scheme.clone(),
         }))
     }
 

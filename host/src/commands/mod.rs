@@ -3,3 +3,4 @@
 pub mod accuracy;
 pub mod info;
 pub mod render;
+pub mod sweep;

@@ -37,12 +37,13 @@ pub fn run(cfg: RenderConfig) -> anyhow::Result<()> {
                 cache_blocks: cfg.cache_blocks,
                 subscreen: cfg.subscreen,
                 stall_timeout: *stall_timeout,
+                profile: cfg.profile.clone(),
+                scheme: cfg.scheme,
             };
             render_in_process(&prepared, &cluster, &bars)?
         }
     };
-    let mut stats = out.stats;
-    stats.profile = cfg.profile.clone();
+    let stats = out.stats;
 
     images::write(&out.frame, &cfg.out.0, cfg.out.1, scene.settings.exposure)?;
     if let Some((path, fmt)) = &cfg.linear {

@@ -1,0 +1,190 @@
+//! One run of the sweep: a `magg-host render` child process (in-process cluster) or a
+//! `deploy/local-cluster.sh` multi-process cluster, with its stats read back into a row.
+
+use anyhow::{bail, Context};
+use serde_json::Value;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+/// Where one run happens.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum Runner {
+    /// `magg-host render` as a child process: forks and nodes in its process.
+    InProcess,
+    /// `deploy/local-cluster.sh` at this path: forks and nodes as separate processes.
+    MultiProcess(PathBuf),
+}
+
+/// The shape of one run.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Shape {
+    /// Schedule (`paper` or `magg`).
+    pub scheme: String,
+    /// Forks.
+    pub forks: u32,
+    /// Nodes.
+    pub nodes: u32,
+    /// Cache blocks per node.
+    pub cache_blocks: u32,
+    /// Dilation used.
+    pub dilation: f64,
+}
+
+/// The CSV columns, in order.
+pub const COLUMNS: &[&str] = &[
+    "scheme",
+    "profile",
+    "mode",
+    "forks",
+    "nodes",
+    "cache_blocks",
+    "dilation",
+    "real_cpu_share",
+    "preprocess_s",
+    "lrt_s",
+    "interp_s",
+    "vrt_s",
+    "total_s",
+    "hits",
+    "misses",
+    "hit_ratio",
+    "link_bytes",
+    "dma_bytes",
+    "gbus_bytes",
+    "rpcs",
+    "pairs",
+    "tiles",
+    "redivisions",
+    "node_cpu_s",
+    "link_busy_s",
+    "dma_busy_s",
+    "gbus_busy_s",
+    "fork_busy_s",
+];
+
+/// One measured run: its shape and the values of [`COLUMNS`].
+#[derive(Clone, Debug)]
+pub struct Row {
+    /// The shape.
+    pub shape: Shape,
+    /// Values by column name, as written to the CSV.
+    pub values: Vec<(String, String)>,
+}
+
+impl Row {
+    /// A numeric column.
+    pub fn num(&self, column: &str) -> f64 {
+        self.values.iter().find(|(k, _)| k == column).and_then(|(_, v)| v.parse().ok()).unwrap_or(f64::NAN)
+    }
+
+    /// The CSV line.
+    pub fn csv(&self) -> String {
+        self.values.iter().map(|(_, v)| v.as_str()).collect::<Vec<_>>().join(",")
+    }
+
+    /// Reads a row from a stats JSON file.
+    pub fn from_stats(shape: Shape, stats: &Value) -> Row {
+        let get = |path: &[&str]| -> String {
+            let mut v = stats;
+            for p in path {
+                v = &v[*p];
+            }
+            match v {
+                Value::Null => String::new(),
+                Value::String(s) => s.clone(),
+                other => other.to_string(),
+            }
+        };
+        let values = COLUMNS
+            .iter()
+            .map(|&c| {
+                let v = match c {
+                    "scheme" => shape.scheme.clone(),
+                    "forks" => shape.forks.to_string(),
+                    "nodes" => get(&["nodes"]),
+                    "cache_blocks" => shape.cache_blocks.to_string(),
+                    "dilation" => shape.dilation.to_string(),
+                    "real_cpu_share" => get(&["emulation", "real_cpu_share"]),
+                    "preprocess_s" | "lrt_s" | "interp_s" | "vrt_s" | "total_s" => get(&["stages", c]),
+                    "hits" | "misses" | "hit_ratio" => get(&["cache", c]),
+                    "link_bytes" | "dma_bytes" | "gbus_bytes" | "rpcs" => get(&["traffic", c]),
+                    "pairs" | "tiles" | "redivisions" => get(&["work", c]),
+                    "node_cpu_s" => get(&["emulation", "busy", "node_cpu_s"]),
+                    "link_busy_s" => get(&["emulation", "busy", "link_s"]),
+                    "dma_busy_s" => get(&["emulation", "busy", "dma_s"]),
+                    "gbus_busy_s" => get(&["emulation", "busy", "gbus_s"]),
+                    "fork_busy_s" => get(&["emulation", "busy", "fork_s"]),
+                    other => get(&[other]),
+                };
+                (c.to_string(), v)
+            })
+            .collect();
+        Row { shape, values }
+    }
+}
+
+/// Runs one render of `scene` with `shape`, writing its stats to `stats` and its image
+/// to `image`; `extra` are further `render` flags (e.g. `--width 200`).
+pub fn run_one(
+    runner: &Runner,
+    scene: &Path,
+    profile: &str,
+    shape: &Shape,
+    image: &Path,
+    stats: &Path,
+    extra: &[String],
+) -> anyhow::Result<Row> {
+    let flags: Vec<String> = [
+        "--stats".to_string(),
+        stats.display().to_string(),
+        "--cache-blocks".into(),
+        shape.cache_blocks.to_string(),
+        "--profile".into(),
+        profile.to_string(),
+        "--dilation".into(),
+        shape.dilation.to_string(),
+        "--scheme".into(),
+        shape.scheme.clone(),
+        "-q".into(),
+    ]
+    .into_iter()
+    .chain(extra.iter().cloned())
+    .collect();
+    let mut cmd = match runner {
+        Runner::InProcess => {
+            let mut c = Command::new(std::env::current_exe().context("locating magg-host")?);
+            c.arg("render").arg(scene).arg("--out").arg(image);
+            c.args(["--nodes", &shape.nodes.to_string(), "--forks", &shape.forks.to_string()]);
+            c.args(&flags);
+            c
+        }
+        Runner::MultiProcess(script) => {
+            let mut c = Command::new("bash");
+            c.arg(script).arg(scene).arg(image);
+            c.args(["--forks", &shape.forks.to_string(), "--nodes", &shape.nodes.to_string(), "--"]);
+            c.args(&flags);
+            if let Some(dir) = std::env::current_exe().ok().and_then(|p| p.parent().map(Path::to_path_buf)) {
+                c.env("MAGG_BIN", dir);
+            }
+            c
+        }
+    };
+    let out = cmd.output().context("starting a sweep run")?;
+    if !out.status.success() {
+        bail!(
+            "run {shape:?} failed ({}): {}",
+            out.status,
+            String::from_utf8_lossy(&out.stderr).lines().last().unwrap_or("")
+        );
+    }
+    let text = std::fs::read_to_string(stats).with_context(|| format!("reading {}", stats.display()))?;
+    let json: Value = serde_json::from_str(&text).with_context(|| format!("parsing {}", stats.display()))?;
+    let mut row = Row::from_stats(shape.clone(), &json);
+    let mode = if matches!(runner, Runner::InProcess) { "in-process" } else { "multi-process" };
+    for (k, v) in row.values.iter_mut() {
+        if k == "mode" {
+            *v = mode.to_string();
+        }
+    }
+    Ok(row)
+}
