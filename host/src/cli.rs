@@ -38,14 +38,7 @@ pub enum Command {
     /// Ask the gRPC health service at ADDR (HOST:PORT: a magg-fork, a magg-node with
     /// --health-listen, or a host while it renders) and exit 0 when it reports SERVING:
     /// the health check of a container image that has no shell.
-    Probe(ProbeArgs),
-}
-
-/// Arguments of `probe`.
-#[derive(Debug, Args)]
-pub struct ProbeArgs {
-    /// Address to probe (HOST:PORT).
-    pub addr: String,
+    Probe(magg_proto::lifecycle::ProbeArgs),
 }
 
 /// Arguments of `render`.

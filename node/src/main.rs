@@ -48,26 +48,15 @@ struct Args {
     /// More log output.
     #[arg(short, long, action = clap::ArgAction::Count)]
     verbose: u8,
-    /// Instead of running a node: probe a process.
+    /// Instead of serving: probe a process.
     #[command(subcommand)]
-    command: Option<Probe>,
-}
-
-/// `magg-node probe ADDR`.
-#[derive(Debug, clap::Subcommand)]
-enum Probe {
-    /// Ask the gRPC health service at ADDR (HOST:PORT) and exit 0 when it reports
-    /// SERVING: the health check of a container image that has no shell.
-    Probe {
-        /// Address of a magg-fork, magg-node (--health-listen) or magg-host.
-        addr: String,
-    },
+    command: Option<magg_proto::lifecycle::ProbeCommand>,
 }
 
 fn main() -> ExitCode {
     let args = Args::parse();
-    if let Some(Probe::Probe { addr }) = &args.command {
-        return magg_proto::lifecycle::probe_command("magg-node", addr);
+    if let Some(magg_proto::lifecycle::ProbeCommand::Probe(p)) = &args.command {
+        return magg_proto::lifecycle::probe_command("magg-node", &p.addr);
     }
     let level = match args.verbose {
         0 => "warn",

@@ -121,6 +121,22 @@ fn with_sources(e: &dyn std::error::Error) -> String {
     text
 }
 
+/// Arguments of the `probe` subcommand of every binary.
+#[derive(Debug, clap::Args)]
+pub struct ProbeArgs {
+    /// Address to probe (HOST:PORT): a magg-fork, a magg-node with --health-listen, or a
+    /// magg-host while it renders.
+    pub addr: String,
+}
+
+/// The subcommands of a binary whose only one is `probe` (magg-fork, magg-node).
+#[derive(Debug, clap::Subcommand)]
+pub enum ProbeCommand {
+    /// Ask the gRPC health service at ADDR and exit 0 when it reports SERVING: the health
+    /// check of a container image that has no shell.
+    Probe(ProbeArgs),
+}
+
 /// [`probe`] from synchronous code, with a 3-second limit: `Ok` only when the process at
 /// `addr` reports SERVING.
 pub fn probe_blocking(addr: &str) -> Result<(), ProbeError> {
@@ -197,4 +213,25 @@ pub fn exit_on_signal(program: &'static str, code: i32) -> std::io::Result<()> {
         std::process::exit(code);
     })?;
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[tokio::test]
+    async fn probe_reads_serving_and_names_an_address_that_does_not_answer() {
+        let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
+        let addr = listener.local_addr().unwrap().to_string();
+        let (stop, stopped) = tokio::sync::oneshot::channel::<()>();
+        let server = tokio::spawn(serve_health(listener, async {
+            stopped.await.ok();
+        }));
+        assert_eq!(probe(&addr, Duration::from_secs(3)).await.unwrap(), ServingStatus::Serving);
+        stop.send(()).unwrap();
+        server.await.unwrap().unwrap();
+        let err = probe(&addr, Duration::from_secs(1)).await.unwrap_err();
+        assert!(matches!(err, ProbeError::Connect { .. }), "{err}");
+        assert!(err.to_string().contains(&addr), "{err}");
+    }
 }
