@@ -185,7 +185,7 @@ fn swarm(test: &str) -> Option<bool> {
         "active" => return Some(false),
         "inactive" => {}
         other => {
-            eprintln!("SKIPPED: the engine's swarm is {other:?}, neither active nor inactive: {test} did not run");
+            skipped(&format!("the engine's swarm is {other:?}, neither active nor inactive: {test} did not run"));
             return None;
         }
     }
@@ -194,7 +194,7 @@ fn swarm(test: &str) -> Option<bool> {
     match init {
         Ok(_) => Some(true),
         Err(e) => {
-            eprintln!("SKIPPED: docker swarm init failed ({}): {test} did not run", e.lines().last().unwrap_or(""));
+            skipped(&format!("docker swarm init failed ({}): {test} did not run", e.lines().last().unwrap_or("")));
             None
         }
     }

@@ -36,11 +36,11 @@ fn kubernetes_manifests_pass_the_offline_schema_validator() {
     let files = manifests();
     assert!(files.len() >= 3, "deploy/k8s has {} manifests", files.len());
     if let Err(e) = output(Command::new("kubernetes-validate").arg("--version")) {
-        eprintln!(
-            "SKIPPED: kubernetes-validate is not installed (pip install kubernetes-validate): {}; \
+        magg_tests::docker::skipped(&format!(
+            "kubernetes-validate is not installed (pip install kubernetes-validate): {}; \
              kubernetes_manifests_pass_the_offline_schema_validator did not run",
             e.lines().next().unwrap_or("")
-        );
+        ));
         return;
     }
     let result = output(Command::new("kubernetes-validate").args(["--strict", "--quiet"]).args(&files));

@@ -9,6 +9,13 @@ use std::path::Path;
 use std::process::{Command, Output};
 use std::time::{Duration, Instant};
 
+/// Prints a `SKIPPED: ...` line straight to the process's stderr, past the test harness's
+/// output capture, so that a skipped test shows in every `cargo test` log.
+pub fn skipped(message: &str) {
+    use std::io::Write;
+    let _ = writeln!(std::io::stderr(), "SKIPPED: {message}");
+}
+
 /// Runs `cmd` and returns its stdout, or a message with its stderr when it fails.
 pub fn output(cmd: &mut Command) -> Result<String, String> {
     let what = format!("{cmd:?}");
@@ -39,7 +46,7 @@ pub fn engine(test: &str) -> Option<()> {
         Ok(_) => Some(()),
         Err(e) => {
             let reason = e.lines().filter(|l| !l.trim().is_empty()).last().unwrap_or("").to_string();
-            eprintln!("SKIPPED: no Docker engine (docker info failed: {reason}): {test} did not run");
+            skipped(&format!("no Docker engine (docker info failed: {reason}): {test} did not run"));
             None
         }
     }
@@ -55,7 +62,7 @@ pub fn compose_client(test: &str) -> Option<Vec<String>> {
             return Some(client.iter().map(|s| s.to_string()).collect());
         }
     }
-    eprintln!("SKIPPED: neither `docker compose` nor `docker-compose` runs: {test} did not run");
+    skipped(&format!("neither `docker compose` nor `docker-compose` runs: {test} did not run"));
     None
 }
 
