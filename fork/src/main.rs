@@ -3,6 +3,7 @@
 //!
 //! ```text
 //! magg-fork --listen 0.0.0.0:7100 -v
+//! magg-fork probe 127.0.0.1:7100     # exit 0 when that fork's health service says SERVING
 //! ```
 
 use anyhow::Context;
@@ -16,10 +17,11 @@ use std::process::ExitCode;
 /// (`magg-host render --forks-at ADDR,...`); until then every request but LoadShard is
 /// refused. Stops on Ctrl-C or SIGTERM, finishing the requests in flight.
 #[derive(Debug, Parser)]
-#[command(name = "magg-fork", version)]
+#[command(name = "magg-fork", version, args_conflicts_with_subcommands = true)]
 struct Args {
-    /// Address to listen on for gRPC (HOST:PORT; port 0 picks a free port).
-    #[arg(long, default_value = "127.0.0.1:7100")]
+    /// Address to listen on for gRPC (HOST:PORT; port 0 picks a free port). The fork's
+    /// services and the standard gRPC health service are served there.
+    #[arg(long, default_value = "127.0.0.1:7100", env = "MAGG_FORK_LISTEN")]
     listen: SocketAddr,
     /// Hardware profile (DESIGN.md §4): a built-in name (native, magg1993) or a profile
     /// file. The host sends the profile of each render with the shard; with this flag the
@@ -29,10 +31,16 @@ struct Args {
     /// More log output (-v: debug, -vv: trace); RUST_LOG overrides.
     #[arg(short, long, action = clap::ArgAction::Count)]
     verbose: u8,
+    /// Instead of serving: probe a process.
+    #[command(subcommand)]
+    command: Option<magg_proto::lifecycle::ProbeCommand>,
 }
 
 fn main() -> ExitCode {
     let args = Args::parse();
+    if let Some(magg_proto::lifecycle::ProbeCommand::Probe(p)) = &args.command {
+        return magg_proto::lifecycle::probe_command("magg-fork", &p.addr);
+    }
     init_tracing(args.verbose);
     match run(args) {
         Ok(()) => ExitCode::SUCCESS,
@@ -68,37 +76,10 @@ fn run(args: Args) -> anyhow::Result<()> {
             hw = hw.pinned_to(&profile.name);
         }
         let service = magg_fork::ForkService::with_hardware(hw);
-        magg_fork::serve_service(service, listener, shutdown_signal()).await.context("serving")?;
+        magg_fork::serve_service(service, listener, magg_proto::lifecycle::shutdown_signal())
+            .await
+            .context("serving")?;
         tracing::info!("fork stopped");
         Ok(())
     })
-}
-
-/// Completes on Ctrl-C or (on Unix) SIGTERM.
-async fn shutdown_signal() {
-    let ctrl_c = async {
-        if let Err(e) = tokio::signal::ctrl_c().await {
-            tracing::warn!("cannot wait for Ctrl-C: {e}");
-            std::future::pending::<()>().await;
-        }
-    };
-    #[cfg(unix)]
-    let term = async {
-        match tokio::signal::unix::signal(tokio::signal::unix::SignalKind::terminate()) {
-            Ok(mut s) => {
-                s.recv().await;
-            }
-            Err(e) => {
-                tracing::warn!("cannot wait for SIGTERM: {e}");
-                std::future::pending::<()>().await;
-            }
-        }
-    };
-    #[cfg(not(unix))]
-    let term = std::future::pending::<()>();
-    tokio::select! {
-        _ = ctrl_c => {}
-        _ = term => {}
-    }
-    tracing::info!("shutting down");
 }

@@ -1,5 +1,5 @@
-//! Serving the `Fork` service: the tonic server with the fork's message size limits, on a
-//! listener the caller binds (so tests and the embedded cluster can use port 0).
+//! Serving the `Fork` service (and gRPC health): the tonic server with the fork's message
+//! size limits, on a listener the caller binds (so tests and the embedded cluster can use port 0).
 
 use crate::service::ForkService;
 use magg_proto::v1::fork_server::ForkServer;
@@ -23,7 +23,8 @@ pub async fn serve(listener: TcpListener, shutdown: impl Future<Output = ()>) ->
     serve_service(ForkService::new(), listener, shutdown).await
 }
 
-/// Serves `service` on `listener` until `shutdown` completes.
+/// Serves `service` on `listener` until `shutdown` completes, with the standard gRPC
+/// health service beside it (SERVING from the start: a fork is ready for its shard).
 pub async fn serve_service(
     service: ForkService,
     listener: TcpListener,
@@ -36,10 +37,13 @@ pub async fn serve_service(
             let _ = s.set_nodelay(true);
         })
     });
+    let (health, health_service) = magg_proto::lifecycle::health_service();
+    health.set_serving::<ForkServer<ForkService>>().await;
     tonic::transport::Server::builder()
         .initial_stream_window_size(Some(4 << 20))
         .initial_connection_window_size(Some(16 << 20))
         .tcp_nodelay(true)
+        .add_service(health_service)
         .add_service(fork_server(service))
         .serve_with_incoming_shutdown(incoming, shutdown)
         .await

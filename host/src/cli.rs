@@ -39,6 +39,10 @@ pub enum Command {
     /// hardware profile over nodes x cache blocks x forks x schedule; writes sweep.csv,
     /// one PNG per figure and a markdown table (docs/EXPERIMENTS.md).
     Sweep(crate::commands::sweep::SweepArgs),
+    /// Ask the gRPC health service at ADDR (HOST:PORT: a magg-fork, a magg-node with
+    /// --health-listen, or a host while it renders) and exit 0 when it reports SERVING:
+    /// the health check of a container image that has no shell.
+    Probe(magg_proto::lifecycle::ProbeArgs),
 }
 
 /// Arguments of `render`.
@@ -95,13 +99,13 @@ pub struct RenderArgs {
     pub embedded: bool,
     /// Use these running magg-fork processes (comma-separated HOST:PORT) instead of
     /// starting forks in this process.
-    #[arg(long, value_delimiter = ',')]
+    #[arg(long, value_delimiter = ',', env = "MAGG_FORKS_AT")]
     pub forks_at: Vec<String>,
-    /// Address to serve nodes on (HOST:PORT; port 0 picks a free one).
-    #[arg(long, default_value = "127.0.0.1:0")]
+    /// Address to serve nodes (and gRPC health) on (HOST:PORT; port 0 picks a free one).
+    #[arg(long, default_value = "127.0.0.1:0", env = "MAGG_HOST_LISTEN")]
     pub listen: String,
     /// Start no node in this process: wait for magg-node processes to register.
-    #[arg(long)]
+    #[arg(long, env = "MAGG_EXTERNAL_NODES")]
     pub external_nodes: bool,
     /// Abort when a phase makes no progress for this many seconds.
     #[arg(long, default_value_t = 60)]

@@ -23,5 +23,10 @@ pub fn run(cli: cli::Cli) -> anyhow::Result<()> {
         cli::Command::Info(args) => commands::info::run(&args),
         cli::Command::Accuracy(args) => commands::accuracy::run(&args),
         cli::Command::Sweep(args) => commands::sweep::run(&args),
+        cli::Command::Probe(p) => {
+            magg_proto::lifecycle::probe_blocking(&p.addr)?;
+            println!("{}: SERVING", p.addr);
+            Ok(())
+        }
     }
 }

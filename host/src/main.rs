@@ -3,6 +3,7 @@
 //! ```text
 //! magg-host render scenes/cornell.toml --out cornell.png
 //! magg-host info scenes/magg-paper.toml
+//! magg-host probe 127.0.0.1:7000
 //! ```
 
 use clap::Parser;
@@ -10,7 +11,14 @@ use std::process::ExitCode;
 
 fn main() -> ExitCode {
     let cli = magg_host::cli::Cli::parse();
+    if let magg_host::cli::Command::Probe(p) = &cli.command {
+        return magg_proto::lifecycle::probe_command("magg-host", &p.addr);
+    }
     magg_host::logging::init(cli.verbose);
+    // In a container the host is PID 1, which has no default action for SIGTERM.
+    if let Err(e) = magg_proto::lifecycle::exit_on_signal("magg-host", 130) {
+        eprintln!("magg-host: cannot watch for signals: {e}");
+    }
     match magg_host::run(cli) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {

@@ -2,29 +2,35 @@
 //!
 //! ```text
 //! magg-node --host 127.0.0.1:7000 --threads 2
+//! magg-node --host host:7000 --repeat --health-listen 0.0.0.0:7200   # a long-lived service
+//! magg-node probe 127.0.0.1:7200     # exit 0 when that node's health service says SERVING
 //! ```
 
+use anyhow::Context;
 use clap::Parser;
+use std::net::SocketAddr;
 use std::process::ExitCode;
+use std::time::Duration;
 
 /// A magg node processor: pulls (light, element) pairs and subscreens and traces them.
+/// Every flag can also be set by the environment variable named in its help.
 #[derive(Debug, Parser)]
-#[command(name = "magg-node", version, about)]
+#[command(name = "magg-node", version, about, args_conflicts_with_subcommands = true)]
 struct Args {
     /// Host address.
     #[arg(long, default_value = "127.0.0.1:7000", env = "MAGG_HOST")]
     host: String,
     /// Worker threads (cores this node uses).
-    #[arg(long, default_value_t = 1)]
+    #[arg(long, default_value_t = 1, env = "MAGG_THREADS")]
     threads: u32,
     /// Cache size in 2 KB blocks, or "unlimited" (default: what the host says).
-    #[arg(long)]
+    #[arg(long, env = "MAGG_CACHE_BLOCKS")]
     cache_blocks: Option<String>,
     /// Name in the host's logs.
-    #[arg(long, default_value = "node")]
+    #[arg(long, default_value = "node", env = "MAGG_NODE_NAME")]
     name: String,
-    /// Give up connecting after this many seconds.
-    #[arg(long, default_value_t = 30)]
+    /// Give up connecting after this many seconds (with --repeat: try again, forever).
+    #[arg(long, default_value_t = 30, env = "MAGG_CONNECT_TIMEOUT")]
     connect_timeout: u64,
     /// Extra milliseconds per pixel row: emulate a slow node (to watch adaptive
     /// redivision move its unstarted rows to others).
@@ -35,13 +41,28 @@ struct Args {
     /// render that runs another one. Without it, it runs the host's.
     #[arg(long, env = "MAGG_PROFILE")]
     profile: Option<String>,
+    /// After a render, wait for the next host and render again, until stopped (Ctrl-C,
+    /// SIGTERM): a node as a long-lived service (docker compose, a Kubernetes Deployment).
+    /// Without it the node exits when its render is done.
+    #[arg(long, env = "MAGG_REPEAT")]
+    repeat: bool,
+    /// Serve the standard gRPC health service on this address (HOST:PORT), so that the
+    /// node can be health-checked (`magg-node probe ADDR`); a node serves nothing else.
+    #[arg(long, env = "MAGG_HEALTH_LISTEN")]
+    health_listen: Option<SocketAddr>,
     /// More log output.
     #[arg(short, long, action = clap::ArgAction::Count)]
     verbose: u8,
+    /// Instead of serving: probe a process.
+    #[command(subcommand)]
+    command: Option<magg_proto::lifecycle::ProbeCommand>,
 }
 
 fn main() -> ExitCode {
     let args = Args::parse();
+    if let Some(magg_proto::lifecycle::ProbeCommand::Probe(p)) = &args.command {
+        return magg_proto::lifecycle::probe_command("magg-node", &p.addr);
+    }
     let level = match args.verbose {
         0 => "warn",
         1 => "info",
@@ -76,17 +97,42 @@ fn run(args: Args) -> anyhow::Result<()> {
         threads: args.threads,
         cache_blocks,
         name: args.name,
-        backoff: magg_node::Backoff {
-            deadline: std::time::Duration::from_secs(args.connect_timeout),
-            ..Default::default()
-        },
-        row_delay: std::time::Duration::from_millis(args.slow_row_ms),
+        backoff: magg_node::Backoff { deadline: Duration::from_secs(args.connect_timeout), ..Default::default() },
+        row_delay: Duration::from_millis(args.slow_row_ms),
         profile: match &args.profile {
             Some(p) => Some(magg_throttle::Profile::named(p)?.name),
             None => None,
         },
     };
-    let s = magg_node::run(&cfg)?;
-    tracing::info!("node {} done: {} pairs, {} subscreens", s.node, s.pairs, s.tiles);
-    Ok(())
+    // A node keeps no state of its own: on Ctrl-C or SIGTERM it just exits (cleanly: in
+    // a container it is PID 1, which has no default action for SIGTERM).
+    magg_proto::lifecycle::exit_on_signal("magg-node", 0).context("watching for signals")?;
+    let rt = tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(2)
+        .enable_all()
+        .build()
+        .context("starting the runtime")?;
+    if let Some(addr) = args.health_listen {
+        let listener = rt
+            .block_on(tokio::net::TcpListener::bind(addr))
+            .with_context(|| format!("--health-listen {addr}: cannot listen"))?;
+        rt.spawn(async move {
+            if let Err(e) = magg_proto::lifecycle::serve_health(listener, std::future::pending()).await {
+                tracing::warn!("health service on {addr} stopped: {e}");
+            }
+        });
+    }
+    loop {
+        match magg_node::run_with_runtime(rt.handle().clone(), &cfg) {
+            Ok(s) => tracing::info!("node {} done: {} pairs, {} subscreens", s.node, s.pairs, s.tiles),
+            Err(e) if args.repeat => tracing::warn!("render ended with an error: {e}"),
+            Err(e) => return Err(e.into()),
+        }
+        if !args.repeat {
+            return Ok(());
+        }
+        // The host that just finished refuses new registrations until it exits.
+        std::thread::sleep(Duration::from_secs(1));
+        tracing::info!("waiting for the next render from {}", cfg.host);
+    }
 }

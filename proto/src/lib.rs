@@ -14,6 +14,7 @@
 //! ```
 
 pub mod convert;
+pub mod lifecycle;
 
 /// Generated code of package `magg.v1`.
 #[allow(missing_docs, clippy::all)]

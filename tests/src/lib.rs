@@ -18,6 +18,8 @@
 //! assert_eq!((w, h, rgb.len()), (64, 64, 64 * 64 * 3));
 //! ```
 
+pub mod docker;
+
 use std::ffi::OsStr;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};

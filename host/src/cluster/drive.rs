@@ -128,9 +128,12 @@ pub async fn drive(
         rpcs: 0,
     });
     let (stop_tx, stop_rx) = tokio::sync::oneshot::channel::<()>();
+    let (health, health_service) = magg_proto::lifecycle::health_service();
+    health.set_serving::<HostServer<HostService>>().await;
     let server = tonic::transport::Server::builder()
         .initial_stream_window_size(Some(4 << 20))
         .initial_connection_window_size(Some(16 << 20))
+        .add_service(health_service)
         .add_service(HostServer::new(service.clone()).max_decoding_message_size(16 << 20))
         .serve_with_incoming_shutdown(nodelay_incoming(listener), async {
             let _ = stop_rx.await;

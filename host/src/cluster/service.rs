@@ -143,6 +143,9 @@ impl Host for HostService {
             return Err(Status::invalid_argument("node name longer than 256 bytes"));
         }
         let mut s = self.lock();
+        if s.phase == Phase::Done {
+            return Err(Status::unavailable("the render is over: this host takes no more nodes"));
+        }
         if s.nodes.len() >= 65_536 {
             return Err(Status::resource_exhausted("too many nodes registered"));
         }
