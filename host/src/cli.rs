@@ -287,7 +287,8 @@ impl RenderArgs {
         if self.stall_timeout == 0 {
             bail!("--stall-timeout 0: must be at least 1 second");
         }
-        let mut profile = magg_throttle::Profile::named(&self.profile)?;
+        let mut profile =
+            magg_throttle::Profile::named(&self.profile).with_context(|| format!("--profile {}", self.profile))?;
         if let Some(d) = self.dilation {
             if !(d.is_finite() && d > 0.0) {
                 bail!("--dilation {d}: must be a positive number");

@@ -87,3 +87,26 @@ impl Processor {
         self.cpu.pay_blocking(pace.profile.dilate(pace.compute_cost(&delta)));
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn native_profile_has_no_pace() {
+        assert!(NodePace::new(Profile::native()).is_none());
+        assert!(NodePace::new(Profile::named("magg1993").unwrap()).is_some());
+    }
+
+    #[test]
+    fn processor_pays_only_new_operations() {
+        let pace = NodePace::new(Profile::named("magg1993").unwrap().with_dilation(1e-6)).unwrap();
+        let mut cpu = Processor::default();
+        let ops = OpCounters { grid_steps: 1000, ..Default::default() };
+        cpu.pay(&pace, ops);
+        let first = cpu.cpu.busy();
+        cpu.pay(&pace, ops);
+        assert_eq!(cpu.cpu.busy(), first, "the same counts were paid twice");
+        assert!(first > Duration::ZERO);
+    }
+}
