@@ -67,6 +67,15 @@ pub struct RenderArgs {
     /// Write element and vertex energies (CSV) here.
     #[arg(long)]
     pub energy: Option<PathBuf>,
+    /// Save the light pass (element and vertex energies, exactly, with a fingerprint of the
+    /// scene and light settings) to this file, for --load-energy.
+    #[arg(long, value_name = "FILE")]
+    pub save_energy: Option<PathBuf>,
+    /// Skip the light pass: use the energies saved in this file by --save-energy. A file
+    /// made for other geometry, materials, lights or light settings is refused; the
+    /// camera, image size and pixel samples may differ.
+    #[arg(long, value_name = "FILE")]
+    pub load_energy: Option<PathBuf>,
     /// Force every optional effect on, whatever the scene needs (the image is identical;
     /// only the time differs).
     #[arg(long)]
@@ -192,6 +201,10 @@ pub struct RenderConfig {
     pub stats: Option<PathBuf>,
     /// Energy file.
     pub energy: Option<PathBuf>,
+    /// Saved-energy file to write.
+    pub save_energy: Option<PathBuf>,
+    /// Saved-energy file to read instead of running LRT.
+    pub load_energy: Option<PathBuf>,
     /// Force every effect on.
     pub all_effects: bool,
     /// Subscreen edge.
@@ -279,6 +292,8 @@ impl RenderArgs {
             profile: self.profile,
             stats: self.stats,
             energy: self.energy,
+            save_energy: self.save_energy,
+            load_energy: self.load_energy,
             all_effects: self.all_effects,
             subscreen: self.subscreen,
             quiet: self.quiet,

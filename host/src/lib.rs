@@ -10,9 +10,11 @@ pub mod cli;
 pub mod cluster;
 pub mod commands;
 pub mod energy_csv;
+pub mod frames;
 pub mod images;
 pub mod logging;
 pub mod progress;
+pub mod saved_energy;
 pub mod scene_file;
 
 /// Runs a parsed command line.

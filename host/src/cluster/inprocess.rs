@@ -27,6 +27,10 @@ pub struct InProcessOptions {
     pub subscreen: u32,
     /// Abort a phase that makes no progress for this long.
     pub stall_timeout: Duration,
+    /// Energies to use instead of the light pass, and the cameras of the frames.
+    pub sequence: magg_core::render::Sequence,
+    /// Where the host service sends events for a watcher (the live view).
+    pub events: Option<super::events::EventSender>,
 }
 
 /// Runs the cluster and returns the render.
@@ -34,6 +38,7 @@ pub fn render_in_process(
     prepared: &PreparedScene,
     opts: &InProcessOptions,
     progress: &dyn Progress,
+    sink: &mut magg_core::render::FrameSink<'_>,
 ) -> anyhow::Result<RenderOutput> {
     let rt = tokio::runtime::Builder::new_multi_thread().enable_all().build().context("starting the async runtime")?;
     let (stop_tx, _) = tokio::sync::broadcast::channel::<()>(1);
@@ -84,8 +89,10 @@ pub fn render_in_process(
         subscreen: opts.subscreen,
         nodes: opts.nodes,
         stall_timeout: opts.stall_timeout,
+        sequence: opts.sequence.clone(),
+        events: opts.events.clone(),
     };
-    let result = rt.block_on(drive(prepared, &drive_opts, listener, progress));
+    let result = rt.block_on(drive(prepared, &drive_opts, listener, progress, sink));
     let mut node_err = None;
     for t in node_threads {
         match t.join() {
