@@ -109,6 +109,18 @@ pub struct RenderArgs {
     /// rays, 16 pixel samples. See docs/ACCURACY.md.
     #[arg(long, value_enum)]
     pub quality: Option<crate::accuracy::preset::Quality>,
+    /// Serve a live view of the render on this address (HOST:PORT, port 0 picks a free
+    /// one; the URL is printed): the frame filling in, the subscreens by node, the stage
+    /// and a table per node, and the finished image as PNG and EXR.
+    #[arg(long, value_name = "ADDR")]
+    pub view: Option<String>,
+    /// With --view: start rendering only once a page has opened the live view (waits at
+    /// most 10 minutes).
+    #[arg(long, requires = "view")]
+    pub view_wait: bool,
+    /// With --view: keep serving the page this many seconds after the render is done.
+    #[arg(long, value_name = "SECS", default_value_t = 0, requires = "view")]
+    pub view_linger: u64,
     /// Scene overrides: accuracy knobs and output size.
     #[command(flatten)]
     pub knobs: Knobs,
@@ -215,6 +227,8 @@ pub struct RenderConfig {
     pub quality: Option<crate::accuracy::preset::Quality>,
     /// Scene overrides.
     pub knobs: Knobs,
+    /// Live view: address, wait for a page, seconds to linger.
+    pub view: Option<(String, bool, u64)>,
     /// Where the cluster runs.
     pub mode: Mode,
 }
@@ -279,6 +293,9 @@ impl RenderArgs {
         if self.stall_timeout == 0 {
             bail!("--stall-timeout 0: must be at least 1 second");
         }
+        if self.view_linger > 86_400 {
+            bail!("--view-linger {}: at most 86400 seconds", self.view_linger);
+        }
         if self.profile != "native" {
             bail!("--profile {}: only the \"native\" profile exists in this build", self.profile);
         }
@@ -299,6 +316,7 @@ impl RenderArgs {
             quiet: self.quiet,
             quality: self.quality,
             knobs: self.knobs,
+            view: self.view.map(|a| (a, self.view_wait, self.view_linger)),
             mode: if self.embedded {
                 Mode::Embedded
             } else {

@@ -12,6 +12,7 @@ pub mod commands;
 pub mod energy_csv;
 pub mod frames;
 pub mod images;
+pub mod live;
 pub mod logging;
 pub mod progress;
 pub mod saved_energy;

@@ -216,6 +216,9 @@ pub async fn drive(
     let mut frame = magg_core::frame::Frame::new(s.width, s.height);
     for (index, camera) in cameras.iter().enumerate() {
         progress.frame_begins(index, cameras.len());
+        if let Some(tx) = &opts.events {
+            let _ = tx.send(super::events::ClusterEvent::FrameBegins { index, count: cameras.len() });
+        }
         let t_vrt = Instant::now();
         {
             let mut st = service.lock();

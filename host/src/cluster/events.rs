@@ -8,9 +8,17 @@
 use magg_core::vrt::Subscreen;
 use magg_proto::v1;
 
-/// Something the host service saw.
+/// Something the host service saw (or the driver did).
 #[derive(Clone, Debug)]
 pub enum ClusterEvent {
+    /// The viewing pass of frame `index` of `count` starts (sent by the driver, in order
+    /// with the service's events, so that a watcher knows which frame rows belong to).
+    FrameBegins {
+        /// Frame index.
+        index: usize,
+        /// Frames in the render.
+        count: usize,
+    },
     /// A node registered.
     Registered {
         /// Its id.

@@ -7,6 +7,7 @@
 use crate::cli::{Mode, RenderConfig};
 use crate::cluster::{render_in_process, InProcessOptions};
 use crate::frames::{FrameRecord, RunStats};
+use crate::live::LiveView;
 use crate::{energy_csv, frames, images, progress::Bars, saved_energy, scene_file};
 use anyhow::Context;
 use magg_core::fingerprint::EnergyInputs;
@@ -43,6 +44,25 @@ pub fn run(cfg: RenderConfig) -> anyhow::Result<()> {
     };
     let bars = Bars::new(cfg.quiet);
     let exposure = scene.settings.exposure;
+    let live = match &cfg.view {
+        Some((addr, wait, _)) => {
+            let live = LiveView::start(addr)?;
+            eprintln!("live view: {}", live.url());
+            let mode = if cfg.mode == Mode::Embedded { "embedded" } else { "cluster" };
+            let s = &scene.settings;
+            live.begin(&prepared.name, s.width, s.height, exposure, mode, n_frames);
+            if *wait && !live.wait_for_viewer(std::time::Duration::from_secs(600)) {
+                tracing::warn!("no page opened the live view in 10 minutes: rendering anyway");
+            }
+            Some(live)
+        }
+        None => None,
+    };
+    let live_progress = live.as_ref().map(|l| l.progress(&bars, cfg.mode != Mode::Embedded));
+    let progress: &dyn magg_core::progress::Progress = match &live_progress {
+        Some(p) => p,
+        None => &bars,
+    };
     let mut records: Vec<FrameRecord> = Vec::with_capacity(n_frames);
     let mut sink = |index: usize, frame: &Frame, vrt_s: f64| -> Result<(), String> {
         let out = frames::numbered(&cfg.out.0, index, n_frames);
@@ -55,7 +75,7 @@ pub fn run(cfg: RenderConfig) -> anyhow::Result<()> {
         Ok(())
     };
     let out = match &cfg.mode {
-        Mode::Embedded => render::render_sequence(&prepared, &opts, &bars, &sequence, &mut sink)?,
+        Mode::Embedded => render::render_sequence(&prepared, &opts, progress, &sequence, &mut sink)?,
         Mode::Cluster { forks_at, listen, external_nodes, stall_timeout } => {
             let cluster = InProcessOptions {
                 nodes: if *external_nodes { 0 } else { opts.node_count() },
@@ -66,9 +86,9 @@ pub fn run(cfg: RenderConfig) -> anyhow::Result<()> {
                 subscreen: cfg.subscreen,
                 stall_timeout: *stall_timeout,
                 sequence: sequence.clone(),
-                events: None,
+                events: live.as_ref().map(|l| l.cluster_events()),
             };
-            render_in_process(&prepared, &cluster, &bars, &mut sink)?
+            render_in_process(&prepared, &cluster, progress, &mut sink)?
         }
     };
     let mut stats = out.stats;
@@ -108,6 +128,13 @@ pub fn run(cfg: RenderConfig) -> anyhow::Result<()> {
             stats.cache.hit_ratio,
             run.frames.last().map_or_else(|| cfg.out.0.display().to_string(), |f| f.out.clone())
         );
+    }
+    if let (Some(live), Some((_, _, linger))) = (&live, &cfg.view) {
+        live.finish(&out.frame, exposure, &run)?;
+        if *linger > 0 && !cfg.quiet {
+            eprintln!("live view stays up at {} for {linger} s", live.url());
+        }
+        live.linger(*linger);
     }
     Ok(())
 }
