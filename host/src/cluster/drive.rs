@@ -223,7 +223,8 @@ pub async fn drive(
         {
             let mut st = service.lock();
             st.schedule = Some(Scheduler::new(s.width, s.height, tiles.clone()));
-            st.frame_camera = (cameras.len() > 1).then(|| v1::Camera::from(camera));
+            // Nodes hold the header's camera; another one rides on the subscreens.
+            st.frame_camera = (*camera != h.camera).then(|| v1::Camera::from(camera));
             st.phase = Phase::Vrt;
         }
         progress.begin("viewing ray tracing", s.width as u64 * s.height as u64);
