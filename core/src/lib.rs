@@ -24,6 +24,7 @@
 pub mod blocks;
 pub mod camera;
 pub mod energy;
+pub mod fingerprint;
 pub mod frame;
 pub mod geometry;
 pub mod header;

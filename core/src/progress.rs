@@ -8,6 +8,10 @@ pub trait Progress: Sync {
     fn advance(&self, _n: u64) {}
     /// The stage is over.
     fn end(&self) {}
+    /// Frame `index` of `count` starts its viewing pass (more than one frame: a camera path).
+    fn frame_begins(&self, _index: usize, _count: usize) {}
+    /// Node `node` finished subscreen `t`; `px` holds its pixels row by row (for live views).
+    fn subscreen_done(&self, _node: u32, _t: crate::vrt::Subscreen, _px: &[crate::math::Rgb]) {}
 }
 
 /// Reports nothing.

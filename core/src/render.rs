@@ -3,6 +3,9 @@
 //! barriers. Nodes pull pairs and subscreens from shared queues (dynamic load balancing
 //! as in paper §4.4 and §4.6), so every core is busy; the result does not depend on the
 //! number of nodes, the cache size or the order work completes in.
+//!
+//! [`render_sequence`] reuses one light pass for several cameras (a camera path), or
+//! skips it when the energies are given (a saved energy file).
 
 use crate::blocks::{BlockCache, BlockError, BlockSource, MemStore};
 use crate::camera::CameraRig;
@@ -12,6 +15,7 @@ use crate::lrt::{trace_pair, LrtTally};
 use crate::math::Rgb;
 use crate::preprocess::PreparedScene;
 use crate::progress::Progress;
+use crate::scene::Camera;
 use crate::stats::*;
 use crate::trace::TraceScratch;
 use crate::view::SceneView;
@@ -59,6 +63,12 @@ pub enum RenderError {
     /// A worker thread died.
     #[error("a node worker panicked: {0}")]
     Worker(String),
+    /// Given energies do not fit the scene.
+    #[error("the energies do not fit the scene: {0}")]
+    Energies(String),
+    /// The frame sink refused a frame (e.g. an image could not be written).
+    #[error("{0}")]
+    Output(String),
 }
 
 /// What a render produces.
@@ -90,11 +100,6 @@ pub fn subscreens(width: u32, height: u32, edge: u32) -> Vec<Subscreen> {
     v
 }
 
-struct NodeOut {
-    stats: NodeStats,
-    tiles: Vec<(Subscreen, Vec<Rgb>)>,
-}
-
 /// The result of a node worker thread; a panic becomes an error, not a crash.
 fn join_worker<T>(h: std::thread::ScopedJoinHandle<'_, Result<T, BlockError>>) -> Result<T, RenderError> {
     match h.join() {
@@ -103,28 +108,81 @@ fn join_worker<T>(h: std::thread::ScopedJoinHandle<'_, Result<T, BlockError>>) -
     }
 }
 
-/// Renders a prepared scene in this process.
+/// Energies of an earlier light pass (e.g. read back from a saved energy file): given
+/// them, a render skips LRT and interpolation and goes straight to VRT.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Energies {
+    /// Flux per element, fixed point.
+    pub element_flux: Vec<Fixed>,
+    /// Irradiance per vertex (as interpolated from `element_flux`).
+    pub vertex_irradiance: Vec<Rgb>,
+}
+
+impl Energies {
+    /// Checks that the energies fit `header`'s element and vertex counts.
+    pub fn check(&self, header: &crate::header::SceneHeader) -> Result<(), RenderError> {
+        let (e, v) = (header.counts.elements as usize, header.counts.vertices as usize);
+        if self.element_flux.len() != e || self.vertex_irradiance.len() != v {
+            return Err(RenderError::Energies(format!(
+                "{} elements and {} vertices given, the scene has {e} and {v}",
+                self.element_flux.len(),
+                self.vertex_irradiance.len()
+            )));
+        }
+        Ok(())
+    }
+}
+
+/// What a render runs beyond one frame of the scene's camera: energies computed before
+/// (no light pass), and several cameras (one light pass, one viewing pass per camera).
+#[derive(Clone, Debug, Default)]
+pub struct Sequence {
+    /// Energies to use instead of tracing the light pass.
+    pub energies: Option<Arc<Energies>>,
+    /// One frame per camera; empty means one frame of the scene's camera.
+    pub cameras: Vec<Camera>,
+}
+
+impl Sequence {
+    /// The cameras of the frames: `cameras`, or the scene's camera alone.
+    pub fn frame_cameras(&self, scene_camera: &Camera) -> Vec<Camera> {
+        if self.cameras.is_empty() {
+            vec![scene_camera.clone()]
+        } else {
+            self.cameras.clone()
+        }
+    }
+}
+
+/// Receives every finished frame: its index, the frame, and the seconds its viewing pass
+/// took. An error stops the render.
+pub type FrameSink<'a> = dyn FnMut(usize, &Frame, f64) -> Result<(), String> + 'a;
+
+/// Renders a prepared scene in this process: one frame of the scene's camera.
 pub fn render(
     prepared: &PreparedScene,
     opts: &RenderOptions,
     progress: &dyn Progress,
 ) -> Result<RenderOutput, RenderError> {
-    let t_start = Instant::now();
-    let header = prepared.header.clone();
-    let nodes = opts.node_count();
-    let forks = opts.forks.max(1);
-    let store = Arc::new(MemStore::new(prepared.blocks.clone()));
+    render_sequence(prepared, opts, progress, &Sequence::default(), &mut |_, _, _| Ok(()))
+}
+
+/// Light pass totals: flux per element, pairs per node, where the light went.
+struct LightPass {
+    flux: Vec<Fixed>,
+    node_pairs: Vec<u64>,
+    tally: LrtTally,
+    pairs: u64,
+}
+
+/// LRT: nodes pull (light, element) pairs from a shared counter.
+fn light_pass(
+    views: &mut [SceneView],
+    header: &crate::header::SceneHeader,
+    progress: &dyn Progress,
+) -> Result<LightPass, RenderError> {
     let n_el = header.counts.elements;
     let n_lights = header.lights.len() as u32;
-    let make_view = |node: u32| {
-        let source: Arc<dyn BlockSource> = store.clone();
-        let cache = BlockCache::new(source, opts.cache_blocks.map(|c| c as usize)).with_home(node % forks, forks);
-        SceneView::new(header.clone(), cache)
-    };
-    let mut views: Vec<SceneView> = (0..nodes).map(make_view).collect();
-
-    // --- LRT: nodes pull (light, element) pairs.
-    let t_lrt = Instant::now();
     let flux: Vec<[AtomicI64; 3]> =
         (0..n_el).map(|_| [AtomicI64::new(0), AtomicI64::new(0), AtomicI64::new(0)]).collect();
     let total_pairs = if header.plan.lrt { n_lights as u64 * n_el as u64 } else { 0 };
@@ -168,42 +226,38 @@ pub fn render(
         handles.into_iter().map(join_worker).collect()
     });
     progress.end();
-    let mut node_pairs = Vec::with_capacity(nodes as usize);
+    let mut node_pairs = Vec::with_capacity(views.len());
     let mut tally = LrtTally::default();
     for r in lrt_results {
         let (p, t) = r?;
         node_pairs.push(p);
         tally = tally.add(t);
     }
-    let lrt_s = t_lrt.elapsed().as_secs_f64();
-
-    // --- Energy interpolation.
-    let t_interp = Instant::now();
-    let element_flux: Vec<Fixed> = flux
+    let flux = flux
         .iter()
         .map(|a| [a[0].load(Ordering::Relaxed), a[1].load(Ordering::Relaxed), a[2].load(Ordering::Relaxed)])
         .collect();
-    let vertex_irradiance =
-        interpolate(&prepared.elements, &element_flux, header.counts.vertices as usize, header.energy_quantum);
-    for (id, block) in vertex_energy_blocks(&vertex_irradiance, &header.layout) {
-        store.replace(id, block)?;
-    }
-    for v in views.iter_mut() {
-        v.invalidate_vertex_energy();
-    }
-    let interp_s = t_interp.elapsed().as_secs_f64();
+    Ok(LightPass { flux, node_pairs, tally, pairs: total_pairs })
+}
 
-    // --- VRT: nodes pull subscreens.
-    let t_vrt = Instant::now();
+/// VRT of one frame: nodes pull subscreens from a shared queue. Returns the frame and
+/// the subscreens each node traced.
+fn view_pass(
+    views: &mut [SceneView],
+    header: &crate::header::SceneHeader,
+    camera: &Camera,
+    tiles: &[Subscreen],
+    progress: &dyn Progress,
+) -> Result<(Frame, Vec<u64>), RenderError> {
     let s = &header.settings;
-    let rig = CameraRig::new(&header.camera, s.width, s.height);
-    let tiles = subscreens(s.width, s.height, opts.subscreen);
+    let rig = CameraRig::new(camera, s.width, s.height);
     let queue = Mutex::new(tiles.iter().copied().rev().collect::<Vec<_>>());
     progress.begin("viewing ray tracing", s.width as u64 * s.height as u64);
     let vrt_results: Vec<Result<Vec<(Subscreen, Vec<Rgb>)>, RenderError>> = std::thread::scope(|sc| {
         let handles: Vec<_> = views
             .iter_mut()
-            .map(|view| {
+            .enumerate()
+            .map(|(node, view)| {
                 let (queue, rig) = (&queue, &rig);
                 sc.spawn(move || -> Result<Vec<(Subscreen, Vec<Rgb>)>, BlockError> {
                     let mut scratch = TraceScratch::default();
@@ -220,6 +274,7 @@ pub fn render(
                                 px.push(shade_pixel(view, &mut scratch, rig, x, y)?);
                             }
                         }
+                        progress.subscreen_done(node as u32, t, &px);
                         progress.advance(t.pixels());
                         done.push((t, px));
                     }
@@ -231,25 +286,11 @@ pub fn render(
     });
     progress.end();
     let mut frame = Frame::new(s.width, s.height);
-    let mut outs = Vec::with_capacity(nodes as usize);
-    for (node, r) in vrt_results.into_iter().enumerate() {
+    let mut node_tiles = Vec::with_capacity(views.len());
+    for r in vrt_results {
         let done = r?;
-        let view = &views[node];
-        outs.push(NodeOut {
-            stats: NodeStats {
-                node: node as u32,
-                home_fork: node as u32 % forks,
-                pairs: node_pairs[node],
-                tiles: done.len() as u64,
-                cache: view.cache_stats().into(),
-                ops: view.counters,
-                ..Default::default()
-            },
-            tiles: done,
-        });
-    }
-    for o in &outs {
-        for (t, px) in &o.tiles {
+        node_tiles.push(done.len() as u64);
+        for (t, px) in &done {
             let mut it = px.iter();
             for y in t.y..t.y + t.h {
                 for x in t.x..t.x + t.w {
@@ -260,8 +301,95 @@ pub fn render(
             }
         }
     }
-    let vrt_s = t_vrt.elapsed().as_secs_f64();
+    Ok((frame, node_tiles))
+}
 
+/// Renders a prepared scene in this process: the light pass once (or not at all when
+/// `seq` brings energies), then one viewing pass per camera of `seq`, each frame handed
+/// to `sink` as it is done. The output's frame is the last one.
+pub fn render_sequence(
+    prepared: &PreparedScene,
+    opts: &RenderOptions,
+    progress: &dyn Progress,
+    seq: &Sequence,
+    sink: &mut FrameSink<'_>,
+) -> Result<RenderOutput, RenderError> {
+    let t_start = Instant::now();
+    let header = prepared.header.clone();
+    let nodes = opts.node_count();
+    let forks = opts.forks.max(1);
+    let store = Arc::new(MemStore::new(prepared.blocks.clone()));
+    let make_view = |node: u32| {
+        let source: Arc<dyn BlockSource> = store.clone();
+        let cache = BlockCache::new(source, opts.cache_blocks.map(|c| c as usize)).with_home(node % forks, forks);
+        SceneView::new(header.clone(), cache)
+    };
+    let mut views: Vec<SceneView> = (0..nodes).map(make_view).collect();
+
+    // --- LRT, unless the energies are given.
+    let t_lrt = Instant::now();
+    let light = match &seq.energies {
+        Some(e) => {
+            e.check(&header)?;
+            LightPass {
+                flux: e.element_flux.clone(),
+                node_pairs: vec![0; nodes as usize],
+                tally: LrtTally::default(),
+                pairs: 0,
+            }
+        }
+        None => light_pass(&mut views, &header, progress)?,
+    };
+    let lrt_s = if seq.energies.is_some() { 0.0 } else { t_lrt.elapsed().as_secs_f64() };
+
+    // --- Energy interpolation (the given energies carry theirs).
+    let t_interp = Instant::now();
+    let element_flux = light.flux;
+    let vertex_irradiance = match &seq.energies {
+        Some(e) => e.vertex_irradiance.clone(),
+        None => interpolate(&prepared.elements, &element_flux, header.counts.vertices as usize, header.energy_quantum),
+    };
+    for (id, block) in vertex_energy_blocks(&vertex_irradiance, &header.layout) {
+        store.replace(id, block)?;
+    }
+    for v in views.iter_mut() {
+        v.invalidate_vertex_energy();
+    }
+    let interp_s = t_interp.elapsed().as_secs_f64();
+
+    // --- VRT: one viewing pass per camera.
+    let s = &header.settings;
+    let tiles = subscreens(s.width, s.height, opts.subscreen);
+    let cameras = seq.frame_cameras(&header.camera);
+    let mut node_tiles = vec![0u64; nodes as usize];
+    let mut vrt_s = 0.0;
+    let mut frame = Frame::new(s.width, s.height);
+    for (index, camera) in cameras.iter().enumerate() {
+        progress.frame_begins(index, cameras.len());
+        let t_vrt = Instant::now();
+        let (f, per_node) = view_pass(&mut views, &header, camera, &tiles, progress)?;
+        let frame_s = t_vrt.elapsed().as_secs_f64();
+        vrt_s += frame_s;
+        for (n, t) in node_tiles.iter_mut().zip(per_node) {
+            *n += t;
+        }
+        sink(index, &f, frame_s).map_err(RenderError::Output)?;
+        frame = f;
+    }
+
+    let per_node = views
+        .iter()
+        .enumerate()
+        .map(|(node, view)| NodeStats {
+            node: node as u32,
+            home_fork: node as u32 % forks,
+            pairs: light.node_pairs.get(node).copied().unwrap_or(0),
+            tiles: node_tiles[node],
+            cache: view.cache_stats().into(),
+            ops: view.counters,
+            ..Default::default()
+        })
+        .collect();
     let cache_total = views.iter().fold(crate::blocks::CacheStats::default(), |a, v| a.add(v.cache_stats()));
     let ops = views.iter().fold(crate::view::OpCounters::default(), |a, v| a.add(v.counters));
     let stats = RenderStats {
@@ -281,16 +409,16 @@ pub fn render(
             rpcs: 0,
         },
         work: Work {
-            pairs: total_pairs,
-            tiles: tiles.len() as u64,
+            pairs: light.pairs,
+            tiles: tiles.len() as u64 * cameras.len() as u64,
             redivisions: 0,
             light_rays: ops.light_rays,
             view_rays: ops.view_rays,
         },
         plan: (&header.plan).into(),
         counts: header.counts,
-        light: tally,
-        per_node: outs.into_iter().map(|o| o.stats).collect(),
+        light: light.tally,
+        per_node,
         emulation: None,
     };
     Ok(RenderOutput { frame, element_flux, vertex_irradiance, stats })

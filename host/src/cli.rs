@@ -86,6 +86,15 @@ pub struct RenderArgs {
     /// Write element and vertex energies (CSV) here.
     #[arg(long)]
     pub energy: Option<PathBuf>,
+    /// Save the light pass (element and vertex energies, exactly, with a fingerprint of the
+    /// scene and light settings) to this file, for --load-energy.
+    #[arg(long, value_name = "FILE")]
+    pub save_energy: Option<PathBuf>,
+    /// Skip the light pass: use the energies saved in this file by --save-energy. A file
+    /// made for other geometry, materials, lights or light settings is refused; the
+    /// camera, image size and pixel samples may differ.
+    #[arg(long, value_name = "FILE")]
+    pub load_energy: Option<PathBuf>,
     /// Force every optional effect on, whatever the scene needs (the image is identical;
     /// only the time differs).
     #[arg(long)]
@@ -119,6 +128,18 @@ pub struct RenderArgs {
     /// rays, 16 pixel samples. See docs/ACCURACY.md.
     #[arg(long, value_enum)]
     pub quality: Option<crate::accuracy::preset::Quality>,
+    /// Serve a live view of the render on this address (HOST:PORT, port 0 picks a free
+    /// one; the URL is printed): the frame filling in, the subscreens by node, the stage
+    /// and a table per node, and the finished image as PNG and EXR.
+    #[arg(long, value_name = "ADDR")]
+    pub view: Option<String>,
+    /// With --view: start rendering only once a page has opened the live view (waits at
+    /// most 10 minutes).
+    #[arg(long, requires = "view")]
+    pub view_wait: bool,
+    /// With --view: keep serving the page this many seconds after the render is done.
+    #[arg(long, value_name = "SECS", default_value_t = 0, requires = "view")]
+    pub view_linger: u64,
     /// Scene overrides: accuracy knobs and output size.
     #[command(flatten)]
     pub knobs: Knobs,
@@ -213,6 +234,10 @@ pub struct RenderConfig {
     pub stats: Option<PathBuf>,
     /// Energy file.
     pub energy: Option<PathBuf>,
+    /// Saved-energy file to write.
+    pub save_energy: Option<PathBuf>,
+    /// Saved-energy file to read instead of running LRT.
+    pub load_energy: Option<PathBuf>,
     /// Force every effect on.
     pub all_effects: bool,
     /// Subscreen edge.
@@ -223,6 +248,8 @@ pub struct RenderConfig {
     pub quality: Option<crate::accuracy::preset::Quality>,
     /// Scene overrides.
     pub knobs: Knobs,
+    /// Live view: address, wait for a page, seconds to linger.
+    pub view: Option<(String, bool, u64)>,
     /// Where the cluster runs.
     pub mode: Mode,
 }
@@ -287,6 +314,9 @@ impl RenderArgs {
         if self.stall_timeout == 0 {
             bail!("--stall-timeout 0: must be at least 1 second");
         }
+        if self.view_linger > 86_400 {
+            bail!("--view-linger {}: at most 86400 seconds", self.view_linger);
+        }
         let mut profile =
             magg_throttle::Profile::named(&self.profile).with_context(|| format!("--profile {}", self.profile))?;
         if let Some(d) = self.dilation {
@@ -312,11 +342,14 @@ impl RenderArgs {
             scheme,
             stats: self.stats,
             energy: self.energy,
+            save_energy: self.save_energy,
+            load_energy: self.load_energy,
             all_effects: self.all_effects,
             subscreen: self.subscreen,
             quiet: self.quiet,
             quality: self.quality,
             knobs: self.knobs,
+            view: self.view.map(|a| (a, self.view_wait, self.view_linger)),
             mode: if self.embedded {
                 Mode::Embedded
             } else {

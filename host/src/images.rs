@@ -20,7 +20,18 @@ pub fn write(frame: &Frame, path: &Path, format: ImageFormat, exposure: Exposure
 /// Tone-mapped 8-bit sRGB PNG.
 pub fn write_png(frame: &Frame, path: &Path, exposure: Exposure) -> anyhow::Result<()> {
     let file = std::fs::File::create(path)?;
-    let mut enc = png::Encoder::new(std::io::BufWriter::new(file), frame.width, frame.height);
+    encode_png_to(frame, exposure, std::io::BufWriter::new(file))
+}
+
+/// The PNG of [`write_png`], in memory (the live view serves it).
+pub fn encode_png(frame: &Frame, exposure: Exposure) -> anyhow::Result<Vec<u8>> {
+    let mut out = Vec::new();
+    encode_png_to(frame, exposure, &mut out)?;
+    Ok(out)
+}
+
+fn encode_png_to(frame: &Frame, exposure: Exposure, out: impl Write) -> anyhow::Result<()> {
+    let mut enc = png::Encoder::new(out, frame.width, frame.height);
     enc.set_color(png::ColorType::Rgb);
     enc.set_depth(png::BitDepth::Eight);
     enc.set_source_srgb(png::SrgbRenderingIntent::Perceptual);
@@ -32,13 +43,23 @@ pub fn write_png(frame: &Frame, path: &Path, exposure: Exposure) -> anyhow::Resu
 
 /// Linear f32 OpenEXR.
 pub fn write_exr(frame: &Frame, path: &Path) -> anyhow::Result<()> {
+    std::fs::write(path, encode_exr(frame)?)?;
+    Ok(())
+}
+
+/// The OpenEXR of [`write_exr`], in memory.
+pub fn encode_exr(frame: &Frame) -> anyhow::Result<Vec<u8>> {
     use exr::prelude::*;
-    let (w, h) = (frame.width as usize, frame.height as usize);
-    write_rgb_file(path, w, h, |x, y| {
+    let channels = SpecificChannels::rgb(|Vec2(x, y): Vec2<usize>| {
         let p = frame.get(x as u32, y as u32);
         (p[0], p[1], p[2])
-    })
-    .map_err(|e| anyhow::anyhow!("{e}"))
+    });
+    let mut out = std::io::Cursor::new(Vec::new());
+    Image::from_channels((frame.width as usize, frame.height as usize), channels)
+        .write()
+        .to_buffered(&mut out)
+        .map_err(|e| anyhow::anyhow!("{e}"))?;
+    Ok(out.into_inner())
 }
 
 /// Linear f32 portable float map (little-endian, bottom row first).

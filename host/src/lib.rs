@@ -10,9 +10,12 @@ pub mod cli;
 pub mod cluster;
 pub mod commands;
 pub mod energy_csv;
+pub mod frames;
 pub mod images;
+pub mod live;
 pub mod logging;
 pub mod progress;
+pub mod saved_energy;
 pub mod scene_file;
 pub mod sweep;
 

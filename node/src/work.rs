@@ -236,7 +236,12 @@ impl Worker {
                 s.w, s.h, s.x, s.y
             )));
         }
-        let rig = CameraRig::new(&h.camera, w, hgt);
+        // A camera path sends each frame's camera with its subscreens.
+        let camera = match s.camera.clone() {
+            Some(c) => magg_core::scene::Camera::try_from(c).map_err(|e| NodeError::Convert(e.to_string()))?,
+            None => h.camera.clone(),
+        };
+        let rig = CameraRig::new(&camera, w, hgt);
         let mut scratch = TraceScratch::default();
         let mut end = s.y + s.h;
         let mut y = s.y;

@@ -143,6 +143,19 @@ fn rgb_from_wire(c: Option<v1::Rgb>, field: &str, max: f64) -> Result<Rgb, Conve
 
 // ------------------------------------------------------------------ scene entities
 
+impl From<&Camera> for v1::Camera {
+    fn from(c: &Camera) -> Self {
+        camera_to_wire(c)
+    }
+}
+
+impl TryFrom<v1::Camera> for Camera {
+    type Error = ConvertError;
+    fn try_from(c: v1::Camera) -> Result<Self, ConvertError> {
+        camera_from_wire(c)
+    }
+}
+
 fn camera_to_wire(c: &Camera) -> v1::Camera {
     v1::Camera {
         eye: Some(vec3_to_wire(c.eye)),

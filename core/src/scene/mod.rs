@@ -13,7 +13,8 @@ mod error;
 mod model;
 mod obj;
 mod parse;
+mod path;
 
 pub use error::SceneError;
 pub use model::*;
-pub use parse::parse_scene_str;
+pub use parse::{parse_scene_str, parse_scene_with_path};

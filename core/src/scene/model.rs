@@ -38,6 +38,61 @@ pub struct Camera {
     pub fov_y_deg: f64,
 }
 
+/// A camera path (`[camera_path]` in a scene file): keyframes spread evenly over
+/// `frames` frames (the first key on frame 0, the last on the last frame), the camera
+/// of each frame interpolated linearly between its two neighbouring keys. The light
+/// pass is view-independent, so one light pass serves every frame.
+#[derive(Clone, Debug, PartialEq)]
+pub struct CameraPath {
+    /// The keyframes, at least one.
+    pub keys: Vec<Camera>,
+    /// Frames to render, at least one.
+    pub frames: u32,
+    /// Where it was defined.
+    pub loc: SourceLoc,
+}
+
+impl CameraPath {
+    /// The camera of `frame` (clamped to the last frame). Frames that fall on a key get
+    /// that key exactly.
+    pub fn camera_at(&self, frame: u32) -> Camera {
+        let Some(first) = self.keys.first() else {
+            return Camera {
+                eye: Vec3::ZERO,
+                look_at: Vec3::new(0.0, 0.0, -1.0),
+                up: Vec3::new(0.0, 1.0, 0.0),
+                fov_y_deg: 45.0,
+            };
+        };
+        let (k, n) = (self.keys.len() as u64 - 1, self.frames.max(1) as u64 - 1);
+        if k == 0 || n == 0 {
+            return first.clone();
+        }
+        // Position along the keys: frame * k / n, kept as an integer ratio so that frames
+        // on keys are exact.
+        let num = frame.min(n as u32) as u64 * k;
+        let (seg, rem) = ((num / n) as usize, num % n);
+        let a = &self.keys[seg];
+        if rem == 0 {
+            return a.clone();
+        }
+        let b = &self.keys[(seg + 1).min(self.keys.len() - 1)];
+        let t = rem as f64 / n as f64;
+        let lerp = |x: Vec3, y: Vec3| x * (1.0 - t) + y * t;
+        Camera {
+            eye: lerp(a.eye, b.eye),
+            look_at: lerp(a.look_at, b.look_at),
+            up: lerp(a.up, b.up),
+            fov_y_deg: a.fov_y_deg * (1.0 - t) + b.fov_y_deg * t,
+        }
+    }
+
+    /// The camera of every frame, in order.
+    pub fn cameras(&self) -> Vec<Camera> {
+        (0..self.frames).map(|f| self.camera_at(f)).collect()
+    }
+}
+
 /// Uniform grid resolution: explicit, or chosen from the patch count.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum GridSpec {

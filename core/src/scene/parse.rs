@@ -14,7 +14,9 @@ use serde::Deserialize;
 use toml::Spanned;
 
 use super::error::SceneError;
-use super::model::{Camera, Exposure, GridSpec, Light, Material, PatchDef, RenderSettings, Scene, SourceLoc, Spot};
+use super::model::{
+    Camera, CameraPath, Exposure, GridSpec, Light, Material, PatchDef, RenderSettings, Scene, SourceLoc, Spot,
+};
 use super::obj::{self, MaterialTable, MeshEntry, Transform};
 use crate::math::{Rgb, Vec3};
 
@@ -25,6 +27,7 @@ type SVec = Spanned<Vec<f64>>;
 #[serde(deny_unknown_fields)]
 struct RawScene {
     camera: Option<Spanned<RawCamera>>,
+    camera_path: Option<Spanned<super::path::RawCameraPath>>,
     render: Option<RawRender>,
     #[serde(default)]
     light: Vec<RawLight>,
@@ -40,7 +43,7 @@ struct RawScene {
 
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
-struct RawCamera {
+pub(super) struct RawCamera {
     eye: SVec,
     look_at: SVec,
     up: Option<SVec>,
@@ -120,18 +123,34 @@ const EPS_PLANAR: f64 = 1e-6;
 /// `file_label` names the file in errors and becomes [`Scene::name`]; OBJ paths are
 /// `base_dir.join(obj)`, and `read` loads them (and their MTL files). Every problem is a
 /// [`SceneError`] naming the file, line and field; no input makes this panic.
+///
+/// A `[camera_path]` is checked but dropped: [`parse_scene_with_path`] returns it.
 pub fn parse_scene_str(
     file_label: &str,
     text: &str,
     base_dir: &Path,
     read: &dyn Fn(&Path) -> std::io::Result<String>,
 ) -> Result<Scene, SceneError> {
+    parse_scene_with_path(file_label, text, base_dir, read).map(|(scene, _)| scene)
+}
+
+/// Parses and validates a TOML scene and its optional `[camera_path]` (as
+/// [`parse_scene_str`]). With a path and no `[camera]`, the scene's camera is the
+/// path's first frame.
+pub fn parse_scene_with_path(
+    file_label: &str,
+    text: &str,
+    base_dir: &Path,
+    read: &dyn Fn(&Path) -> std::io::Result<String>,
+) -> Result<(Scene, Option<CameraPath>), SceneError> {
     let cx = Ctx::new(file_label, text);
     let raw: RawScene = toml::from_str(text).map_err(|e| cx.toml_error(&e))?;
 
-    let camera = match &raw.camera {
-        Some(c) => cx.camera(c)?,
-        None => return Err(cx.whole_file("camera", "the scene has no [camera] table")),
+    let path = raw.camera_path.as_ref().map(|p| cx.camera_path(p)).transpose()?;
+    let camera = match (&raw.camera, &path) {
+        (Some(c), _) => cx.camera(c, "camera")?,
+        (None, Some(p)) => p.camera_at(0),
+        (None, None) => return Err(cx.whole_file("camera", "the scene has no [camera] table")),
     };
     let settings = match &raw.render {
         Some(r) => cx.render(r)?,
@@ -180,7 +199,7 @@ pub fn parse_scene_str(
         return Err(cx.whole_file("triangle", "the scene has no [[triangle]], [[quad]] or [[mesh]]"));
     }
     let PatchBuilder { materials, patches, .. } = builder;
-    Ok(Scene { name: file_label.to_string(), camera, settings, lights, materials: materials.list, patches })
+    Ok((Scene { name: file_label.to_string(), camera, settings, lights, materials: materials.list, patches }, path))
 }
 
 enum Entry<'a> {
@@ -190,7 +209,7 @@ enum Entry<'a> {
 }
 
 /// The file being parsed: turns byte spans into lines and builds errors.
-struct Ctx<'a> {
+pub(super) struct Ctx<'a> {
     file: &'a str,
     text: &'a str,
     /// Byte offset of the start of every line.
@@ -212,11 +231,11 @@ impl<'a> Ctx<'a> {
         self.line_starts.partition_point(|&s| s <= offset).max(1) as u32
     }
 
-    fn loc<T>(&self, s: &Spanned<T>) -> SourceLoc {
+    pub(super) fn loc<T>(&self, s: &Spanned<T>) -> SourceLoc {
         SourceLoc { file: self.file.to_string(), line: self.line(s.span().start) }
     }
 
-    fn err<T>(&self, s: &Spanned<T>, field: impl Into<String>, msg: impl Into<String>) -> SceneError {
+    pub(super) fn err<T>(&self, s: &Spanned<T>, field: impl Into<String>, msg: impl Into<String>) -> SceneError {
         SceneError::new(self.loc(s), field, msg)
     }
 
@@ -252,7 +271,7 @@ impl<'a> Ctx<'a> {
         Ok(x)
     }
 
-    fn int_in(&self, v: &Spanned<i64>, field: &str, lo: i64, hi: i64) -> Result<i64, SceneError> {
+    pub(super) fn int_in(&self, v: &Spanned<i64>, field: &str, lo: i64, hi: i64) -> Result<i64, SceneError> {
         let x = *v.get_ref();
         if x < lo || x > hi {
             return Err(self.err(v, field, format!("{x} is out of range {lo}..={hi}")));
@@ -291,25 +310,27 @@ impl<'a> Ctx<'a> {
         Ok(Rgb(c))
     }
 
-    fn camera(&self, c: &Spanned<RawCamera>) -> Result<Camera, SceneError> {
+    /// A camera table; `prefix` names it in errors (`camera`, `camera_path.keys[2]`).
+    pub(super) fn camera(&self, c: &Spanned<RawCamera>, prefix: &str) -> Result<Camera, SceneError> {
         let raw = c.get_ref();
-        let eye = self.vec3(&raw.eye, "camera.eye")?;
-        let look_at = self.vec3(&raw.look_at, "camera.look_at")?;
+        let f = |name: &str| format!("{prefix}.{name}");
+        let eye = self.vec3(&raw.eye, &f("eye"))?;
+        let look_at = self.vec3(&raw.look_at, &f("look_at"))?;
         let up = match &raw.up {
-            Some(u) => self.vec3(u, "camera.up")?,
+            Some(u) => self.vec3(u, &f("up"))?,
             None => Vec3::new(0.0, 1.0, 0.0),
         };
-        let fov_y_deg = self.float_in(&raw.fov, "camera.fov", 0.0, true, 180.0)?;
+        let fov_y_deg = self.float_in(&raw.fov, &f("fov"), 0.0, true, 180.0)?;
         if fov_y_deg >= 180.0 {
-            return Err(self.err(&raw.fov, "camera.fov", format!("{fov_y_deg} is out of range (0, 180)")));
+            return Err(self.err(&raw.fov, f("fov"), format!("{fov_y_deg} is out of range (0, 180)")));
         }
         let view = look_at - eye;
         if view.length() <= 1e-12 * (1.0 + eye.abs().max_component()) {
-            return Err(self.err(&raw.look_at, "camera.look_at", "look_at is the eye position: no view direction"));
+            return Err(self.err(&raw.look_at, f("look_at"), "look_at is the eye position: no view direction"));
         }
         if view.normalized().cross(up.normalized()).length() < 1e-9 {
             let at = raw.up.as_ref().map_or_else(|| self.loc(c), |u| self.loc(u));
-            return Err(SceneError::new(at, "camera.up", "up is zero or parallel to the view direction"));
+            return Err(SceneError::new(at, f("up"), "up is zero or parallel to the view direction"));
         }
         Ok(Camera { eye, look_at, up, fov_y_deg })
     }

@@ -1,6 +1,7 @@
 //! Running the phases against a set of forks, with nodes connecting to our Host service.
 
 use super::emulation::{cpu_share, preprocess_time, process_cpu_s};
+use super::events::EventSender;
 use super::schedule::Scheduler;
 use super::service::{HostService, HostState, Phase};
 use anyhow::{bail, Context};
@@ -9,7 +10,7 @@ use magg_core::lrt::LrtTally;
 use magg_core::math::Rgb;
 use magg_core::preprocess::PreparedScene;
 use magg_core::progress::Progress;
-use magg_core::render::{subscreens, RenderOutput};
+use magg_core::render::{subscreens, FrameSink, RenderOutput, Sequence};
 use magg_core::stats::*;
 use magg_proto::convert::block_to_wire;
 use magg_proto::v1::fork_client::ForkClient;
@@ -44,6 +45,10 @@ pub struct DriveOptions {
     pub profile: Profile,
     /// The paper's schedule or ours.
     pub scheme: Scheme,
+    /// Energies to use instead of the light pass, and the cameras of the frames.
+    pub sequence: Sequence,
+    /// Where the host service sends events for a watcher (the live view).
+    pub events: Option<EventSender>,
 }
 
 /// Accepted connections with Nagle's algorithm off: the protocol is many small
@@ -68,11 +73,14 @@ fn rgb(c: &Option<v1::Rgb>) -> Rgb {
 
 /// Runs the render: serves `Host` on `listener`, drives the forks, returns when every
 /// node that registered has been told the render is done (or after a grace period).
+/// The light pass runs once (not at all when `opts.sequence` brings energies), then one
+/// viewing pass per camera, each frame handed to `sink`; the output's frame is the last.
 pub async fn drive(
     prepared: &PreparedScene,
     opts: &DriveOptions,
     listener: TcpListener,
     progress: &dyn Progress,
+    sink: &mut FrameSink<'_>,
 ) -> anyhow::Result<RenderOutput> {
     let t_start = Instant::now();
     let cpu0 = process_cpu_s();
@@ -115,8 +123,13 @@ pub async fn drive(
     }
 
     // Serve the host service.
+    let loaded = opts.sequence.energies.clone();
+    if let Some(e) = &loaded {
+        e.check(&h)?;
+    }
     let service = HostService::new(HostState {
-        phase: Phase::Lrt,
+        // With loaded energies the nodes never trace pairs: they wait for subscreens.
+        phase: if loaded.is_some() { Phase::Interp } else { Phase::Lrt },
         nodes: Vec::new(),
         schedule: None,
         header: wire_header,
@@ -126,6 +139,8 @@ pub async fn drive(
         scheme: opts.scheme.name().to_string(),
         link_bytes: 0,
         rpcs: 0,
+        frame_camera: None,
+        events: opts.events.clone(),
     });
     let (stop_tx, stop_rx) = tokio::sync::oneshot::channel::<()>();
     let (health, health_service) = magg_proto::lifecycle::health_service();
@@ -146,16 +161,20 @@ pub async fn drive(
 
     // --- LRT: wait for every fork's pairs.
     let t_lrt = Instant::now();
-    let total_pairs: u64 = {
+    let total_pairs: u64 = if loaded.is_some() {
+        0
+    } else {
         let mut t = 0;
         for fork in forks.iter_mut() {
             t += fork.get_energies(GetEnergiesRequest { summary_only: true }).await?.into_inner().pairs_total;
         }
         t
     };
-    progress.begin("light ray tracing", total_pairs);
+    if loaded.is_none() {
+        progress.begin("light ray tracing", total_pairs);
+    }
     let mut last = (0u64, Instant::now());
-    loop {
+    while loaded.is_none() {
         let mut done = 0;
         for (i, fork) in forks.iter_mut().enumerate() {
             let r = fork
@@ -179,27 +198,34 @@ pub async fn drive(
         }
         tokio::time::sleep(poll).await; // one RPC per fork per poll: keep it gentle
     }
-    progress.end();
-    let lrt_s = t_lrt.elapsed().as_secs_f64();
+    if loaded.is_none() {
+        progress.end();
+    }
+    let lrt_s = if loaded.is_some() { 0.0 } else { t_lrt.elapsed().as_secs_f64() };
 
     // --- Interpolation.
     service.lock().phase = Phase::Interp;
     let t_interp = Instant::now();
     let n_el = h.counts.elements as usize;
-    let mut element_flux: Vec<Fixed> = vec![[0; 3]; n_el];
     let (mut dma_bytes, mut gbus_bytes, mut fork_rpcs, mut fork_link) = (0, 0, 0, 0);
     let mut busy = EmulatedBusy { preprocess_s: preprocess_model.as_secs_f64(), ..Default::default() };
-    for (i, fork) in forks.iter_mut().enumerate() {
-        let r = fork.get_energies(GetEnergiesRequest { summary_only: false }).await?.into_inner();
-        for e in r.energies {
-            match element_flux.get_mut(e.element as usize) {
-                Some(slot) => *slot = [e.r, e.g, e.b],
-                None => bail!("fork {i} sent energy for element {} of {n_el}", e.element),
+    let (element_flux, vertex_irradiance) = match &loaded {
+        Some(e) => (e.element_flux.clone(), e.vertex_irradiance.clone()),
+        None => {
+            let mut element_flux: Vec<Fixed> = vec![[0; 3]; n_el];
+            for (i, fork) in forks.iter_mut().enumerate() {
+                let r = fork.get_energies(GetEnergiesRequest { summary_only: false }).await?.into_inner();
+                for e in r.energies {
+                    match element_flux.get_mut(e.element as usize) {
+                        Some(slot) => *slot = [e.r, e.g, e.b],
+                        None => bail!("fork {i} sent energy for element {} of {n_el}", e.element),
+                    }
+                }
             }
+            let v = interpolate(&prepared.elements, &element_flux, h.counts.vertices as usize, h.energy_quantum);
+            (element_flux, v)
         }
-    }
-    let vertex_irradiance =
-        interpolate(&prepared.elements, &element_flux, h.counts.vertices as usize, h.energy_quantum);
+    };
     let mut per_fork: Vec<Vec<v1::Block>> = vec![Vec::new(); f];
     for (id, block) in vertex_energy_blocks(&vertex_irradiance, &h.layout) {
         per_fork[id as usize % f].push(block_to_wire(id, &block));
@@ -209,38 +235,59 @@ pub async fn drive(
     }
     let interp_s = t_interp.elapsed().as_secs_f64();
 
-    // --- VRT.
-    let t_vrt = Instant::now();
+    // --- VRT, one pass per camera; a camera path sends each frame's camera along with
+    // its subscreens, and the nodes keep their caches from frame to frame.
     let s = &h.settings;
     let tiles = subscreens(s.width, s.height, opts.subscreen);
-    let n_tiles = tiles.len() as u64;
-    {
-        let mut st = service.lock();
-        st.schedule = Some(Scheduler::new(s.width, s.height, tiles));
-        st.phase = Phase::Vrt;
-    }
-    progress.begin("viewing ray tracing", s.width as u64 * s.height as u64);
-    let mut last_rows = (0u64, Instant::now());
-    loop {
-        let (done, px) = {
+    let cameras = opts.sequence.frame_cameras(&h.camera);
+    let n_tiles = tiles.len() as u64 * cameras.len() as u64;
+    let (mut vrt_s, mut redivisions) = (0.0, 0);
+    let mut frame = magg_core::frame::Frame::new(s.width, s.height);
+    for (index, camera) in cameras.iter().enumerate() {
+        progress.frame_begins(index, cameras.len());
+        if let Some(tx) = &opts.events {
+            let _ = tx.send(super::events::ClusterEvent::FrameBegins { index, count: cameras.len() });
+        }
+        let t_vrt = Instant::now();
+        {
+            let mut st = service.lock();
+            st.schedule = Some(Scheduler::new(s.width, s.height, tiles.clone()));
+            // Nodes hold the header's camera; another one rides on the subscreens.
+            st.frame_camera = (*camera != h.camera).then(|| v1::Camera::from(camera));
+            st.phase = Phase::Vrt;
+        }
+        progress.begin("viewing ray tracing", s.width as u64 * s.height as u64);
+        let mut last_rows = (0u64, Instant::now());
+        loop {
+            let (done, px) = {
+                let st = service.lock();
+                let sc = st.schedule.as_ref();
+                (sc.is_some_and(|s| s.is_done()), sc.map_or(0, |s| s.pixels_done()))
+            };
+            if px > last_rows.0 {
+                progress.advance(px - last_rows.0);
+                last_rows = (px, Instant::now());
+            }
+            if done {
+                break;
+            }
+            if last_rows.1.elapsed() > opts.stall_timeout {
+                bail!("viewing ray tracing stalled at {px} pixels for {:?}", opts.stall_timeout);
+            }
+            tokio::time::sleep(Duration::from_millis(5)).await;
+        }
+        progress.end();
+        let frame_s = t_vrt.elapsed().as_secs_f64();
+        vrt_s += frame_s;
+        {
             let st = service.lock();
-            let sc = st.schedule.as_ref();
-            (sc.is_some_and(|s| s.is_done()), sc.map_or(0, |s| s.pixels_done()))
-        };
-        if px > last_rows.0 {
-            progress.advance(px - last_rows.0);
-            last_rows = (px, Instant::now());
+            if let Some(sc) = st.schedule.as_ref() {
+                frame = sc.frame().clone();
+                redivisions += sc.redivisions;
+            }
         }
-        if done {
-            break;
-        }
-        if last_rows.1.elapsed() > opts.stall_timeout {
-            bail!("viewing ray tracing stalled at {px} pixels for {:?}", opts.stall_timeout);
-        }
-        tokio::time::sleep(Duration::from_millis(5)).await;
+        sink(index, &frame, frame_s).map_err(|e| anyhow::anyhow!(e))?;
     }
-    progress.end();
-    let vrt_s = t_vrt.elapsed().as_secs_f64();
 
     // --- Done: let every node hear it (bounded wait), then stop serving.
     service.lock().phase = Phase::Done;
@@ -275,12 +322,6 @@ pub async fn drive(
     }
 
     let st = service.lock();
-    let frame = st
-        .schedule
-        .as_ref()
-        .map(|s| s.frame().clone())
-        .unwrap_or_else(|| magg_core::frame::Frame::new(s.width, s.height));
-    let redivisions = st.schedule.as_ref().map_or(0, |s| s.redivisions);
     let mut per_node = Vec::new();
     let mut cache = magg_core::blocks::CacheStats::default();
     let mut light = LrtTally::default();

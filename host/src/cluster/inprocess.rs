@@ -31,6 +31,10 @@ pub struct InProcessOptions {
     pub profile: magg_throttle::Profile,
     /// The paper's schedule or ours.
     pub scheme: magg_throttle::Scheme,
+    /// Energies to use instead of the light pass, and the cameras of the frames.
+    pub sequence: magg_core::render::Sequence,
+    /// Where the host service sends events for a watcher (the live view).
+    pub events: Option<super::events::EventSender>,
 }
 
 /// Runs the cluster and returns the render.
@@ -38,6 +42,7 @@ pub fn render_in_process(
     prepared: &PreparedScene,
     opts: &InProcessOptions,
     progress: &dyn Progress,
+    sink: &mut magg_core::render::FrameSink<'_>,
 ) -> anyhow::Result<RenderOutput> {
     let rt = tokio::runtime::Builder::new_multi_thread().enable_all().build().context("starting the async runtime")?;
     let (stop_tx, _) = tokio::sync::broadcast::channel::<()>(1);
@@ -94,8 +99,10 @@ pub fn render_in_process(
         stall_timeout: opts.stall_timeout,
         profile: opts.profile.clone(),
         scheme: opts.scheme,
+        sequence: opts.sequence.clone(),
+        events: opts.events.clone(),
     };
-    let result = rt.block_on(drive(prepared, &drive_opts, listener, progress));
+    let result = rt.block_on(drive(prepared, &drive_opts, listener, progress, sink));
     let mut node_err = None;
     for t in node_threads {
         match t.join() {

@@ -11,6 +11,7 @@
 
 mod drive;
 pub mod emulation;
+pub mod events;
 mod inprocess;
 pub mod schedule;
 pub mod service;

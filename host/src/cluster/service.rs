@@ -1,5 +1,6 @@
 //! The host's gRPC service: node registration, work hand-out, pixel rows.
 
+use super::events::{ClusterEvent, EventSender};
 use super::schedule::{Next, Scheduler};
 use magg_proto::v1::host_server::Host;
 use magg_proto::v1::next_work_reply::Kind;
@@ -37,6 +38,8 @@ pub struct NodeEntry {
     pub threads: u32,
     /// How many of its workers were told the render is done.
     pub told_done: u32,
+    /// Bytes of its messages with the host (its share of the link path).
+    pub link_bytes: u64,
 }
 
 impl NodeEntry {
@@ -68,6 +71,19 @@ pub struct HostState {
     pub link_bytes: u64,
     /// RPCs served.
     pub rpcs: u64,
+    /// Camera of the frame being traced, sent with its subscreens (camera paths only).
+    pub frame_camera: Option<v1::Camera>,
+    /// Where to send events for watchers (the live view), if any.
+    pub events: Option<EventSender>,
+}
+
+impl HostState {
+    /// Sends `e` to the watcher, if there is one.
+    fn emit(&self, e: impl FnOnce() -> ClusterEvent) {
+        if let Some(tx) = &self.events {
+            let _ = tx.send(e());
+        }
+    }
 }
 
 /// The tonic service over [`HostState`].
@@ -107,11 +123,15 @@ impl HostService {
             },
             Phase::Interp => wait,
             Phase::Vrt => match s.schedule.as_mut().map(|sc| sc.next(node)) {
-                Some(Next::Trace(id, t)) => NextWorkReply {
-                    kind: Kind::Subscreen as i32,
-                    subscreen: Some(v1::Subscreen { x: t.x, y: t.y, w: t.w, h: t.h, id }),
-                    wait_ms: 0,
-                },
+                Some(Next::Trace(id, t)) => {
+                    s.emit(|| ClusterEvent::Assigned { node, id, rect: t });
+                    let camera = s.frame_camera.clone();
+                    NextWorkReply {
+                        kind: Kind::Subscreen as i32,
+                        subscreen: Some(v1::Subscreen { x: t.x, y: t.y, w: t.w, h: t.h, id, camera }),
+                        wait_ms: 0,
+                    }
+                }
                 Some(Next::Wait) | None => wait,
                 Some(Next::Done) => {
                     self.changed.notify_waiters();
@@ -152,6 +172,7 @@ impl Host for HostService {
         let node = s.nodes.len() as u32;
         s.nodes.push(NodeEntry { name: r.name.clone(), threads: r.threads.clamp(1, 1024), ..Default::default() });
         s.rpcs += 1;
+        s.emit(|| ClusterEvent::Registered { node, name: r.name.clone() });
         let forks = s.fork_addrs.len().max(1) as u32;
         tracing::info!(node, name = %r.name, "node registered");
         Ok(Response::new(RegisterReply {
@@ -169,16 +190,27 @@ impl Host for HostService {
         let r = req.into_inner();
         let mut s = self.lock();
         s.rpcs += 1;
-        s.link_bytes += prost::Message::encoded_len(&r) as u64;
+        let request_len = prost::Message::encoded_len(&r) as u64;
+        s.link_bytes += request_len;
         let phase = s.phase;
         let Some(entry) = s.nodes.get_mut(r.node as usize) else {
             return Err(Status::invalid_argument(format!("node {} is not registered", r.node)));
         };
+        entry.link_bytes += request_len;
+        let reported = r.report.is_some();
         if let Some(rep) = r.report {
             entry.report = rep;
         }
         let reply = self.assign(&mut s, r.node, phase);
-        s.link_bytes += prost::Message::encoded_len(&reply) as u64;
+        let reply_len = prost::Message::encoded_len(&reply) as u64;
+        s.link_bytes += reply_len;
+        if let Some(entry) = s.nodes.get_mut(r.node as usize) {
+            entry.link_bytes += reply_len;
+            if reported {
+                let (report, link_bytes) = (entry.report.clone(), entry.link_bytes);
+                s.emit(|| ClusterEvent::Report { node: r.node, report, link_bytes });
+            }
+        }
         Ok(Response::new(reply))
     }
 
@@ -186,10 +218,12 @@ impl Host for HostService {
         let r = req.into_inner();
         let mut s = self.lock();
         s.rpcs += 1;
-        s.link_bytes += prost::Message::encoded_len(&r) as u64;
-        if r.node as usize >= s.nodes.len() {
+        let request_len = prost::Message::encoded_len(&r) as u64;
+        s.link_bytes += request_len;
+        let Some(entry) = s.nodes.get_mut(r.node as usize) else {
             return Err(Status::invalid_argument(format!("node {} is not registered", r.node)));
-        }
+        };
+        entry.link_bytes += request_len;
         let Some(schedule) = s.schedule.as_mut() else {
             return Err(Status::failed_precondition("no viewing ray tracing in progress"));
         };
@@ -197,6 +231,10 @@ impl Host for HostService {
         let give_back = schedule.submit(r.subscreen, &rows).map_err(|e| Status::invalid_argument(e.to_string()))?;
         if schedule.is_done() {
             self.changed.notify_waiters();
+        }
+        s.emit(|| ClusterEvent::Rows { node: r.node, id: r.subscreen, rows: r.rows.clone() });
+        if let Some(at) = give_back {
+            s.emit(|| ClusterEvent::Redivided { id: r.subscreen, at });
         }
         // Rows that end the node's part come back with its next work, unless the host has
         // just taken rows back (then the node still has rows to trace).
@@ -207,7 +245,11 @@ impl Host for HostService {
             None
         };
         let reply = SubmitRowsReply { give_back_from: give_back, next };
-        s.link_bytes += prost::Message::encoded_len(&reply) as u64;
+        let reply_len = prost::Message::encoded_len(&reply) as u64;
+        s.link_bytes += reply_len;
+        if let Some(entry) = s.nodes.get_mut(r.node as usize) {
+            entry.link_bytes += reply_len;
+        }
         Ok(Response::new(reply))
     }
 }

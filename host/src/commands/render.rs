@@ -1,15 +1,25 @@
 //! `magg-host render SCENE --out IMAGE`: the main job.
+//!
+//! One light pass (or none, with `--load-energy`), then one viewing pass per frame: one
+//! frame of the scene's camera, or every frame of its camera path, written as numbered
+//! images (see [`crate::frames`]).
 
 use crate::cli::{Mode, RenderConfig};
 use crate::cluster::{render_in_process, InProcessOptions};
-use crate::{energy_csv, images, progress::Bars, scene_file};
+use crate::frames::{FrameRecord, RunStats};
+use crate::live::LiveView;
+use crate::{energy_csv, frames, images, progress::Bars, saved_energy, scene_file};
 use anyhow::Context;
+use magg_core::fingerprint::EnergyInputs;
+use magg_core::frame::Frame;
 use magg_core::plan::EffectsPlan;
+use magg_core::render::{Energies, Sequence};
 use magg_core::{preprocess, render};
+use std::sync::Arc;
 
 /// Renders per `cfg` and writes every requested output.
 pub fn run(cfg: RenderConfig) -> anyhow::Result<()> {
-    let mut scene = scene_file::load(&cfg.scene)?;
+    let (mut scene, path) = scene_file::load_with_path(&cfg.scene)?;
     if let Some(q) = cfg.quality {
         q.apply(&mut scene);
     }
@@ -19,6 +29,13 @@ pub fn run(cfg: RenderConfig) -> anyhow::Result<()> {
     if !cfg.quiet {
         eprint!("{}", prepared.header.plan);
     }
+    let inputs = (cfg.save_energy.is_some() || cfg.load_energy.is_some()).then(|| EnergyInputs::of(&prepared));
+    let energies = match (&cfg.load_energy, &inputs) {
+        (Some(p), Some(now)) => Some(Arc::new(saved_energy::load(p, now)?)),
+        _ => None,
+    };
+    let sequence = Sequence { energies, cameras: path.as_ref().map(|p| p.cameras()).unwrap_or_default() };
+    let n_frames = sequence.cameras.len().max(1);
     let opts = render::RenderOptions {
         nodes: cfg.nodes,
         forks: cfg.forks,
@@ -26,8 +43,39 @@ pub fn run(cfg: RenderConfig) -> anyhow::Result<()> {
         subscreen: cfg.subscreen,
     };
     let bars = Bars::new(cfg.quiet);
+    let exposure = scene.settings.exposure;
+    let live = match &cfg.view {
+        Some((addr, wait, _)) => {
+            let live = LiveView::start(addr)?;
+            eprintln!("live view: {}", live.url());
+            let mode = if cfg.mode == Mode::Embedded { "embedded" } else { "cluster" };
+            let s = &scene.settings;
+            live.begin(&prepared.name, s.width, s.height, exposure, mode, n_frames);
+            if *wait && !live.wait_for_viewer(std::time::Duration::from_secs(600)) {
+                tracing::warn!("no page opened the live view in 10 minutes: rendering anyway");
+            }
+            Some(live)
+        }
+        None => None,
+    };
+    let live_progress = live.as_ref().map(|l| l.progress(&bars, cfg.mode != Mode::Embedded));
+    let progress: &dyn magg_core::progress::Progress = match &live_progress {
+        Some(p) => p,
+        None => &bars,
+    };
+    let mut records: Vec<FrameRecord> = Vec::with_capacity(n_frames);
+    let mut sink = |index: usize, frame: &Frame, vrt_s: f64| -> Result<(), String> {
+        let out = frames::numbered(&cfg.out.0, index, n_frames);
+        images::write(frame, &out, cfg.out.1, exposure).map_err(|e| format!("{e:#}"))?;
+        if let Some((path, fmt)) = &cfg.linear {
+            images::write(frame, &frames::numbered(path, index, n_frames), *fmt, exposure)
+                .map_err(|e| format!("{e:#}"))?;
+        }
+        records.push(FrameRecord { frame: index, out: out.display().to_string(), vrt_s });
+        Ok(())
+    };
     let out = match &cfg.mode {
-        Mode::Embedded => render::render(&prepared, &opts, &bars)?,
+        Mode::Embedded => render::render_sequence(&prepared, &opts, progress, &sequence, &mut sink)?,
         Mode::Cluster { forks_at, listen, external_nodes, stall_timeout } => {
             let cluster = InProcessOptions {
                 nodes: if *external_nodes { 0 } else { opts.node_count() },
@@ -39,41 +87,55 @@ pub fn run(cfg: RenderConfig) -> anyhow::Result<()> {
                 stall_timeout: *stall_timeout,
                 profile: cfg.profile.clone(),
                 scheme: cfg.scheme,
+                sequence: sequence.clone(),
+                events: live.as_ref().map(|l| l.cluster_events()),
             };
-            render_in_process(&prepared, &cluster, &bars)?
+            render_in_process(&prepared, &cluster, progress, &mut sink)?
         }
     };
     let stats = out.stats;
 
-    images::write(&out.frame, &cfg.out.0, cfg.out.1, scene.settings.exposure)?;
-    if let Some((path, fmt)) = &cfg.linear {
-        images::write(&out.frame, path, *fmt, scene.settings.exposure)?;
-    }
     if let Some(path) = &cfg.energy {
         energy_csv::write(path, &prepared, &out.element_flux, &out.vertex_irradiance)
             .with_context(|| format!("cannot write energy file {}", path.display()))?;
     }
+    if let (Some(path), Some(inputs)) = (&cfg.save_energy, &inputs) {
+        let e = Energies { element_flux: out.element_flux.clone(), vertex_irradiance: out.vertex_irradiance.clone() };
+        saved_energy::save(path, &prepared.name, inputs, &e)?;
+    }
+    let run = RunStats::new(&stats, cfg.load_energy.as_deref(), cfg.save_energy.as_deref(), records);
     if let Some(path) = &cfg.stats {
-        let json = serde_json::to_string_pretty(&stats)?;
+        let json = serde_json::to_string_pretty(&run)?;
         std::fs::write(path, json + "\n").with_context(|| format!("cannot write stats file {}", path.display()))?;
     }
     if !cfg.quiet {
         let s = &stats.stages;
+        let lrt = match &cfg.load_energy {
+            Some(p) => format!("LRT skipped (energies loaded from {})", p.display()),
+            None => format!("LRT {:.2}s", s.lrt_s),
+        };
+        let frames = if n_frames > 1 { format!(" ({n_frames} frames)") } else { String::new() };
         eprintln!(
-            "{}: {}x{}, {} elements, {} nodes: preprocess {:.2}s, LRT {:.2}s, interp {:.3}s, VRT {:.2}s, total {:.2}s; cache hit ratio {:.3} -> {}",
+            "{}: {}x{}, {} elements, {} nodes: preprocess {:.2}s, {lrt}, interp {:.3}s, VRT {:.2}s{frames}, total {:.2}s; cache hit ratio {:.3} -> {}",
             stats.scene,
             out.frame.width,
             out.frame.height,
             stats.counts.elements,
             stats.nodes,
             s.preprocess_s,
-            s.lrt_s,
             s.interp_s,
             s.vrt_s,
             s.total_s,
             stats.cache.hit_ratio,
-            cfg.out.0.display()
+            run.frames.last().map_or_else(|| cfg.out.0.display().to_string(), |f| f.out.clone())
         );
+    }
+    if let (Some(live), Some((_, _, linger))) = (&live, &cfg.view) {
+        live.finish(&out.frame, exposure, &run)?;
+        if *linger > 0 && !cfg.quiet {
+            eprintln!("live view stays up at {} for {linger} s", live.url());
+        }
+        live.linger(*linger);
     }
     Ok(())
 }

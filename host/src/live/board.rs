@@ -1,0 +1,185 @@
+//! What the live view shows, kept on the host: a log of the current frame's drawing events
+//! (subscreens handed out, pixel rows, redivisions) that every page replays from the
+//! start, and the latest stage, progress and per-node table.
+//!
+//! Messages are JSON objects with a type `t`: `hello`, `frame`, `tile`, `rows`, `split`,
+//! `stage`, `nodes`, `done` (see `page.html`, which draws them). Pixel rows travel as
+//! base64 of little-endian f32 linear RGB; the page tone-maps them itself.
+
+use super::NodeRow;
+use crate::cluster::events::ClusterEvent;
+use base64::Engine;
+use magg_core::math::Rgb;
+use magg_core::vrt::Subscreen;
+use serde_json::{json, Value};
+use std::collections::{BTreeMap, HashMap};
+use std::sync::{Arc, Mutex, MutexGuard};
+
+/// The shared state, behind a lock, plus a version that wakes the pages' streams.
+pub struct Board {
+    inner: Mutex<Inner>,
+    /// Bumped on every change.
+    pub version: tokio::sync::watch::Sender<u64>,
+    /// Event streams opened so far (pages that connected).
+    pub viewers: std::sync::atomic::AtomicU32,
+}
+
+/// The finished images.
+#[derive(Clone, Default)]
+pub struct Finals {
+    /// Tone-mapped PNG.
+    pub png: Option<Arc<Vec<u8>>>,
+    /// Linear OpenEXR.
+    pub exr: Option<Arc<Vec<u8>>>,
+}
+
+/// The lock-protected part of the board.
+#[derive(Default)]
+pub struct Inner {
+    /// The `hello` message (scene, size, mode).
+    hello: Value,
+    /// Messages of the current frame, in order.
+    pub log: Vec<Arc<str>>,
+    /// Bumped when the log restarts (a new frame).
+    pub epoch: u64,
+    /// Subscreens of the current frame by id (cluster rows name only the id).
+    rects: HashMap<u64, Subscreen>,
+    /// Stage name, total and units done.
+    pub stage: (String, u64, u64),
+    /// Per-node figures.
+    pub nodes: BTreeMap<u32, NodeRow>,
+    /// Bumped when `stage` or `nodes` change.
+    pub stage_version: u64,
+    /// Bumped when `nodes` change.
+    pub nodes_version: u64,
+    /// The render is over.
+    pub finished: bool,
+    /// The images to download.
+    pub finals: Finals,
+    /// The `done` message, once the render is over.
+    pub done: Option<String>,
+}
+
+fn b64(px: impl Iterator<Item = f32>) -> String {
+    let bytes: Vec<u8> = px.flat_map(f32::to_le_bytes).collect();
+    base64::engine::general_purpose::STANDARD.encode(bytes)
+}
+
+impl Inner {
+    fn push(&mut self, v: Value) {
+        self.log.push(v.to_string().into());
+    }
+
+    /// Restarts the log for frame `index` of `count`.
+    pub fn frame(&mut self, index: usize, count: usize) {
+        self.epoch += 1;
+        self.log.clear();
+        self.rects.clear();
+        let hello = self.hello.clone();
+        self.push(hello);
+        self.push(json!({"t": "frame", "index": index, "count": count}));
+    }
+
+    /// The row of `node` (created if new), marked changed.
+    pub fn node(&mut self, node: u32) -> &mut NodeRow {
+        self.nodes_version += 1;
+        self.nodes.entry(node).or_insert_with(|| NodeRow { node, ..NodeRow::default() })
+    }
+
+    /// Node `node` took subscreen `id`.
+    pub fn tile(&mut self, node: u32, id: u64, r: Subscreen) {
+        self.rects.insert(id, r);
+        self.node(node).subscreens += 1;
+        self.push(json!({"t": "tile", "node": node, "x": r.x, "y": r.y, "w": r.w, "h": r.h}));
+    }
+
+    /// Rows `y..` of width `w` at `x`, traced by `node`.
+    pub fn rows(&mut self, node: u32, x: u32, y: u32, w: u32, px: impl Iterator<Item = f32>) {
+        let px: Vec<f32> = px.collect();
+        let h = px.len() / (3 * w.max(1) as usize);
+        self.push(json!({"t": "rows", "node": node, "x": x, "y": y, "w": w, "h": h, "px": b64(px.into_iter())}));
+    }
+
+    /// A subscreen of the embedded renderer, traced whole by `node`.
+    pub fn subscreen_done(&mut self, node: u32, t: Subscreen, px: &[Rgb]) {
+        let id = self.rects.len() as u64;
+        self.tile(node, id, t);
+        self.rows(node, t.x, t.y, t.w, px.iter().flat_map(|c| c.0.map(|v| v as f32)));
+    }
+
+    /// Applies an event of the host service.
+    pub fn cluster(&mut self, e: ClusterEvent) {
+        match e {
+            ClusterEvent::FrameBegins { index, count } => self.frame(index, count),
+            ClusterEvent::Registered { node, name } => self.node(node).name = name,
+            ClusterEvent::Report { node, report: r, link_bytes } => {
+                let n = self.node(node);
+                n.pairs = r.pairs;
+                n.light_rays = r.light_rays;
+                n.view_rays = r.view_rays;
+                n.hits = r.cache_hits;
+                n.misses = r.cache_misses;
+                n.remote_misses = r.cache_remote_misses;
+                n.link_bytes = Some(link_bytes);
+            }
+            ClusterEvent::Assigned { node, id, rect } => self.tile(node, id, rect),
+            ClusterEvent::Rows { node, id, rows } => {
+                let (Some(r), Some(first)) = (self.rects.get(&id).copied(), rows.first()) else { return };
+                let y = first.y;
+                self.rows(node, r.x, y, r.w, rows.into_iter().flat_map(|row| row.rgb));
+            }
+            ClusterEvent::Redivided { id, at } => {
+                if let Some(r) = self.rects.get(&id).copied() {
+                    self.push(json!({"t": "split", "x": r.x, "w": r.w, "y": at}));
+                }
+            }
+        }
+    }
+
+    /// The `stage` message.
+    pub fn stage_message(&self) -> String {
+        let (name, total, done) = &self.stage;
+        json!({"t": "stage", "name": name, "total": total, "done": done, "finished": self.finished}).to_string()
+    }
+
+    /// The `nodes` message.
+    pub fn nodes_message(&self) -> String {
+        json!({"t": "nodes", "rows": self.nodes.values().collect::<Vec<_>>()}).to_string()
+    }
+}
+
+impl Board {
+    /// An empty board.
+    pub fn new() -> Self {
+        Board {
+            inner: Mutex::new(Inner::default()),
+            version: tokio::sync::watch::channel(0).0,
+            viewers: std::sync::atomic::AtomicU32::new(0),
+        }
+    }
+
+    /// Locks the state (a poisoned lock is recovered: every update is self-contained).
+    pub fn lock(&self) -> MutexGuard<'_, Inner> {
+        self.inner.lock().unwrap_or_else(|e| e.into_inner())
+    }
+
+    /// Runs `f` on the state and wakes the pages.
+    pub fn update(&self, f: impl FnOnce(&mut Inner)) {
+        f(&mut self.lock());
+        self.version.send_modify(|v| *v += 1);
+    }
+
+    /// Sets the `hello` message and starts frame 0.
+    pub fn hello(&self, hello: Value, frames: usize) {
+        self.update(|s| {
+            s.hello = hello;
+            s.frame(0, frames);
+        });
+    }
+}
+
+impl Default for Board {
+    fn default() -> Self {
+        Board::new()
+    }
+}

@@ -1,0 +1,218 @@
+//! The live view (`magg-host render --view ADDR`): a web page that shows a render as it
+//! runs, the way the paper's frame buffer would have: the frame filling in, the subscreen
+//! map coloured by the node that traced each part, redivisions as they happen, the stage
+//! and its progress, and a table per node; the finished image downloads as PNG or EXR.
+//!
+//! The server runs on a runtime of its own (one thread), so it neither slows nor waits on
+//! the render's. The page gets server-sent events; the cluster's host service feeds the
+//! board through [`crate::cluster::events`], the embedded renderer through the
+//! [`Progress`] hooks (there, per-node figures other than subscreens arrive at the end).
+//!
+//! ```text
+//! magg-host render scenes/cornell.toml --out c.png --view 127.0.0.1:8080 --view-linger 600
+//! # open http://127.0.0.1:8080/
+//! ```
+
+mod board;
+mod server;
+
+use crate::cluster::events::EventSender;
+use crate::frames::RunStats;
+use anyhow::Context;
+use board::Board;
+use magg_core::frame::Frame;
+use magg_core::math::Rgb;
+use magg_core::progress::Progress;
+use magg_core::scene::Exposure;
+use magg_core::vrt::Subscreen;
+use serde::Serialize;
+use serde_json::json;
+use std::sync::atomic::Ordering;
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+/// One row of the page's node table.
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct NodeRow {
+    /// Node id.
+    pub node: u32,
+    /// Name it registered with (cluster) or `thread N` (embedded).
+    pub name: String,
+    /// Pairs traced.
+    pub pairs: u64,
+    /// Subscreens taken (redivided parts included).
+    pub subscreens: u64,
+    /// Light rays traced.
+    pub light_rays: u64,
+    /// Viewing rays traced.
+    pub view_rays: u64,
+    /// Cache hits.
+    pub hits: u64,
+    /// Cache misses (blocks over DMA or G-bus).
+    pub misses: u64,
+    /// Misses served from a fork other than the home fork (the G-bus path).
+    pub remote_misses: u64,
+    /// Bytes of its messages with the host (link path); unknown for the embedded renderer.
+    pub link_bytes: Option<u64>,
+}
+
+/// A running live view.
+pub struct LiveView {
+    board: Arc<Board>,
+    rt: tokio::runtime::Runtime,
+    addr: std::net::SocketAddr,
+}
+
+impl LiveView {
+    /// Serves the page on `addr` (HOST:PORT; port 0 picks a free one).
+    pub fn start(addr: &str) -> anyhow::Result<LiveView> {
+        let rt = tokio::runtime::Builder::new_multi_thread()
+            .worker_threads(1)
+            .thread_name("magg-live-view")
+            .enable_all()
+            .build()
+            .context("starting the live view's runtime")?;
+        let listener = rt
+            .block_on(tokio::net::TcpListener::bind(addr))
+            .with_context(|| format!("--view {addr}: cannot listen there"))?;
+        let addr = listener.local_addr()?;
+        let board = Arc::new(Board::new());
+        let app = server::router(board.clone());
+        rt.spawn(async move {
+            if let Err(e) = axum::serve(listener, app).await {
+                tracing::warn!("live view server stopped: {e}");
+            }
+        });
+        Ok(LiveView { board, rt, addr })
+    }
+
+    /// The page's address.
+    pub fn url(&self) -> String {
+        format!("http://{}/", self.addr)
+    }
+
+    /// Announces the render: scene label, image size, how it runs, frame count.
+    /// `exposure` is the PNG's (`null` on the page for auto).
+    pub fn begin(&self, scene: &str, width: u32, height: u32, exposure: Exposure, mode: &str, frames: usize) {
+        let exposure = match exposure {
+            Exposure::Fixed(s) => Some(s),
+            Exposure::Auto => None,
+        };
+        let hello = json!({"t": "hello", "scene": scene, "width": width, "height": height,
+                           "exposure": exposure, "mode": mode, "frames": frames});
+        self.board.hello(hello, frames);
+    }
+
+    /// A channel for the cluster's host service; its events are applied in order.
+    pub fn cluster_events(&self) -> EventSender {
+        let (tx, mut rx) = tokio::sync::mpsc::unbounded_channel();
+        let board = self.board.clone();
+        self.rt.spawn(async move {
+            while let Some(e) = rx.recv().await {
+                board.update(|s| s.cluster(e));
+            }
+        });
+        tx
+    }
+
+    /// Waits until a page has opened the event stream, at most `limit`; true if one did.
+    pub fn wait_for_viewer(&self, limit: Duration) -> bool {
+        let end = Instant::now() + limit;
+        while Instant::now() < end {
+            if self.board.viewers.load(Ordering::SeqCst) > 0 {
+                return true;
+            }
+            std::thread::sleep(Duration::from_millis(20));
+        }
+        false
+    }
+
+    /// The render is over: publishes the final frame (PNG and EXR to download) and the
+    /// final per-node figures of `stats`.
+    pub fn finish(&self, frame: &Frame, exposure: Exposure, stats: &RunStats<'_>) -> anyhow::Result<()> {
+        let png = Arc::new(crate::images::encode_png(frame, exposure)?);
+        let exr = Arc::new(crate::images::encode_exr(frame)?);
+        let r = stats.render;
+        self.board.update(|s| {
+            for n in &r.per_node {
+                let row = s.node(n.node);
+                row.pairs = n.pairs;
+                row.light_rays = n.ops.light_rays;
+                row.view_rays = n.ops.view_rays;
+                row.hits = n.cache.hits;
+                row.misses = n.cache.misses;
+            }
+            s.finished = true;
+            s.stage_version += 1;
+            s.finals = board::Finals { png: Some(png), exr: Some(exr) };
+            let done = json!({
+                "t": "done",
+                "png": "/image.png",
+                "exr": "/image.exr",
+                "stages": r.stages,
+                "traffic": r.traffic,
+                "work": r.work,
+                "light_passes": stats.energy.light_passes,
+                "frames": stats.frames.len(),
+            });
+            s.done = Some(done.to_string());
+        });
+        Ok(())
+    }
+
+    /// Keeps serving for `secs` seconds (the page stays up after the render).
+    pub fn linger(&self, secs: u64) {
+        if secs > 0 {
+            std::thread::sleep(Duration::from_secs(secs));
+        }
+    }
+
+    /// A [`Progress`] that feeds the board and forwards to `inner` (the terminal bars).
+    /// With `cluster`, frames start through the cluster's events instead.
+    pub fn progress<'a>(&'a self, inner: &'a dyn Progress, cluster: bool) -> LiveProgress<'a> {
+        LiveProgress { inner, board: &self.board, cluster }
+    }
+}
+
+/// Progress hooks that update the live view, then the terminal's.
+pub struct LiveProgress<'a> {
+    inner: &'a dyn Progress,
+    board: &'a Board,
+    cluster: bool,
+}
+
+impl Progress for LiveProgress<'_> {
+    fn begin(&self, stage: &str, total: u64) {
+        self.inner.begin(stage, total);
+        self.board.update(|s| {
+            s.stage = (stage.to_string(), total, 0);
+            s.stage_version += 1;
+        });
+    }
+    fn advance(&self, n: u64) {
+        self.inner.advance(n);
+        self.board.update(|s| {
+            s.stage.2 += n;
+            s.stage_version += 1;
+        });
+    }
+    fn end(&self) {
+        self.inner.end();
+    }
+    fn frame_begins(&self, index: usize, count: usize) {
+        self.inner.frame_begins(index, count);
+        if !self.cluster {
+            self.board.update(|s| s.frame(index, count));
+        }
+    }
+    fn subscreen_done(&self, node: u32, t: Subscreen, px: &[Rgb]) {
+        self.inner.subscreen_done(node, t, px);
+        self.board.update(|s| {
+            let row = s.node(node);
+            if row.name.is_empty() {
+                row.name = format!("thread {node}");
+            }
+            s.subscreen_done(node, t, px)
+        });
+    }
+}
