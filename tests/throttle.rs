@@ -118,6 +118,12 @@ fn a_fork_started_with_another_profile_refuses_the_render() {
         .spawn()
         .unwrap();
     let _procs = Procs(vec![fork]);
+    // Wait until the fork listens, so that the host's only line is the refusal.
+    let t = std::time::Instant::now();
+    while std::net::TcpStream::connect(&addr).is_err() {
+        assert!(t.elapsed() < std::time::Duration::from_secs(20), "magg-fork never listened on {addr}");
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
     let dir = tempfile::tempdir().unwrap();
     let out = magg_host()
         .arg("render")

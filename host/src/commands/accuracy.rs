@@ -65,6 +65,10 @@ pub struct Row {
     pub elements: u32,
     /// Mean wall time of a render (stats `total_s`, preprocessing included).
     pub seconds: f64,
+    /// Modelled time of the same work on one T800-20 of the 1993 machine (the
+    /// `magg1993` profile's cost model: preprocessing plus every node's counted
+    /// operations), seconds. Deterministic: it does not depend on this machine or its load.
+    pub modelled_s: f64,
     /// RMSE of the linear image.
     pub image_rmse: Option<f64>,
     /// Relative MSE of the linear image.
@@ -77,6 +81,7 @@ pub struct Row {
 
 struct Measured {
     seconds: f64,
+    modelled_s: f64,
     frame: Frame,
     irradiance: Vec<Rgb>,
     elements: u32,
@@ -89,12 +94,21 @@ fn render_point(scene: &Scene, point: &Point, seed: u64, nodes: u32) -> anyhow::
     let opts = render::RenderOptions { nodes, ..Default::default() };
     let out = render::render(&prepared, &opts, &NoProgress)?;
     let irradiance = energy::element_irradiance(&prepared.elements, &out.element_flux, prepared.header.energy_quantum);
+    let ops = out.stats.per_node.iter().fold(magg_core::view::OpCounters::default(), |a, n| a.add(n.ops));
     Ok(Measured {
         seconds: out.stats.stages.total_s,
+        modelled_s: modelled_seconds(&prepared, &ops),
         frame: out.frame,
         irradiance,
         elements: prepared.header.counts.elements,
     })
+}
+
+/// Seconds the work of a render would take on one processor of the `magg1993` profile.
+fn modelled_seconds(prepared: &preprocess::PreparedScene, ops: &magg_core::view::OpCounters) -> f64 {
+    let Ok(profile) = magg_throttle::Profile::named("magg1993") else { return f64::NAN };
+    let Some(cpu) = profile.cpu else { return f64::NAN };
+    (magg_throttle::CpuCost(cpu).of(ops) + magg_throttle::preprocess_ops(&cpu, &prepared.ops, 1)).as_secs_f64()
 }
 
 /// Runs the study.
@@ -137,11 +151,13 @@ pub fn run(args: &AccuracyArgs) -> anyhow::Result<()> {
     let mut rows = Vec::with_capacity(settings.len());
     for setting in settings {
         let (mut secs, mut mse, mut rel, mut png, mut el) = (0.0, Some(0.0), Some(0.0), Some(0.0), Some(0.0));
+        let mut modelled = 0.0;
         let mut elements = 0;
         let comparable = setting.point.element_scale == ref_point.element_scale;
         for seed in 1..=args.seeds as u64 {
             let m = render_point(&scene, &setting.point, seed, args.nodes)?;
             secs += m.seconds;
+            modelled += m.modelled_s;
             elements = m.elements;
             let add = |acc: Option<f64>, x: Option<f64>| Some(acc? + x?);
             mse = add(mse, metrics::image_mse(&m.frame, &reference.frame));
@@ -154,6 +170,7 @@ pub fn run(args: &AccuracyArgs) -> anyhow::Result<()> {
             element_size: scene.settings.element_size * setting.point.element_scale,
             elements,
             seconds: secs / n,
+            modelled_s: modelled / n,
             image_rmse: mse.map(|v| (v / n).sqrt()),
             image_rel_mse: rel.map(|v| v / n),
             png_psnr: png.map(|v| metrics::psnr_db(v / n)),
@@ -288,13 +305,13 @@ fn field(s: &str) -> String {
 /// The CSV text of `rows`: one line per setting; a missing error is an empty field.
 pub fn csv(rows: &[Row]) -> String {
     let mut s = String::from(
-        "knob,value,element_size,light_rays,pixel_samples,lrt_depth,vrt_depth,diffuse_bounces,seconds,image_rmse,image_rel_mse,png_psnr,element_rmse,elements\n",
+        "knob,value,element_size,light_rays,pixel_samples,lrt_depth,vrt_depth,diffuse_bounces,seconds,modelled_s,image_rmse,image_rel_mse,png_psnr,element_rmse,elements\n",
     );
     for r in rows {
         let p = &r.setting.point;
         let _ = writeln!(
             s,
-            "{},{},{},{},{},{},{},{},{:.6},{},{},{},{},{}",
+            "{},{},{},{},{},{},{},{},{:.6},{:.4},{},{},{},{},{}",
             field(&r.setting.knob),
             field(&r.setting.value),
             r.element_size,
@@ -304,6 +321,7 @@ pub fn csv(rows: &[Row]) -> String {
             p.vrt_depth,
             p.diffuse_bounces,
             r.seconds,
+            r.modelled_s,
             opt(r.image_rmse, 6),
             opt(r.image_rel_mse, 6),
             r.png_psnr.filter(|x| x.is_finite()).map(|x| format!("{x:.3}")).unwrap_or_default(),
@@ -317,15 +335,15 @@ pub fn csv(rows: &[Row]) -> String {
 /// A markdown table of the rows at `idx`, in that order.
 pub fn markdown(rows: &[Row], idx: impl IntoIterator<Item = usize>) -> String {
     let mut s = String::from(
-        "| knob | value | elements | light rays | pixel samples | lrt/vrt depth | diffuse | seconds | image RMSE | image rel. MSE | PNG PSNR (dB) | element RMSE |\n\
-         | --- | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |\n",
+        "| knob | value | elements | light rays | pixel samples | lrt/vrt depth | diffuse | seconds | T800 s | image RMSE | image rel. MSE | PNG PSNR (dB) | element RMSE |\n\
+         | --- | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |\n",
     );
     for i in idx {
         let r = &rows[i];
         let p = &r.setting.point;
         let _ = writeln!(
             s,
-            "| {} | {} | {} | {} | {} | {}/{} | {} | {:.3} | {} | {} | {} | {} |",
+            "| {} | {} | {} | {} | {} | {}/{} | {} | {:.3} | {:.2} | {} | {} | {} | {} |",
             r.setting.knob,
             r.setting.value,
             r.elements,
@@ -335,6 +353,7 @@ pub fn markdown(rows: &[Row], idx: impl IntoIterator<Item = usize>) -> String {
             p.vrt_depth,
             p.diffuse_bounces,
             r.seconds,
+            r.modelled_s,
             opt(r.image_rmse, 2),
             opt(r.image_rel_mse, 2),
             r.png_psnr.map(|x| format!("{x:.2}")).unwrap_or_default(),
@@ -365,6 +384,7 @@ mod tests {
             element_size: 0.1,
             elements: 1664,
             seconds: 0.5,
+            modelled_s: 60.0,
             image_rmse: rel,
             image_rel_mse: rel,
             png_psnr: Some(metrics::psnr_db(0.0)),
