@@ -15,6 +15,9 @@ use tonic::{Request, Response, Status};
 /// Render phase, as the host drives it.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Phase {
+    /// Waiting for the expected nodes to register, so that the light pass starts on
+    /// every processor at once (as the paper's machine did): nodes wait.
+    Gather,
     /// Light ray tracing: nodes pull pairs from their forks.
     Lrt,
     /// Energy interpolation on the host: nodes wait.
@@ -121,7 +124,7 @@ impl HostService {
                 }
                 _ => wait,
             },
-            Phase::Interp => wait,
+            Phase::Interp | Phase::Gather => wait,
             Phase::Vrt => match s.schedule.as_mut().map(|sc| sc.next(node)) {
                 Some(Next::Trace(id, t)) => {
                     s.emit(|| ClusterEvent::Assigned { node, id, rect: t });
