@@ -17,6 +17,7 @@ use magg_proto::v1;
 use std::collections::{HashMap, HashSet};
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Mutex, RwLock};
+use std::time::{Duration, Instant};
 
 /// Most forks a cluster may have.
 pub const MAX_FORKS: usize = 4096;
@@ -30,6 +31,8 @@ pub const MAX_DEPOSIT_PAIRS: usize = 65_536;
 pub const MAX_DEPOSITS: usize = 1 << 20;
 /// Longest fork address accepted.
 pub const MAX_ADDR_LEN: usize = 256;
+/// Pair lease when `LoadShard` gives none: a node silent this long is taken for dead.
+pub const DEFAULT_LEASE: Duration = Duration::from_secs(30);
 
 /// Which fork this is, and where the others are.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -66,8 +69,12 @@ struct Work {
     /// Unassigned pairs of this fork.
     queue: PairQueue,
     /// Pairs of this fork handed out and not yet complete, with the node they went to
-    /// (kept for re-issue on node failure).
-    leased: HashMap<u64, u32>,
+    /// and when (given back to the queue when the lease expires: node failure).
+    leased: HashMap<u64, (u32, Instant)>,
+    /// When each node last asked this fork for pairs (refreshes all its leases).
+    seen: HashMap<u32, Instant>,
+    /// Leases that expired so far.
+    returned: u64,
     /// Pairs whose deposits this fork has applied (exactly-once).
     applied: HashSet<u64>,
     /// Pairs of this fork reported complete.
@@ -88,6 +95,8 @@ pub struct Shard {
     work: Mutex<Work>,
     traffic: Traffic,
     peers: Peers,
+    /// How long a node may stay silent before its pairs go back to the queue.
+    lease: Duration,
 }
 
 impl Shard {
@@ -116,9 +125,12 @@ impl Shard {
         let owned: Vec<u32> =
             (0..header.counts.elements).filter(|&e| header.layout.element_slot(e).0 % f == index).collect();
         let lights = header.lights.len() as u32;
+        let lease = if req.lease_ms == 0 { DEFAULT_LEASE } else { Duration::from_millis(req.lease_ms as u64) };
         let work = Work {
             queue: PairQueue::new(lights, owned.len(), header.plan.lrt),
             leased: HashMap::new(),
+            seen: HashMap::new(),
+            returned: 0,
             applied: HashSet::new(),
             done: HashSet::new(),
             energy: vec![[0; 3]; owned.len()],
@@ -131,6 +143,7 @@ impl Shard {
             traffic: Traffic::default(),
             peers: Peers::new(place.addrs.clone()),
             place,
+            lease,
         };
         shard.put_blocks(req.blocks)?;
         Ok(shard)
@@ -240,15 +253,60 @@ impl Shard {
             .collect()
     }
 
-    /// Takes up to `max` unassigned pairs of this fork's own queue for `node`.
+    /// Takes up to `max` unassigned pairs of this fork's own queue for `node` (first
+    /// giving back the pairs of nodes whose lease expired), and renews `node`'s leases.
     pub fn take_own_pairs(&self, max: u32, node: u32) -> Vec<u64> {
         let max = max.clamp(1, MAX_PAIRS_PER_REQUEST) as usize;
+        let now = Instant::now();
         let mut work = lock(&self.work);
-        let pairs = work.queue.pop(max, &self.owned, self.header.counts.elements);
+        work.seen.insert(node, now);
+        self.reclaim_expired(&mut work, now);
+        let mut pairs = Vec::new();
+        while pairs.len() < max {
+            let got = work.queue.pop(max - pairs.len(), &self.owned, self.header.counts.elements);
+            if got.is_empty() {
+                break;
+            }
+            // A given-back pair may have been completed since by its first (slow) node.
+            pairs.extend(got.into_iter().filter(|p| !work.done.contains(p)));
+        }
         for &p in &pairs {
-            work.leased.insert(p, node);
+            work.leased.insert(p, (node, now));
         }
         pairs
+    }
+
+    /// Gives back to the queue the pairs of every node silent for longer than the lease.
+    fn reclaim_expired(&self, work: &mut Work, now: Instant) {
+        let lease = self.lease;
+        let seen = &work.seen;
+        let expired: Vec<u64> = work
+            .leased
+            .iter()
+            .filter(|(_, &(node, at))| {
+                let last = seen.get(&node).map_or(at, |&s| s.max(at));
+                now.saturating_duration_since(last) > lease
+            })
+            .map(|(&p, _)| p)
+            .collect();
+        if expired.is_empty() {
+            return;
+        }
+        let mut nodes: Vec<u32> = expired.iter().filter_map(|p| work.leased.get(p).map(|l| l.0)).collect();
+        nodes.sort_unstable();
+        nodes.dedup();
+        for p in &expired {
+            work.leased.remove(p);
+            work.queue.give_back(*p);
+        }
+        work.returned += expired.len() as u64;
+        tracing::warn!(
+            fork = self.place.index,
+            pairs = expired.len(),
+            ?nodes,
+            "pair leases expired (node silent for over {:?}): pairs back on the queue",
+            lease
+        );
     }
 
     /// The id range of pairs: `lights * elements`.
@@ -338,7 +396,8 @@ impl Shard {
     /// Energies of every owned element (ascending id; none when `summary_only`), pair
     /// progress, and the traffic counters of [`Shard::traffic`].
     pub fn energies(&self, summary_only: bool) -> v1::GetEnergiesReply {
-        let work = lock(&self.work);
+        let mut work = lock(&self.work);
+        self.reclaim_expired(&mut work, Instant::now());
         let energies = if summary_only {
             Vec::new()
         } else {
@@ -356,6 +415,7 @@ impl Shard {
             gbus_bytes: self.traffic.gbus_bytes.load(Ordering::Relaxed),
             rpcs: self.traffic.rpcs.load(Ordering::Relaxed),
             link_bytes: self.traffic.link_bytes.load(Ordering::Relaxed),
+            pairs_returned: work.returned,
         }
     }
 

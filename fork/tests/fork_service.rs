@@ -81,6 +81,7 @@ impl Cluster {
             fork_addrs: self.addrs.clone(),
             header: Some(v1::SceneHeader::from(&*self.scene.header)),
             blocks,
+            lease_ms: 0,
         }
     }
 

@@ -103,6 +103,9 @@ pub struct RenderArgs {
     /// Scene overrides: accuracy knobs and output size.
     #[command(flatten)]
     pub knobs: Knobs,
+    /// Fault handling: node leases.
+    #[command(flatten)]
+    pub faults: crate::faults::FaultArgs,
 }
 
 /// Overrides of the scene's `[render]` settings.
@@ -222,6 +225,8 @@ pub enum Mode {
         external_nodes: bool,
         /// Phase stall limit.
         stall_timeout: std::time::Duration,
+        /// Node lease: a node silent this long loses its work to the others.
+        lease: std::time::Duration,
     },
 }
 
@@ -292,6 +297,7 @@ impl RenderArgs {
                     listen: self.listen,
                     external_nodes: self.external_nodes,
                     stall_timeout: std::time::Duration::from_secs(self.stall_timeout),
+                    lease: self.faults.lease()?,
                 }
             },
         })

@@ -10,6 +10,7 @@ pub mod cli;
 pub mod cluster;
 pub mod commands;
 pub mod energy_csv;
+pub mod faults;
 pub mod images;
 pub mod logging;
 pub mod progress;

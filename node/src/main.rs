@@ -30,6 +30,10 @@ struct Args {
     /// redivision move its unstarted rows to others).
     #[arg(long, default_value_t = 0)]
     slow_row_ms: u64,
+    /// Extra milliseconds per (light, element) pair: emulate a slow node in light ray
+    /// tracing (fault tests kill such a node in the middle of its pairs).
+    #[arg(long, default_value_t = 0)]
+    slow_pair_ms: u64,
     /// More log output.
     #[arg(short, long, action = clap::ArgAction::Count)]
     verbose: u8,
@@ -76,6 +80,7 @@ fn run(args: Args) -> anyhow::Result<()> {
             ..Default::default()
         },
         row_delay: std::time::Duration::from_millis(args.slow_row_ms),
+        pair_delay: std::time::Duration::from_millis(args.slow_pair_ms),
     };
     let s = magg_node::run(&cfg)?;
     tracing::info!("node {} done: {} pairs, {} subscreens", s.node, s.pairs, s.tiles);

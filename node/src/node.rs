@@ -35,6 +35,9 @@ pub struct NodeConfig {
     /// Extra time spent per pixel row: emulates a slow or overloaded node (to watch
     /// adaptive redivision and straggler handling).
     pub row_delay: std::time::Duration,
+    /// Extra time spent per (light, element) pair: emulates a slow node in LRT (to
+    /// watch pair leases expire and move to others).
+    pub pair_delay: std::time::Duration,
 }
 
 impl Default for NodeConfig {
@@ -46,6 +49,7 @@ impl Default for NodeConfig {
             name: "node".into(),
             backoff: Backoff::default(),
             row_delay: std::time::Duration::ZERO,
+            pair_delay: std::time::Duration::ZERO,
         }
     }
 }
@@ -122,6 +126,7 @@ pub fn run_with_runtime(rt: Handle, cfg: &NodeConfig) -> Result<NodeSummary, Nod
                 totals: totals.clone(),
                 mine: WorkerTotals::default(),
                 row_delay: cfg.row_delay,
+                pair_delay: cfg.pair_delay,
             };
             std::thread::Builder::new()
                 .name(format!("magg-node-{}-{index}", reg.node))

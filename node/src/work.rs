@@ -55,6 +55,8 @@ pub struct Worker {
     pub mine: WorkerTotals,
     /// Emulated extra time per pixel row.
     pub row_delay: Duration,
+    /// Emulated extra time per (light, element) pair.
+    pub pair_delay: Duration,
 }
 
 impl Worker {
@@ -143,6 +145,7 @@ impl Worker {
                 continue;
             }
             next = self.rt.spawn(take(self.forks[self.home].clone(), self.node));
+            tracing::debug!(node = self.node, pairs = got.pairs.len(), "tracing a batch of pairs");
             // Per fork: round 1 carries deposits on forks other than the pair's owner;
             // round 2 carries the owner's deposits and marks the pair complete, so that a
             // pair counted as done has all its energy in place.
@@ -154,6 +157,9 @@ impl Worker {
                 }
                 let (light, element) = ((pair / elements) as u32, (pair % elements) as u32);
                 let r = trace_pair(&mut self.view, &mut scratch, light, element)?;
+                if !self.pair_delay.is_zero() {
+                    std::thread::sleep(self.pair_delay);
+                }
                 self.mine.pairs += 1;
                 self.mine.tally = self.mine.tally.add(r.tally);
                 let owner = self.owner_of(element);
@@ -193,6 +199,7 @@ impl Worker {
                 s.w, s.h, s.x, s.y
             )));
         }
+        tracing::debug!(node = self.node, id = s.id, "tracing a subscreen {}x{}+{}+{}", s.w, s.h, s.x, s.y);
         let rig = CameraRig::new(&h.camera, w, hgt);
         let mut scratch = TraceScratch::default();
         let mut end = s.y + s.h;
@@ -224,9 +231,11 @@ impl Worker {
             let req = SubmitRowsRequest { node: self.node, subscreen: s.id, rows: std::mem::take(&mut rows), last };
             let reply = self.rt.block_on(host.submit_rows(req)).map_err(NodeError::rpc("SubmitRows"))?.into_inner();
             since = Instant::now();
+            // Stop before row `from`: rows not started were redivided; a `from` at or
+            // before `y` means the subscreen was revoked (this node was taken for lost).
             if let Some(from) = reply.give_back_from {
-                if from >= y && from < end {
-                    end = from;
+                if from < end {
+                    end = from.max(y);
                 }
             }
             if last {

@@ -20,7 +20,7 @@
 
 use std::ffi::OsStr;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::{Child, Command, Output};
 use std::sync::OnceLock;
 
 /// The workspace root (the parent of this package).
@@ -129,30 +129,52 @@ pub struct Rendered {
     pub stats: PathBuf,
 }
 
+impl Rendered {
+    /// The files `<stem>.png`, `<stem>.pfm`, `<stem>.csv` and `<stem>.json` in `dir`.
+    pub fn at(dir: &Path, stem: &str) -> Rendered {
+        Rendered {
+            png: dir.join(format!("{stem}.png")),
+            pfm: dir.join(format!("{stem}.pfm")),
+            energy: dir.join(format!("{stem}.csv")),
+            stats: dir.join(format!("{stem}.json")),
+        }
+    }
+
+    /// A `magg-host render SCENE` command writing these files, quiet.
+    pub fn command(&self, scene: &Path) -> Command {
+        let mut c = magg_host();
+        c.arg("render").arg(scene).arg("--out").arg(&self.png).arg("--linear").arg(&self.pfm);
+        c.arg("--energy").arg(&self.energy).arg("--stats").arg(&self.stats).arg("--quiet");
+        c
+    }
+}
+
+/// Children killed and reaped on drop, so that a failing test leaves no process behind.
+#[derive(Debug, Default)]
+pub struct Procs(pub Vec<Child>);
+
+impl Drop for Procs {
+    fn drop(&mut self) {
+        for c in &mut self.0 {
+            let _ = c.kill();
+            let _ = c.wait();
+        }
+    }
+}
+
+/// A TCP port on 127.0.0.1 that was free a moment ago.
+pub fn free_port() -> u16 {
+    std::net::TcpListener::bind("127.0.0.1:0")
+        .and_then(|l| l.local_addr())
+        .map(|a| a.port())
+        .expect("cannot bind a port on 127.0.0.1")
+}
+
 /// Renders `scene` into `dir` as `<stem>.png`, `<stem>.pfm`, `<stem>.csv` and
 /// `<stem>.json`, with `extra` flags (overrides, cluster shape), and checks it succeeded.
 pub fn render(scene: &Path, dir: &Path, stem: &str, extra: &[&str]) -> Rendered {
-    let r = Rendered {
-        png: dir.join(format!("{stem}.png")),
-        pfm: dir.join(format!("{stem}.pfm")),
-        energy: dir.join(format!("{stem}.csv")),
-        stats: dir.join(format!("{stem}.json")),
-    };
-    let out = magg_host()
-        .arg("render")
-        .arg(scene)
-        .arg("--out")
-        .arg(&r.png)
-        .arg("--linear")
-        .arg(&r.pfm)
-        .arg("--energy")
-        .arg(&r.energy)
-        .arg("--stats")
-        .arg(&r.stats)
-        .arg("--quiet")
-        .args(extra)
-        .output()
-        .expect("cannot start magg-host");
+    let r = Rendered::at(dir, stem);
+    let out = r.command(scene).args(extra).output().expect("cannot start magg-host");
     assert_success(&out, &format!("magg-host render {} {}", scene.display(), extra.join(" ")));
     r
 }

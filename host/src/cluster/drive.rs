@@ -35,6 +35,8 @@ pub struct DriveOptions {
     pub nodes: u32,
     /// Give up if a phase makes no progress for this long.
     pub stall_timeout: Duration,
+    /// A node silent this long has lost its pairs (on the forks) and its subscreen.
+    pub lease: Duration,
 }
 
 /// Accepted connections with Nagle's algorithm off: the protocol is many small
@@ -91,6 +93,7 @@ pub async fn drive(
             fork_addrs: opts.forks.clone(),
             header: Some(wire_header.clone()),
             blocks,
+            lease_ms: opts.lease.as_millis().clamp(1, u32::MAX as u128) as u32,
         };
         fork.load_shard(req).await.with_context(|| format!("loading the shard of fork {i} at {}", opts.forks[i]))?;
     }
@@ -105,6 +108,7 @@ pub async fn drive(
         cache_blocks: opts.cache_blocks.unwrap_or(0),
         link_bytes: 0,
         rpcs: 0,
+        pairs_epoch: 0,
     });
     let (stop_tx, stop_rx) = tokio::sync::oneshot::channel::<()>();
     let server = tonic::transport::Server::builder()
@@ -127,14 +131,22 @@ pub async fn drive(
     };
     progress.begin("light ray tracing", total_pairs);
     let mut last = (0u64, Instant::now());
+    let mut returned_seen = 0;
     loop {
-        let mut done = 0;
+        let (mut done, mut returned) = (0, 0);
         for (i, fork) in forks.iter_mut().enumerate() {
             let r = fork
                 .get_energies(GetEnergiesRequest { summary_only: true })
                 .await
-                .with_context(|| format!("fork {i} at {}", opts.forks[i]))?;
-            done += r.into_inner().pairs_done;
+                .with_context(|| format!("fork {i} at {}", opts.forks[i]))?
+                .into_inner();
+            done += r.pairs_done;
+            returned += r.pairs_returned;
+        }
+        if returned > returned_seen {
+            // Pairs of a lost node are back on a queue: wake the nodes that ran out.
+            returned_seen = returned;
+            service.lock().pairs_epoch += 1;
         }
         if done > last.0 {
             progress.advance(done - last.0);
@@ -194,7 +206,17 @@ pub async fn drive(
     let mut last_rows = (0u64, Instant::now());
     loop {
         let (done, px) = {
-            let st = service.lock();
+            let mut st = service.lock();
+            if let Some(sc) = st.schedule.as_mut() {
+                let lost = sc.expire(opts.lease);
+                if !lost.is_empty() {
+                    tracing::warn!(
+                        ?lost,
+                        "nodes silent for over {:?}: their subscreens are back on the queue",
+                        opts.lease
+                    );
+                }
+            }
             let sc = st.schedule.as_ref();
             (sc.is_some_and(|s| s.is_done()), sc.map_or(0, |s| s.pixels_done()))
         };
@@ -217,7 +239,7 @@ pub async fn drive(
     service.lock().phase = Phase::Done;
     let deadline = Instant::now() + Duration::from_secs(5);
     while Instant::now() < deadline {
-        if service.lock().nodes.iter().all(|n| n.finished()) {
+        if service.lock().nodes.iter().all(|n| n.finished_or_gone(Duration::from_secs(2))) {
             break;
         }
         tokio::time::sleep(Duration::from_millis(5)).await;

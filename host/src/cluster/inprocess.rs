@@ -27,6 +27,8 @@ pub struct InProcessOptions {
     pub subscreen: u32,
     /// Abort a phase that makes no progress for this long.
     pub stall_timeout: Duration,
+    /// A node silent this long loses its pairs and subscreen to the others.
+    pub lease: Duration,
 }
 
 /// Runs the cluster and returns the render.
@@ -69,6 +71,7 @@ pub fn render_in_process(
                 name: format!("in-process-{i}"),
                 backoff: magg_node::Backoff::default(),
                 row_delay: Duration::ZERO,
+                pair_delay: Duration::ZERO,
             };
             let handle = rt.handle().clone();
             std::thread::Builder::new()
@@ -84,6 +87,7 @@ pub fn render_in_process(
         subscreen: opts.subscreen,
         nodes: opts.nodes,
         stall_timeout: opts.stall_timeout,
+        lease: opts.lease,
     };
     let result = rt.block_on(drive(prepared, &drive_opts, listener, progress));
     let mut node_err = None;

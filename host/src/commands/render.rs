@@ -28,7 +28,7 @@ pub fn run(cfg: RenderConfig) -> anyhow::Result<()> {
     let bars = Bars::new(cfg.quiet);
     let out = match &cfg.mode {
         Mode::Embedded => render::render(&prepared, &opts, &bars)?,
-        Mode::Cluster { forks_at, listen, external_nodes, stall_timeout } => {
+        Mode::Cluster { forks_at, listen, external_nodes, stall_timeout, lease } => {
             let cluster = InProcessOptions {
                 nodes: if *external_nodes { 0 } else { opts.node_count() },
                 forks: cfg.forks,
@@ -37,6 +37,7 @@ pub fn run(cfg: RenderConfig) -> anyhow::Result<()> {
                 cache_blocks: cfg.cache_blocks,
                 subscreen: cfg.subscreen,
                 stall_timeout: *stall_timeout,
+                lease: *lease,
             };
             render_in_process(&prepared, &cluster, &bars)?
         }
