@@ -1,8 +1,10 @@
 //! The node's block source: its home fork over gRPC (the paper's DMA path).
 
+use crate::connect::Backoff;
+use crate::retry::retry;
 use magg_core::blocks::{Block, BlockError, BlockSource, BLOCK_SIZE};
 use magg_proto::v1::fork_client::ForkClient;
-use magg_proto::v1::GetBlocksRequest;
+use magg_proto::v1::{GetBlocksReply, GetBlocksRequest};
 use tokio::runtime::Handle;
 use tonic::transport::Channel;
 
@@ -11,25 +13,31 @@ use tonic::transport::Channel;
 pub struct ForkBlocks {
     client: ForkClient<Channel>,
     rt: Handle,
+    backoff: Backoff,
 }
 
 impl ForkBlocks {
-    /// A source reading through `client` on runtime `rt`.
-    pub fn new(client: ForkClient<Channel>, rt: Handle) -> Self {
-        ForkBlocks { client, rt }
+    /// A source reading through `client` on runtime `rt`, retrying an unreachable fork
+    /// per `backoff`.
+    pub fn new(client: ForkClient<Channel>, rt: Handle, backoff: Backoff) -> Self {
+        ForkBlocks { client, rt, backoff }
+    }
+
+    /// One `GetBlocks` call (a read: safe to retry).
+    fn get(&self, ids: &[u32]) -> Result<GetBlocksReply, tonic::Status> {
+        let req = GetBlocksRequest { ids: ids.to_vec() };
+        self.rt.block_on(retry("GetBlocks", self.backoff, || {
+            let (mut client, req) = (self.client.clone(), req.clone());
+            async move { client.get_blocks(req).await.map(|r| r.into_inner()) }
+        }))
     }
 }
 
 impl BlockSource for ForkBlocks {
     fn fetch_batch(&self, ids: &[u32], out: &mut [Box<Block>]) -> Result<(), BlockError> {
         let first = ids.first().copied().unwrap_or(0);
-        let mut client = self.client.clone();
-        let req = GetBlocksRequest { ids: ids.to_vec() };
-        let reply = self
-            .rt
-            .block_on(async move { client.get_blocks(req).await })
-            .map_err(|s| BlockError::Unavailable { id: first, reason: s.message().to_string() })?
-            .into_inner();
+        let reply =
+            self.get(ids).map_err(|s| BlockError::Unavailable { id: first, reason: s.message().to_string() })?;
         if reply.blocks.len() != ids.len() {
             return Err(BlockError::Unavailable {
                 id: first,
@@ -46,12 +54,7 @@ impl BlockSource for ForkBlocks {
     }
 
     fn fetch(&self, id: u32, out: &mut Block) -> Result<(), BlockError> {
-        let mut client = self.client.clone();
-        let reply = self
-            .rt
-            .block_on(async move { client.get_blocks(GetBlocksRequest { ids: vec![id] }).await })
-            .map_err(|s| BlockError::Unavailable { id, reason: s.message().to_string() })?
-            .into_inner();
+        let reply = self.get(&[id]).map_err(|s| BlockError::Unavailable { id, reason: s.message().to_string() })?;
         match reply.blocks.into_iter().next() {
             Some(b) if b.id == id && b.data.len() == BLOCK_SIZE => {
                 out.copy_from_slice(&b.data);

@@ -21,9 +21,11 @@ mod error;
 mod fork_blocks;
 mod node;
 mod report;
+mod retry;
 mod work;
 
-pub use connect::{connect_with_backoff, Backoff};
+pub use connect::{connect_with_backoff, Backoff, CALL_TIMEOUT};
 pub use error::NodeError;
 pub use fork_blocks::ForkBlocks;
 pub use node::{run, run_with_runtime, NodeConfig, NodeSummary};
+pub use retry::{jitter, retry, transient};

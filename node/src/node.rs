@@ -108,7 +108,7 @@ pub fn run_with_runtime(rt: Handle, cfg: &NodeConfig) -> Result<NodeSummary, Nod
 
     let handles: Vec<_> = (0..threads)
         .map(|index| {
-            let source: Arc<dyn BlockSource> = Arc::new(ForkBlocks::new(forks[home].clone(), rt.clone()));
+            let source: Arc<dyn BlockSource> = Arc::new(ForkBlocks::new(forks[home].clone(), rt.clone(), cfg.backoff));
             let l = header.layout;
             let cache = BlockCache::new(source, per_worker).with_home(home as u32, forks.len() as u32).with_prefetch(
                 PREFETCH_BLOCKS,
@@ -127,6 +127,7 @@ pub fn run_with_runtime(rt: Handle, cfg: &NodeConfig) -> Result<NodeSummary, Nod
                 mine: WorkerTotals::default(),
                 row_delay: cfg.row_delay,
                 pair_delay: cfg.pair_delay,
+                backoff: cfg.backoff,
             };
             std::thread::Builder::new()
                 .name(format!("magg-node-{}-{index}", reg.node))

@@ -1,6 +1,8 @@
 //! The work loops of one node worker: pairs from the home fork, subscreens from the host.
 
+use crate::connect::Backoff;
 use crate::report::{Totals, WorkerTotals};
+use crate::retry::retry;
 use crate::NodeError;
 use magg_core::camera::CameraRig;
 use magg_core::energy::Fixed;
@@ -57,6 +59,8 @@ pub struct Worker {
     pub row_delay: Duration,
     /// Emulated extra time per (light, element) pair.
     pub pair_delay: Duration,
+    /// Retries of calls that failed for a transient reason.
+    pub backoff: Backoff,
 }
 
 impl Worker {
@@ -77,9 +81,14 @@ impl Worker {
             let reply = match handed.take() {
                 Some(r) => r,
                 None => {
-                    let mut host = self.host.clone();
                     let req = NextWorkRequest { node: self.node, report: Some(self.totals.report()) };
-                    self.rt.block_on(host.next_work(req)).map_err(NodeError::rpc("NextWork"))?.into_inner()
+                    // A lost answer is harmless: a subscreen handed out and never traced
+                    // goes back to the queue when its lease expires.
+                    let call = retry("NextWork", self.backoff, || {
+                        let (mut host, req) = (self.host.clone(), req.clone());
+                        async move { host.next_work(req).await.map(|r| r.into_inner()) }
+                    });
+                    self.rt.block_on(call).map_err(NodeError::rpc("NextWork"))?
                 }
             };
             let kind = Kind::try_from(reply.kind).unwrap_or(Kind::Wait);
@@ -124,9 +133,14 @@ impl Worker {
         let elements = h.counts.elements as u64;
         let total = elements * h.lights.len() as u64;
         let mut scratch = TraceScratch::default();
-        let take = |home: ForkClient<Channel>, node: u32| async move {
-            let mut home = home;
-            home.take_pairs(TakePairsRequest { max: PAIR_BATCH, node }).await.map(|r| r.into_inner())
+        // Lost answers are harmless: pairs handed out and never traced go back to the
+        // queue when their lease expires.
+        let backoff = self.backoff;
+        let take = move |home: ForkClient<Channel>, node: u32| {
+            retry("TakePairs", backoff, move || {
+                let mut home = home.clone();
+                async move { home.take_pairs(TakePairsRequest { max: PAIR_BATCH, node }).await.map(|r| r.into_inner()) }
+            })
         };
         let mut in_flight: VecDeque<JoinHandle<Result<(), NodeError>>> = VecDeque::new();
         let mut next = self.rt.spawn(take(self.forks[self.home].clone(), self.node));
@@ -178,7 +192,7 @@ impl Worker {
                     self.rt.block_on(t).map_err(|e| NodeError::Worker(e.to_string()))??;
                 }
             }
-            in_flight.push_back(self.rt.spawn(send_deposits(self.forks.clone(), round1, round2)));
+            in_flight.push_back(self.rt.spawn(send_deposits(self.forks.clone(), round1, round2, self.backoff)));
             self.publish();
         }
         for t in in_flight {
@@ -222,14 +236,18 @@ impl Worker {
             if y < end && since.elapsed() < ROW_REPORT {
                 continue;
             }
-            let mut host = self.host.clone();
             let last = y >= end;
             if last {
                 self.mine.tiles += 1;
                 self.publish();
             }
             let req = SubmitRowsRequest { node: self.node, subscreen: s.id, rows: std::mem::take(&mut rows), last };
-            let reply = self.rt.block_on(host.submit_rows(req)).map_err(NodeError::rpc("SubmitRows"))?.into_inner();
+            // Repeated rows are acknowledged and ignored: safe to retry.
+            let call = retry("SubmitRows", self.backoff, || {
+                let (mut host, req) = (self.host.clone(), req.clone());
+                async move { host.submit_rows(req).await.map(|r| r.into_inner()) }
+            });
+            let reply = self.rt.block_on(call).map_err(NodeError::rpc("SubmitRows"))?;
             since = Instant::now();
             // Stop before row `from`: rows not started were redivided; a `from` at or
             // before `y` means the subscreen was revoked (this node was taken for lost).
@@ -247,19 +265,26 @@ impl Worker {
     }
 }
 
-/// Sends a batch's deposits: every round-1 message, then every round-2 message.
+/// Sends a batch's deposits: every round-1 message, then every round-2 message. Deposits
+/// are keyed by pair: a retried one is applied once.
 async fn send_deposits(
     forks: Vec<ForkClient<Channel>>,
     round1: BTreeMap<usize, Vec<PairDeposits>>,
     round2: BTreeMap<usize, Vec<PairDeposits>>,
+    backoff: Backoff,
 ) -> Result<(), NodeError> {
     for round in [round1, round2] {
         for (fork, pairs) in round {
             let Some(client) = forks.get(fork) else {
                 return Err(NodeError::Convert(format!("fork {fork} of {}", forks.len())));
             };
-            let mut c = client.clone();
-            c.deposit(DepositRequest { pairs }).await.map_err(NodeError::rpc("Deposit"))?;
+            let req = DepositRequest { pairs };
+            retry("Deposit", backoff, || {
+                let (mut c, req) = (client.clone(), req.clone());
+                async move { c.deposit(req).await }
+            })
+            .await
+            .map_err(NodeError::rpc("Deposit"))?;
         }
     }
     Ok(())

@@ -55,6 +55,15 @@ async fn connect_fork(addr: &str) -> anyhow::Result<ForkClient<Channel>> {
     Ok(ForkClient::new(ch).max_decoding_message_size(512 << 20).max_encoding_message_size(512 << 20))
 }
 
+/// A fork's energies (a read: retried while the fork is unreachable).
+async fn energies(fork: &ForkClient<Channel>, summary_only: bool) -> Result<v1::GetEnergiesReply, tonic::Status> {
+    magg_node::retry("GetEnergies", magg_node::Backoff::default(), || {
+        let mut fork = fork.clone();
+        async move { fork.get_energies(GetEnergiesRequest { summary_only }).await.map(|r| r.into_inner()) }
+    })
+    .await
+}
+
 fn rgb(c: &Option<v1::Rgb>) -> Rgb {
     c.as_ref().map_or(Rgb::BLACK, |c| Rgb::new(c.r, c.g, c.b))
 }
@@ -125,7 +134,7 @@ pub async fn drive(
     let total_pairs: u64 = {
         let mut t = 0;
         for fork in forks.iter_mut() {
-            t += fork.get_energies(GetEnergiesRequest { summary_only: true }).await?.into_inner().pairs_total;
+            t += energies(fork, true).await?.pairs_total;
         }
         t
     };
@@ -135,11 +144,7 @@ pub async fn drive(
     loop {
         let (mut done, mut returned) = (0, 0);
         for (i, fork) in forks.iter_mut().enumerate() {
-            let r = fork
-                .get_energies(GetEnergiesRequest { summary_only: true })
-                .await
-                .with_context(|| format!("fork {i} at {}", opts.forks[i]))?
-                .into_inner();
+            let r = energies(fork, true).await.with_context(|| format!("fork {i} at {}", opts.forks[i]))?;
             done += r.pairs_done;
             returned += r.pairs_returned;
         }
@@ -173,7 +178,7 @@ pub async fn drive(
     let mut element_flux: Vec<Fixed> = vec![[0; 3]; n_el];
     let (mut dma_bytes, mut gbus_bytes, mut fork_rpcs, mut fork_link) = (0, 0, 0, 0);
     for (i, fork) in forks.iter_mut().enumerate() {
-        let r = fork.get_energies(GetEnergiesRequest { summary_only: false }).await?.into_inner();
+        let r = energies(fork, false).await?;
         for e in r.energies {
             match element_flux.get_mut(e.element as usize) {
                 Some(slot) => *slot = [e.r, e.g, e.b],
@@ -247,7 +252,7 @@ pub async fn drive(
     // Give the final reports a moment to land.
     tokio::time::sleep(Duration::from_millis(20)).await;
     for fork in forks.iter_mut() {
-        let r = fork.get_energies(GetEnergiesRequest { summary_only: true }).await?.into_inner();
+        let r = energies(fork, true).await?;
         dma_bytes += r.dma_bytes;
         gbus_bytes += r.gbus_bytes;
         fork_rpcs += r.rpcs;
