@@ -21,8 +21,9 @@
 //! let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await?;
 //! let addr = listener.local_addr()?;
 //! let (stop, stopped) = tokio::sync::oneshot::channel::<()>();
-//! let server = tokio::spawn(magg_fork::serve(listener, async { stopped.await.ok(); }));
-//! let mut fork = magg_fork::connect(&addr.to_string()).await?;
+//! let token = magg_proto::auth::Token::default(); // none: fine on 127.0.0.1
+//! let server = tokio::spawn(magg_fork::serve(listener, token.clone(), async { stopped.await.ok(); }));
+//! let mut fork = magg_fork::connect(&addr.to_string(), &token).await?;
 //! // fork.load_shard(...), fork.get_blocks(...), fork.take_pairs(...), ...
 //! stop.send(()).ok();
 //! server.await??;

@@ -21,6 +21,11 @@ struct Args {
     /// Address to listen on for gRPC (HOST:PORT; port 0 picks a free port).
     #[arg(long, default_value = "127.0.0.1:7100")]
     listen: SocketAddr,
+    /// Cluster token: every call must carry it, and calls to other forks carry it (the
+    /// same on every process of the cluster). Without one, any client is served: keep
+    /// the default 127.0.0.1 address then.
+    #[arg(long, env = "MAGG_TOKEN", hide_env_values = true)]
+    token: Option<String>,
     /// More log output (-v: debug, -vv: trace); RUST_LOG overrides.
     #[arg(short, long, action = clap::ArgAction::Count)]
     verbose: u8,
@@ -50,6 +55,10 @@ fn init_tracing(verbose: u8) {
 }
 
 fn run(args: Args) -> anyhow::Result<()> {
+    let token = magg_proto::auth::Token::parse(args.token).context("--token")?;
+    if let Some(w) = magg_proto::auth::exposure_warning(args.listen, &token) {
+        tracing::warn!("{w}");
+    }
     let runtime = tokio::runtime::Builder::new_multi_thread().enable_all().build().context("starting the runtime")?;
     runtime.block_on(async {
         let listener = tokio::net::TcpListener::bind(args.listen)
@@ -57,7 +66,7 @@ fn run(args: Args) -> anyhow::Result<()> {
             .with_context(|| format!("cannot listen on {}", args.listen))?;
         let local = listener.local_addr().context("reading the bound address")?;
         tracing::info!(%local, "fork listening");
-        magg_fork::serve(listener, shutdown_signal()).await.context("serving")?;
+        magg_fork::serve(listener, token, shutdown_signal()).await.context("serving")?;
         tracing::info!("fork stopped");
         Ok(())
     })

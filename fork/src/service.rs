@@ -8,6 +8,7 @@
 use crate::error::ForkError;
 use crate::locks::{read, write};
 use crate::shard::{Shard, MAX_IDS_PER_REQUEST, MAX_PAIRS_PER_REQUEST};
+use magg_proto::auth::Token;
 use magg_proto::v1;
 use magg_proto::v1::fork_server::Fork;
 use std::collections::BTreeMap;
@@ -15,16 +16,23 @@ use std::sync::{Arc, RwLock};
 use tokio::task::JoinSet;
 use tonic::{Request, Response, Status};
 
-/// A fork process's service: the shard of the current render, if one is loaded.
+/// A fork process's service: the shard of the current render, if one is loaded, and the
+/// cluster token it presents to the other forks.
 #[derive(Debug, Default)]
 pub struct ForkService {
     shard: RwLock<Option<Arc<Shard>>>,
+    token: Token,
 }
 
 impl ForkService {
-    /// A fork with no scene loaded.
+    /// A fork with no scene loaded and no cluster token.
     pub fn new() -> ForkService {
         ForkService::default()
+    }
+
+    /// A fork with no scene loaded that reaches the other forks with `token`.
+    pub fn with_token(token: Token) -> ForkService {
+        ForkService { token, ..ForkService::default() }
     }
 
     /// The loaded shard, counting the RPC against it.
@@ -135,7 +143,7 @@ fn check_stolen(shard: &Shard, peer: u32, pairs: &[u64]) -> Result<(), ForkError
 #[tonic::async_trait]
 impl Fork for ForkService {
     async fn load_shard(&self, req: Request<v1::LoadShardRequest>) -> Result<Response<v1::LoadShardReply>, Status> {
-        let shard = Shard::load(req.into_inner())?;
+        let shard = Shard::load(req.into_inner(), self.token.clone())?;
         shard.count_rpc();
         let (blocks, pairs) = (shard.stored_blocks(), shard.pairs_total());
         let place = shard.placement();

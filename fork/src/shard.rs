@@ -12,6 +12,7 @@ use crate::peers::Peers;
 use magg_core::blocks::{Block, BLOCK_SIZE};
 use magg_core::energy::Fixed;
 use magg_core::header::SceneHeader;
+use magg_proto::auth::Token;
 use magg_proto::convert::{block_from_wire, block_to_wire};
 use magg_proto::v1;
 use std::collections::{HashMap, HashSet};
@@ -101,8 +102,9 @@ pub struct Shard {
 
 impl Shard {
     /// Builds the shard from a `LoadShard` request: checks the protocol version, the
-    /// placement, the header and every block, then builds the pair queue.
-    pub fn load(req: v1::LoadShardRequest) -> Result<Shard, ForkError> {
+    /// placement, the header and every block, then builds the pair queue. Other forks
+    /// are reached with the cluster `token`.
+    pub fn load(req: v1::LoadShardRequest, token: Token) -> Result<Shard, ForkError> {
         if req.protocol_version != magg_proto::PROTOCOL_VERSION {
             return Err(ForkError::ProtocolVersion { got: req.protocol_version, want: magg_proto::PROTOCOL_VERSION });
         }
@@ -141,7 +143,7 @@ impl Shard {
             owned,
             work: Mutex::new(work),
             traffic: Traffic::default(),
-            peers: Peers::new(place.addrs.clone()),
+            peers: Peers::new(place.addrs.clone(), token),
             place,
             lease,
         };

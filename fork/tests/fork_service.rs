@@ -5,12 +5,12 @@ use magg_core::blocks::BLOCK_SIZE;
 use magg_core::lrt::pair_id;
 use magg_core::preprocess::{prepare, PreparedScene};
 use magg_core::scene::parse_scene_str;
+use magg_proto::auth::Authed;
 use magg_proto::v1;
 use magg_proto::v1::fork_client::ForkClient;
 use std::collections::BTreeSet;
 use tokio::sync::oneshot;
 use tokio::task::JoinHandle;
-use tonic::transport::Channel;
 use tonic::Code;
 
 const FORKS: u32 = 3;
@@ -29,7 +29,7 @@ fn paper_scene() -> PreparedScene {
 struct Cluster {
     scene: PreparedScene,
     addrs: Vec<String>,
-    clients: Vec<ForkClient<Channel>>,
+    clients: Vec<ForkClient<Authed>>,
     stops: Vec<oneshot::Sender<()>>,
     servers: Vec<JoinHandle<Result<(), tonic::transport::Error>>>,
 }
@@ -43,12 +43,12 @@ impl Cluster {
             addrs.push(listener.local_addr().unwrap().to_string());
             let (stop, stopped) = oneshot::channel::<()>();
             stops.push(stop);
-            servers.push(tokio::spawn(magg_fork::serve(listener, async {
+            servers.push(tokio::spawn(magg_fork::serve(listener, Default::default(), async {
                 stopped.await.ok();
             })));
         }
         for a in &addrs {
-            clients.push(magg_fork::connect(a).await.unwrap());
+            clients.push(magg_fork::connect(a, &Default::default()).await.unwrap());
         }
         Cluster { scene: paper_scene(), addrs, clients, stops, servers }
     }

@@ -227,6 +227,8 @@ pub enum Mode {
         stall_timeout: std::time::Duration,
         /// Node lease: a node silent this long loses its work to the others.
         lease: std::time::Duration,
+        /// Cluster token (none: no check).
+        token: magg_proto::auth::Token,
     },
 }
 
@@ -298,6 +300,7 @@ impl RenderArgs {
                     external_nodes: self.external_nodes,
                     stall_timeout: std::time::Duration::from_secs(self.stall_timeout),
                     lease: self.faults.lease()?,
+                    token: self.faults.token()?,
                 }
             },
         })

@@ -3,15 +3,15 @@
 use crate::connect::Backoff;
 use crate::retry::retry;
 use magg_core::blocks::{Block, BlockError, BlockSource, BLOCK_SIZE};
+use magg_proto::auth::Authed;
 use magg_proto::v1::fork_client::ForkClient;
 use magg_proto::v1::{GetBlocksReply, GetBlocksRequest};
 use tokio::runtime::Handle;
-use tonic::transport::Channel;
 
 /// Fetches blocks from the node's home fork. Called from the kernels' worker threads
 /// (not from async code): each fetch blocks on the runtime.
 pub struct ForkBlocks {
-    client: ForkClient<Channel>,
+    client: ForkClient<Authed>,
     rt: Handle,
     backoff: Backoff,
 }
@@ -19,7 +19,7 @@ pub struct ForkBlocks {
 impl ForkBlocks {
     /// A source reading through `client` on runtime `rt`, retrying an unreachable fork
     /// per `backoff`.
-    pub fn new(client: ForkClient<Channel>, rt: Handle, backoff: Backoff) -> Self {
+    pub fn new(client: ForkClient<Authed>, rt: Handle, backoff: Backoff) -> Self {
         ForkBlocks { client, rt, backoff }
     }
 

@@ -34,6 +34,9 @@ struct Args {
     /// tracing (fault tests kill such a node in the middle of its pairs).
     #[arg(long, default_value_t = 0)]
     slow_pair_ms: u64,
+    /// Cluster token presented on every call (the host's and forks' --token).
+    #[arg(long, env = "MAGG_TOKEN", hide_env_values = true)]
+    token: Option<String>,
     /// More log output.
     #[arg(short, long, action = clap::ArgAction::Count)]
     verbose: u8,
@@ -70,6 +73,7 @@ fn run(args: Args) -> anyhow::Result<()> {
             _ => anyhow::bail!("--cache-blocks {s:?}: expected a positive block count or \"unlimited\""),
         },
     };
+    let token = magg_proto::auth::Token::parse(args.token).map_err(|e| anyhow::anyhow!("--token: {e}"))?;
     let cfg = magg_node::NodeConfig {
         host: args.host,
         threads: args.threads,
@@ -81,6 +85,7 @@ fn run(args: Args) -> anyhow::Result<()> {
         },
         row_delay: std::time::Duration::from_millis(args.slow_row_ms),
         pair_delay: std::time::Duration::from_millis(args.slow_pair_ms),
+        token,
     };
     let s = magg_node::run(&cfg)?;
     tracing::info!("node {} done: {} pairs, {} subscreens", s.node, s.pairs, s.tiles);

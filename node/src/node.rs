@@ -8,6 +8,7 @@ use crate::NodeError;
 use magg_core::blocks::{BlockCache, BlockSource};
 use magg_core::header::SceneHeader;
 use magg_core::view::SceneView;
+use magg_proto::auth::{AddToken, Token};
 use magg_proto::v1::fork_client::ForkClient;
 use magg_proto::v1::host_client::HostClient;
 use magg_proto::v1::RegisterRequest;
@@ -38,6 +39,8 @@ pub struct NodeConfig {
     /// Extra time spent per (light, element) pair: emulates a slow node in LRT (to
     /// watch pair leases expire and move to others).
     pub pair_delay: std::time::Duration,
+    /// Cluster token presented on every call (none: the cluster checks none).
+    pub token: Token,
 }
 
 impl Default for NodeConfig {
@@ -50,6 +53,7 @@ impl Default for NodeConfig {
             backoff: Backoff::default(),
             row_delay: std::time::Duration::ZERO,
             pair_delay: std::time::Duration::ZERO,
+            token: Token::default(),
         }
     }
 }
@@ -79,7 +83,8 @@ pub fn run(cfg: &NodeConfig) -> Result<NodeSummary, NodeError> {
 /// of the runtime's (the kernels block on it).
 pub fn run_with_runtime(rt: Handle, cfg: &NodeConfig) -> Result<NodeSummary, NodeError> {
     let channel = rt.block_on(connect_with_backoff(&cfg.host, cfg.backoff))?;
-    let mut host = HostClient::new(channel).max_decoding_message_size(256 << 20);
+    let auth = AddToken(cfg.token.clone());
+    let mut host = HostClient::with_interceptor(channel, auth.clone()).max_decoding_message_size(256 << 20);
     let req =
         RegisterRequest { protocol_version: PROTOCOL_VERSION, name: cfg.name.clone(), threads: cfg.threads.max(1) };
     let reg = rt.block_on(host.register(req)).map_err(NodeError::rpc("Register"))?.into_inner();
@@ -92,7 +97,7 @@ pub fn run_with_runtime(rt: Handle, cfg: &NodeConfig) -> Result<NodeSummary, Nod
     let mut forks = Vec::with_capacity(reg.fork_addrs.len());
     for addr in &reg.fork_addrs {
         let ch = rt.block_on(connect_with_backoff(addr, cfg.backoff))?;
-        forks.push(ForkClient::new(ch).max_decoding_message_size(64 << 20));
+        forks.push(ForkClient::with_interceptor(ch, auth.clone()).max_decoding_message_size(64 << 20));
     }
     let home = reg.home_fork as usize;
     let cache_blocks = match cfg.cache_blocks {

@@ -7,7 +7,7 @@
 //! whose lost answer is recovered by a lease (pairs, subscreens).
 //!
 //! ```no_run
-//! # async fn f(mut host: magg_proto::v1::host_client::HostClient<tonic::transport::Channel>) {
+//! # async fn f(mut host: magg_proto::v1::host_client::HostClient<magg_proto::auth::Authed>) {
 //! use magg_node::{retry, Backoff};
 //! let req = magg_proto::v1::NextWorkRequest { node: 0, report: None };
 //! let reply = retry("NextWork", Backoff::default(), || {

@@ -10,6 +10,7 @@ use magg_core::lrt::trace_pair;
 use magg_core::trace::TraceScratch;
 use magg_core::view::SceneView;
 use magg_core::vrt::shade_pixel;
+use magg_proto::auth::Authed;
 use magg_proto::v1::fork_client::ForkClient;
 use magg_proto::v1::host_client::HostClient;
 use magg_proto::v1::next_work_reply::Kind;
@@ -21,7 +22,6 @@ use std::sync::Arc;
 use std::time::{Duration, Instant};
 use tokio::runtime::Handle;
 use tokio::task::JoinHandle;
-use tonic::transport::Channel;
 
 /// Longest pause between work requests of an idle node.
 pub const MAX_WAIT: Duration = Duration::from_millis(50);
@@ -46,9 +46,9 @@ pub struct Worker {
     /// Runtime the RPCs run on.
     pub rt: Handle,
     /// The host.
-    pub host: HostClient<Channel>,
+    pub host: HostClient<Authed>,
     /// Every fork, by index (deposits go to the owning fork).
-    pub forks: Vec<ForkClient<Channel>>,
+    pub forks: Vec<ForkClient<Authed>>,
     /// The home fork's index.
     pub home: usize,
     /// Node-wide totals.
@@ -136,7 +136,7 @@ impl Worker {
         // Lost answers are harmless: pairs handed out and never traced go back to the
         // queue when their lease expires.
         let backoff = self.backoff;
-        let take = move |home: ForkClient<Channel>, node: u32| {
+        let take = move |home: ForkClient<Authed>, node: u32| {
             retry("TakePairs", backoff, move || {
                 let mut home = home.clone();
                 async move { home.take_pairs(TakePairsRequest { max: PAIR_BATCH, node }).await.map(|r| r.into_inner()) }
@@ -268,7 +268,7 @@ impl Worker {
 /// Sends a batch's deposits: every round-1 message, then every round-2 message. Deposits
 /// are keyed by pair: a retried one is applied once.
 async fn send_deposits(
-    forks: Vec<ForkClient<Channel>>,
+    forks: Vec<ForkClient<Authed>>,
     round1: BTreeMap<usize, Vec<PairDeposits>>,
     round2: BTreeMap<usize, Vec<PairDeposits>>,
     backoff: Backoff,

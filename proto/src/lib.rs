@@ -13,6 +13,7 @@
 //! # Ok(()) }
 //! ```
 
+pub mod auth;
 pub mod convert;
 
 /// Generated code of package `magg.v1`.

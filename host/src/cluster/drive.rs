@@ -10,6 +10,7 @@ use magg_core::preprocess::PreparedScene;
 use magg_core::progress::Progress;
 use magg_core::render::{subscreens, RenderOutput};
 use magg_core::stats::*;
+use magg_proto::auth::{AddToken, Authed, CheckToken, Token};
 use magg_proto::convert::block_to_wire;
 use magg_proto::v1::fork_client::ForkClient;
 use magg_proto::v1::host_server::HostServer;
@@ -17,7 +18,7 @@ use magg_proto::v1::{self, GetEnergiesRequest, LoadShardRequest, PutBlocksReques
 use magg_proto::PROTOCOL_VERSION;
 use std::time::{Duration, Instant};
 use tokio::net::TcpListener;
-use tonic::transport::Channel;
+use tonic::service::interceptor::InterceptedService;
 
 /// Interval of the host's LRT progress polls.
 const LRT_POLL: Duration = Duration::from_millis(25);
@@ -37,6 +38,8 @@ pub struct DriveOptions {
     pub stall_timeout: Duration,
     /// A node silent this long has lost its pairs (on the forks) and its subscreen.
     pub lease: Duration,
+    /// Cluster token: presented to the forks, required from nodes.
+    pub token: Token,
 }
 
 /// Accepted connections with Nagle's algorithm off: the protocol is many small
@@ -50,13 +53,15 @@ fn nodelay_incoming(listener: TcpListener) -> impl tokio_stream::Stream<Item = s
     })
 }
 
-async fn connect_fork(addr: &str) -> anyhow::Result<ForkClient<Channel>> {
+async fn connect_fork(addr: &str, token: &Token) -> anyhow::Result<ForkClient<Authed>> {
     let ch = magg_node::connect_with_backoff(addr, magg_node::Backoff::default()).await?;
-    Ok(ForkClient::new(ch).max_decoding_message_size(512 << 20).max_encoding_message_size(512 << 20))
+    Ok(ForkClient::with_interceptor(ch, AddToken(token.clone()))
+        .max_decoding_message_size(512 << 20)
+        .max_encoding_message_size(512 << 20))
 }
 
 /// A fork's energies (a read: retried while the fork is unreachable).
-async fn energies(fork: &ForkClient<Channel>, summary_only: bool) -> Result<v1::GetEnergiesReply, tonic::Status> {
+async fn energies(fork: &ForkClient<Authed>, summary_only: bool) -> Result<v1::GetEnergiesReply, tonic::Status> {
     magg_node::retry("GetEnergies", magg_node::Backoff::default(), || {
         let mut fork = fork.clone();
         async move { fork.get_energies(GetEnergiesRequest { summary_only }).await.map(|r| r.into_inner()) }
@@ -84,7 +89,7 @@ pub async fn drive(
     }
     let mut forks = Vec::with_capacity(f);
     for addr in &opts.forks {
-        forks.push(connect_fork(addr).await?);
+        forks.push(connect_fork(addr, &opts.token).await?);
     }
     // Load the shards.
     let wire_header = v1::SceneHeader::from(&*h);
@@ -123,7 +128,10 @@ pub async fn drive(
     let server = tonic::transport::Server::builder()
         .initial_stream_window_size(Some(4 << 20))
         .initial_connection_window_size(Some(16 << 20))
-        .add_service(HostServer::new(service.clone()).max_decoding_message_size(16 << 20))
+        .add_service(InterceptedService::new(
+            HostServer::new(service.clone()).max_decoding_message_size(16 << 20),
+            CheckToken { token: opts.token.clone(), server: "host" },
+        ))
         .serve_with_incoming_shutdown(nodelay_incoming(listener), async {
             let _ = stop_rx.await;
         });
