@@ -1,14 +1,17 @@
 //! Chaos: real magg-fork, magg-node and magg-host processes on localhost, with a node
-//! killed in the middle of light ray tracing and another in the middle of viewing ray
-//! tracing (and a node joining late). The image and the energies must be bitwise those of
-//! a clean embedded run: leased pairs and subscreens of the dead nodes go to the others,
-//! re-run pairs deposit exactly once, and every pixel row is written once.
+//! killed in the middle of light ray tracing, another in the middle of viewing ray
+//! tracing (and a node joining late), and a fork killed and restarted on its address
+//! during viewing ray tracing. The image and the energies must be bitwise those of a
+//! clean embedded run: leased pairs and subscreens of the dead nodes go to the others,
+//! re-run pairs deposit exactly once, every pixel row is written once, and the restarted
+//! fork gets its shard and vertex energies back. A fork that does not come back stops the
+//! render with an error naming it, and every process exits.
 
 use magg_tests::*;
 use std::fs::File;
 use std::io::{BufRead, BufReader};
 use std::path::Path;
-use std::process::{Command, Stdio};
+use std::process::{Child, Command, Stdio};
 use std::sync::mpsc::{channel, Receiver};
 use std::time::{Duration, Instant};
 
@@ -20,6 +23,23 @@ const LEASE: &str = "1.5";
 
 fn log_file(dir: &Path, name: &str) -> File {
     File::create(dir.join(format!("{name}.log"))).unwrap()
+}
+
+fn fork(dir: &Path, log: &str, addr: &str) -> Child {
+    let log = log_file(dir, log);
+    Command::new(magg_bin("magg-fork")).args(["--listen", addr]).stdout(Stdio::null()).stderr(log).spawn().unwrap()
+}
+
+/// Waits for `child` to exit, at most `secs` seconds.
+fn wait_exit(child: &mut Child, secs: u64) -> Option<std::process::ExitStatus> {
+    let deadline = Instant::now() + Duration::from_secs(secs);
+    while Instant::now() < deadline {
+        if let Some(st) = child.try_wait().unwrap() {
+            return Some(st);
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    None
 }
 
 /// A node whose debug log lines come back on a channel (to kill it at a chosen moment).
@@ -64,9 +84,7 @@ fn chaos_run(dir: &Path, base: &Rendered, stem: &str, lrt_batches: usize, vrt_su
     let mut procs = Procs(Vec::new());
     let fork_addrs: Vec<String> = (0..3).map(|_| format!("127.0.0.1:{}", free_port())).collect();
     for (i, a) in fork_addrs.iter().enumerate() {
-        let log = log_file(dir, &format!("{stem}-fork{i}"));
-        let c = Command::new(magg_bin("magg-fork")).args(["--listen", a]).stdout(Stdio::null()).stderr(log).spawn();
-        procs.0.push(c.expect("spawn magg-fork"));
+        procs.0.push(fork(dir, &format!("{stem}-fork{i}"), a));
     }
     let host_addr = format!("127.0.0.1:{}", free_port());
     let out = Rendered::at(dir, stem);
@@ -92,20 +110,19 @@ fn chaos_run(dir: &Path, base: &Rendered, stem: &str, lrt_batches: usize, vrt_su
     let (vrt_victim, vrt_log) = node(&mut procs, &host_addr, "vrt-victim", &slow);
     wait_for(&vrt_log, "tracing a subscreen", vrt_subscreens);
     procs.0[vrt_victim].kill().unwrap();
+    // Fork 1 dies in viewing ray tracing and comes back empty on the same address.
+    procs.0[1].kill().unwrap();
+    procs.0[1].wait().unwrap();
+    std::thread::sleep(Duration::from_millis(200));
+    procs.0[1] = fork(dir, &format!("{stem}-fork1-again"), &fork_addrs[1]);
 
-    let deadline = Instant::now() + Duration::from_secs(60);
-    let status = loop {
-        if let Some(st) = host.try_wait().unwrap() {
-            break st;
-        }
-        if Instant::now() > deadline {
-            let _ = host.kill();
-            let _ = host.wait();
-            panic!("{stem}: the host did not finish: {}", std::fs::read_to_string(&host_log).unwrap_or_default());
-        }
-        std::thread::sleep(Duration::from_millis(20));
+    let Some(status) = wait_exit(&mut host, 60) else {
+        let _ = host.kill();
+        let _ = host.wait();
+        panic!("{stem}: the host did not finish: {}", std::fs::read_to_string(&host_log).unwrap_or_default());
     };
     let host_text = std::fs::read_to_string(&host_log).unwrap();
+    assert!(host_text.contains("restarted: loading its shard again"), "{stem}: fork 1 not reloaded: {host_text}");
     assert!(status.success(), "{stem}: host failed: {host_text}");
     assert!(host_text.contains("subscreens are back on the queue"), "{stem}: no subscreen was revoked: {host_text}");
     let forks_text: String =
@@ -125,4 +142,40 @@ fn killed_nodes_lose_nothing_and_the_bits_are_those_of_a_clean_run() {
     // Kill points: early in each phase, then later.
     chaos_run(dir.path(), &base, "early", 1, 1);
     chaos_run(dir.path(), &base, "later", 3, 2);
+}
+
+#[test]
+fn a_fork_that_does_not_come_back_stops_the_render_naming_it_and_every_process_exits() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut procs = Procs(Vec::new());
+    let fork_addrs: Vec<String> = (0..2).map(|_| format!("127.0.0.1:{}", free_port())).collect();
+    for (i, a) in fork_addrs.iter().enumerate() {
+        procs.0.push(fork(dir.path(), &format!("fork{i}"), a));
+    }
+    let host_addr = format!("127.0.0.1:{}", free_port());
+    let forks_at = fork_addrs.join(",");
+    let mut host = Rendered::at(dir.path(), "lost")
+        .command(&scene("magg-paper.toml"))
+        .args(["--subscreen", "16", "--forks-at", &forks_at, "--listen", &host_addr, "--external-nodes"])
+        .args(["--fork-timeout", "2"])
+        .args(SMALL)
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    // Nodes give up on an unreachable peer after 3 s of retries.
+    let (n, log) = node(&mut procs, &host_addr, "n", &["--slow-row-ms", "20", "--connect-timeout", "3"]);
+    wait_for(&log, "tracing a subscreen", 1);
+    procs.0[1].kill().unwrap();
+    let status = wait_exit(&mut host, 40).expect("the host did not stop");
+    let mut err = String::new();
+    std::io::Read::read_to_string(host.stderr.as_mut().unwrap(), &mut err).unwrap();
+    assert_eq!(status.code(), Some(1), "{err}");
+    let last = err.lines().last().unwrap_or_default();
+    assert!(
+        last.starts_with("magg-host: error:") && last.contains(&format!("fork 1 at {}", fork_addrs[1])),
+        "the error does not name the fork: {err}"
+    );
+    assert!(last.contains("--fork-timeout"), "{err}");
+    assert!(wait_exit(&mut procs.0[n], 40).is_some(), "the node did not exit after the host stopped");
 }

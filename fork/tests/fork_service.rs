@@ -254,9 +254,9 @@ async fn bad_requests_get_the_right_codes_and_the_server_keeps_serving() {
     let mut c = Cluster::start().await;
     // Before LoadShard.
     let (k, m) = code(c.clients[0].get_energies(v1::GetEnergiesRequest { summary_only: true }).await);
-    assert_eq!((k, m.as_str()), (Code::FailedPrecondition, "no scene loaded"));
+    assert_eq!((k, m.as_str()), (Code::Unavailable, "no scene loaded"));
     let (k, _) = code(c.clients[0].take_pairs(v1::TakePairsRequest { max: 1, node: 0 }).await);
-    assert_eq!(k, Code::FailedPrecondition);
+    assert_eq!(k, Code::Unavailable, "an empty fork is retried until the host loads it");
     // Wrong protocol version.
     let mut req = c.load_request(0);
     req.protocol_version = magg_proto::PROTOCOL_VERSION + 1;

@@ -103,7 +103,7 @@ pub struct RenderArgs {
     /// Scene overrides: accuracy knobs and output size.
     #[command(flatten)]
     pub knobs: Knobs,
-    /// Fault handling: node leases.
+    /// Fault handling and access: node leases, fork timeout, cluster token.
     #[command(flatten)]
     pub faults: crate::faults::FaultArgs,
 }
@@ -225,10 +225,8 @@ pub enum Mode {
         external_nodes: bool,
         /// Phase stall limit.
         stall_timeout: std::time::Duration,
-        /// Node lease: a node silent this long loses its work to the others.
-        lease: std::time::Duration,
-        /// Cluster token (none: no check).
-        token: magg_proto::auth::Token,
+        /// Node leases, fork timeout, cluster token.
+        faults: crate::faults::FaultPolicy,
     },
 }
 
@@ -299,8 +297,7 @@ impl RenderArgs {
                     listen: self.listen,
                     external_nodes: self.external_nodes,
                     stall_timeout: std::time::Duration::from_secs(self.stall_timeout),
-                    lease: self.faults.lease()?,
-                    token: self.faults.token()?,
+                    faults: self.faults.policy()?,
                 }
             },
         })

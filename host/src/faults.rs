@@ -22,9 +22,36 @@ pub struct FaultArgs {
     /// exactly once and re-traced rows are written once, so the image is unchanged.
     #[arg(long, default_value_t = 30.0, value_name = "SECS")]
     pub lease_timeout: f64,
+    /// Seconds a fork may stay unreachable before the render stops with an error naming
+    /// it. A fork restarted on the same address within this time (after light ray
+    /// tracing) gets its shard back and the render goes on.
+    #[arg(long, default_value_t = 30.0, value_name = "SECS")]
+    pub fork_timeout: f64,
+}
+
+/// How the cluster copes with lost processes, and who may join: [`FaultArgs`] checked.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct FaultPolicy {
+    /// A node silent this long loses its pairs (on the forks) and its subscreen.
+    pub lease: Duration,
+    /// A fork unreachable this long stops the render.
+    pub fork_timeout: Duration,
+    /// Cluster token: presented to forks, required from nodes (none: no check).
+    pub token: Token,
+}
+
+impl Default for FaultPolicy {
+    fn default() -> Self {
+        FaultPolicy { lease: Duration::from_secs(30), fork_timeout: Duration::from_secs(30), token: Token::default() }
+    }
 }
 
 impl FaultArgs {
+    /// The checked policy.
+    pub fn policy(&self) -> anyhow::Result<FaultPolicy> {
+        Ok(FaultPolicy { lease: self.lease()?, fork_timeout: self.fork_timeout()?, token: self.token()? })
+    }
+
     /// The cluster token, checked.
     pub fn token(&self) -> anyhow::Result<Token> {
         Token::parse(self.token.clone()).context("--token")
@@ -32,10 +59,18 @@ impl FaultArgs {
 
     /// The node lease, checked.
     pub fn lease(&self) -> anyhow::Result<Duration> {
-        let s = self.lease_timeout;
-        if !(s.is_finite() && (0.05..=86_400.0).contains(&s)) {
-            bail!("--lease-timeout {s}: must be 0.05..=86400 seconds");
-        }
-        Ok(Duration::from_secs_f64(s))
+        seconds("lease-timeout", self.lease_timeout)
     }
+
+    /// The fork timeout, checked.
+    pub fn fork_timeout(&self) -> anyhow::Result<Duration> {
+        seconds("fork-timeout", self.fork_timeout)
+    }
+}
+
+fn seconds(flag: &str, s: f64) -> anyhow::Result<Duration> {
+    if !(s.is_finite() && (0.05..=86_400.0).contains(&s)) {
+        bail!("--{flag} {s}: must be 0.05..=86400 seconds");
+    }
+    Ok(Duration::from_secs_f64(s))
 }

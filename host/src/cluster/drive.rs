@@ -1,8 +1,9 @@
 //! Running the phases against a set of forks, with nodes connecting to our Host service.
 
+use super::forks::ForkSet;
 use super::schedule::Scheduler;
 use super::service::{HostService, HostState, Phase};
-use anyhow::{bail, Context};
+use anyhow::bail;
 use magg_core::energy::{interpolate, vertex_energy_blocks, Fixed};
 use magg_core::lrt::LrtTally;
 use magg_core::math::Rgb;
@@ -10,18 +11,19 @@ use magg_core::preprocess::PreparedScene;
 use magg_core::progress::Progress;
 use magg_core::render::{subscreens, RenderOutput};
 use magg_core::stats::*;
-use magg_proto::auth::{AddToken, Authed, CheckToken, Token};
+use magg_proto::auth::CheckToken;
 use magg_proto::convert::block_to_wire;
-use magg_proto::v1::fork_client::ForkClient;
+use magg_proto::v1;
 use magg_proto::v1::host_server::HostServer;
-use magg_proto::v1::{self, GetEnergiesRequest, LoadShardRequest, PutBlocksRequest};
-use magg_proto::PROTOCOL_VERSION;
 use std::time::{Duration, Instant};
 use tokio::net::TcpListener;
 use tonic::service::interceptor::InterceptedService;
 
 /// Interval of the host's LRT progress polls.
 const LRT_POLL: Duration = Duration::from_millis(25);
+
+/// Interval of the host's checks that every fork is alive during VRT.
+const FORK_CHECK: Duration = Duration::from_millis(500);
 
 /// How to drive a render.
 #[derive(Clone, Debug)]
@@ -36,10 +38,8 @@ pub struct DriveOptions {
     pub nodes: u32,
     /// Give up if a phase makes no progress for this long.
     pub stall_timeout: Duration,
-    /// A node silent this long has lost its pairs (on the forks) and its subscreen.
-    pub lease: Duration,
-    /// Cluster token: presented to the forks, required from nodes.
-    pub token: Token,
+    /// Node leases, fork timeout, cluster token.
+    pub faults: crate::faults::FaultPolicy,
 }
 
 /// Accepted connections with Nagle's algorithm off: the protocol is many small
@@ -53,20 +53,14 @@ fn nodelay_incoming(listener: TcpListener) -> impl tokio_stream::Stream<Item = s
     })
 }
 
-async fn connect_fork(addr: &str, token: &Token) -> anyhow::Result<ForkClient<Authed>> {
-    let ch = magg_node::connect_with_backoff(addr, magg_node::Backoff::default()).await?;
-    Ok(ForkClient::with_interceptor(ch, AddToken(token.clone()))
-        .max_decoding_message_size(512 << 20)
-        .max_encoding_message_size(512 << 20))
-}
+/// Sets the phase to [`Phase::Done`] when dropped: a render that fails still lets the
+/// nodes go.
+struct DoneOnDrop(HostService);
 
-/// A fork's energies (a read: retried while the fork is unreachable).
-async fn energies(fork: &ForkClient<Authed>, summary_only: bool) -> Result<v1::GetEnergiesReply, tonic::Status> {
-    magg_node::retry("GetEnergies", magg_node::Backoff::default(), || {
-        let mut fork = fork.clone();
-        async move { fork.get_energies(GetEnergiesRequest { summary_only }).await.map(|r| r.into_inner()) }
-    })
-    .await
+impl Drop for DoneOnDrop {
+    fn drop(&mut self) {
+        self.0.lock().phase = Phase::Done;
+    }
 }
 
 fn rgb(c: &Option<v1::Rgb>) -> Rgb {
@@ -87,30 +81,11 @@ pub async fn drive(
     if f == 0 {
         bail!("no fork to render with");
     }
-    let mut forks = Vec::with_capacity(f);
-    for addr in &opts.forks {
-        forks.push(connect_fork(addr, &opts.token).await?);
+    let mut forks = ForkSet::connect(prepared, &opts.forks, &opts.faults).await?;
+    for i in 0..f {
+        forks.load(i).await?;
     }
-    // Load the shards.
     let wire_header = v1::SceneHeader::from(&*h);
-    for (i, fork) in forks.iter_mut().enumerate() {
-        let blocks = prepared
-            .blocks
-            .iter()
-            .enumerate()
-            .filter(|(b, _)| b % f == i)
-            .map(|(b, data)| block_to_wire(b as u32, data))
-            .collect();
-        let req = LoadShardRequest {
-            protocol_version: PROTOCOL_VERSION,
-            fork_index: i as u32,
-            fork_addrs: opts.forks.clone(),
-            header: Some(wire_header.clone()),
-            blocks,
-            lease_ms: opts.lease.as_millis().clamp(1, u32::MAX as u128) as u32,
-        };
-        fork.load_shard(req).await.with_context(|| format!("loading the shard of fork {i} at {}", opts.forks[i]))?;
-    }
 
     // Serve the host service.
     let service = HostService::new(HostState {
@@ -130,19 +105,21 @@ pub async fn drive(
         .initial_connection_window_size(Some(16 << 20))
         .add_service(InterceptedService::new(
             HostServer::new(service.clone()).max_decoding_message_size(16 << 20),
-            CheckToken { token: opts.token.clone(), server: "host" },
+            CheckToken { token: opts.faults.token.clone(), server: "host" },
         ))
         .serve_with_incoming_shutdown(nodelay_incoming(listener), async {
             let _ = stop_rx.await;
         });
     let server = tokio::spawn(server);
+    // However the render ends, nodes asking for work hear "done" and exit.
+    let _done_on_exit = DoneOnDrop(service.clone());
 
     // --- LRT: wait for every fork's pairs.
     let t_lrt = Instant::now();
     let total_pairs: u64 = {
         let mut t = 0;
-        for fork in forks.iter_mut() {
-            t += energies(fork, true).await?.pairs_total;
+        for i in 0..f {
+            t += forks.poll_until_up(i, true, true).await?.pairs_total;
         }
         t
     };
@@ -151,8 +128,8 @@ pub async fn drive(
     let mut returned_seen = 0;
     loop {
         let (mut done, mut returned) = (0, 0);
-        for (i, fork) in forks.iter_mut().enumerate() {
-            let r = energies(fork, true).await.with_context(|| format!("fork {i} at {}", opts.forks[i]))?;
+        for i in 0..f {
+            let r = forks.poll_until_up(i, true, true).await?;
             done += r.pairs_done;
             returned += r.pairs_returned;
         }
@@ -185,8 +162,8 @@ pub async fn drive(
     let n_el = h.counts.elements as usize;
     let mut element_flux: Vec<Fixed> = vec![[0; 3]; n_el];
     let (mut dma_bytes, mut gbus_bytes, mut fork_rpcs, mut fork_link) = (0, 0, 0, 0);
-    for (i, fork) in forks.iter_mut().enumerate() {
-        let r = energies(fork, false).await?;
+    for i in 0..f {
+        let r = forks.poll_until_up(i, false, true).await?;
         for e in r.energies {
             match element_flux.get_mut(e.element as usize) {
                 Some(slot) => *slot = [e.r, e.g, e.b],
@@ -200,9 +177,7 @@ pub async fn drive(
     for (id, block) in vertex_energy_blocks(&vertex_irradiance, &h.layout) {
         per_fork[id as usize % f].push(block_to_wire(id, &block));
     }
-    for (fork, blocks) in forks.iter_mut().zip(per_fork) {
-        fork.put_blocks(PutBlocksRequest { blocks }).await?;
-    }
+    forks.put_vertex_blocks(per_fork).await?;
     let interp_s = t_interp.elapsed().as_secs_f64();
 
     // --- VRT.
@@ -217,16 +192,24 @@ pub async fn drive(
     }
     progress.begin("viewing ray tracing", s.width as u64 * s.height as u64);
     let mut last_rows = (0u64, Instant::now());
+    let mut last_check = Instant::now();
     loop {
+        // A fork that died is waited for (and loaded again when it is back) or named.
+        if last_check.elapsed() > FORK_CHECK {
+            for i in 0..f {
+                forks.poll(i, true, false).await?;
+            }
+            last_check = Instant::now();
+        }
         let (done, px) = {
             let mut st = service.lock();
             if let Some(sc) = st.schedule.as_mut() {
-                let lost = sc.expire(opts.lease);
+                let lost = sc.expire(opts.faults.lease);
                 if !lost.is_empty() {
                     tracing::warn!(
                         ?lost,
                         "nodes silent for over {:?}: their subscreens are back on the queue",
-                        opts.lease
+                        opts.faults.lease
                     );
                 }
             }
@@ -259,8 +242,8 @@ pub async fn drive(
     }
     // Give the final reports a moment to land.
     tokio::time::sleep(Duration::from_millis(20)).await;
-    for fork in forks.iter_mut() {
-        let r = energies(fork, true).await?;
+    for i in 0..f {
+        let r = forks.poll_until_up(i, true, false).await?;
         dma_bytes += r.dma_bytes;
         gbus_bytes += r.gbus_bytes;
         fork_rpcs += r.rpcs;

@@ -27,10 +27,8 @@ pub struct InProcessOptions {
     pub subscreen: u32,
     /// Abort a phase that makes no progress for this long.
     pub stall_timeout: Duration,
-    /// A node silent this long loses its pairs and subscreen to the others.
-    pub lease: Duration,
-    /// Cluster token of every process (none: no check).
-    pub token: magg_proto::auth::Token,
+    /// Node leases, fork timeout, and the cluster token of every process.
+    pub faults: crate::faults::FaultPolicy,
 }
 
 /// Runs the cluster and returns the render.
@@ -50,7 +48,7 @@ pub fn render_in_process(
             let listener = rt.block_on(TcpListener::bind("127.0.0.1:0")).context("binding a fork port on 127.0.0.1")?;
             fork_addrs.push(listener.local_addr()?.to_string());
             let mut stop = stop_tx.subscribe();
-            fork_tasks.push(rt.spawn(magg_fork::serve(listener, opts.token.clone(), async move {
+            fork_tasks.push(rt.spawn(magg_fork::serve(listener, opts.faults.token.clone(), async move {
                 let _ = stop.recv().await;
             })));
         }
@@ -61,7 +59,7 @@ pub fn render_in_process(
         .block_on(TcpListener::bind(&opts.listen))
         .with_context(|| format!("binding the host address {}", opts.listen))?;
     let host_addr = listener.local_addr()?.to_string();
-    if let Some(w) = magg_proto::auth::exposure_warning(listener.local_addr()?, &opts.token) {
+    if let Some(w) = magg_proto::auth::exposure_warning(listener.local_addr()?, &opts.faults.token) {
         tracing::warn!("{w}");
     }
     tracing::info!("host serving nodes on {host_addr}, forks at {}", fork_addrs.join(","));
@@ -77,7 +75,7 @@ pub fn render_in_process(
                 backoff: magg_node::Backoff::default(),
                 row_delay: Duration::ZERO,
                 pair_delay: Duration::ZERO,
-                token: opts.token.clone(),
+                token: opts.faults.token.clone(),
             };
             let handle = rt.handle().clone();
             std::thread::Builder::new()
@@ -93,8 +91,7 @@ pub fn render_in_process(
         subscreen: opts.subscreen,
         nodes: opts.nodes,
         stall_timeout: opts.stall_timeout,
-        lease: opts.lease,
-        token: opts.token.clone(),
+        faults: opts.faults.clone(),
     };
     let result = rt.block_on(drive(prepared, &drive_opts, listener, progress));
     let mut node_err = None;

@@ -10,6 +10,7 @@
 //! over 127.0.0.1 ports) or as separate processes (`--forks-at`, `--external-nodes`).
 
 mod drive;
+pub mod forks;
 mod inprocess;
 pub mod schedule;
 pub mod service;

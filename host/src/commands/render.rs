@@ -28,7 +28,7 @@ pub fn run(cfg: RenderConfig) -> anyhow::Result<()> {
     let bars = Bars::new(cfg.quiet);
     let out = match &cfg.mode {
         Mode::Embedded => render::render(&prepared, &opts, &bars)?,
-        Mode::Cluster { forks_at, listen, external_nodes, stall_timeout, lease, token } => {
+        Mode::Cluster { forks_at, listen, external_nodes, stall_timeout, faults } => {
             let cluster = InProcessOptions {
                 nodes: if *external_nodes { 0 } else { opts.node_count() },
                 forks: cfg.forks,
@@ -37,8 +37,7 @@ pub fn run(cfg: RenderConfig) -> anyhow::Result<()> {
                 cache_blocks: cfg.cache_blocks,
                 subscreen: cfg.subscreen,
                 stall_timeout: *stall_timeout,
-                lease: *lease,
-                token: token.clone(),
+                faults: faults.clone(),
             };
             render_in_process(&prepared, &cluster, &bars)?
         }
