@@ -207,6 +207,8 @@ pub struct RenderConfig {
     pub knobs: Knobs,
     /// Where the cluster runs.
     pub mode: Mode,
+    /// Memory bound in MiB (refused up front above it).
+    pub max_memory_mb: u64,
 }
 
 /// How the render is run.
@@ -275,6 +277,7 @@ impl RenderArgs {
             bail!("--profile {}: only the \"native\" profile exists in this build", self.profile);
         }
         Ok(RenderConfig {
+            max_memory_mb: self.faults.max_memory_mb,
             scene: self.scene,
             out: (self.out, out_fmt),
             linear,

@@ -27,6 +27,10 @@ pub struct FaultArgs {
     /// tracing) gets its shard back and the render goes on.
     #[arg(long, default_value_t = 30.0, value_name = "SECS")]
     pub fork_timeout: f64,
+    /// Refuse, before preprocessing, a scene whose render would need more than this many
+    /// MiB (estimated from its element count and image size; the estimate is printed).
+    #[arg(long, default_value_t = crate::memory::DEFAULT_MAX_MEMORY_MB, value_name = "MB")]
+    pub max_memory_mb: u64,
 }
 
 /// How the cluster copes with lost processes, and who may join: [`FaultArgs`] checked.

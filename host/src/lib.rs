@@ -13,6 +13,7 @@ pub mod energy_csv;
 pub mod faults;
 pub mod images;
 pub mod logging;
+pub mod memory;
 pub mod progress;
 pub mod scene_file;
 

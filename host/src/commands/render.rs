@@ -14,6 +14,7 @@ pub fn run(cfg: RenderConfig) -> anyhow::Result<()> {
         q.apply(&mut scene);
     }
     cfg.knobs.apply(&mut scene.settings)?;
+    crate::memory::check(&scene, cfg.max_memory_mb)?;
     let plan = if cfg.all_effects { EffectsPlan::forced_on(&scene) } else { EffectsPlan::for_scene(&scene) };
     let prepared = preprocess::prepare_with_plan(&scene, plan)?;
     if !cfg.quiet {
