@@ -100,20 +100,20 @@ async fn get_blocks(shard: Arc<Shard>, ids: Vec<u32>) -> Result<Vec<v1::Block>, 
 /// (index+1, index+2, ...) are asked to give some away (paper §4.4).
 async fn take_pairs(shard: Arc<Shard>, max: u32, node: u32) -> Result<v1::TakePairsReply, ForkError> {
     let max = max.clamp(1, MAX_PAIRS_PER_REQUEST);
-    let pairs = shard.take_own_pairs(max, node);
+    let (pairs, epoch) = shard.take_own_pairs(max, node);
     if !pairs.is_empty() {
-        return Ok(v1::TakePairsReply { pairs, exhausted: false });
+        return Ok(v1::TakePairsReply { pairs, exhausted: false, epoch });
     }
     let (me, forks) = (shard.placement().index, shard.placement().forks());
     let mut failure = None;
     for k in 1..forks {
         let peer = (me + k) % forks;
         match shard.peers().steal(peer, max, node).await {
-            Ok(pairs) if pairs.is_empty() => {}
-            Ok(pairs) => {
+            Ok((pairs, _)) if pairs.is_empty() => {}
+            Ok((pairs, epoch)) => {
                 check_stolen(&shard, peer, &pairs)?;
                 tracing::debug!(fork = me, from = peer, pairs = pairs.len(), "stole pairs");
-                return Ok(v1::TakePairsReply { pairs, exhausted: false });
+                return Ok(v1::TakePairsReply { pairs, exhausted: false, epoch });
             }
             Err(e) => {
                 tracing::warn!(fork = me, peer, "pair stealing failed: {e}");
@@ -124,7 +124,7 @@ async fn take_pairs(shard: Arc<Shard>, max: u32, node: u32) -> Result<v1::TakePa
     // A fork that could not be asked may still hold pairs: not exhausted.
     match failure {
         Some(e) => Err(e),
-        None => Ok(v1::TakePairsReply { pairs: Vec::new(), exhausted: true }),
+        None => Ok(v1::TakePairsReply { pairs: Vec::new(), exhausted: true, epoch: 0 }),
     }
 }
 
@@ -192,9 +192,9 @@ impl Fork for ForkService {
     async fn steal_pairs(&self, req: Request<v1::TakePairsRequest>) -> Result<Response<v1::TakePairsReply>, Status> {
         let shard = self.shard()?;
         let r = req.into_inner();
-        let pairs = shard.take_own_pairs(r.max, r.node);
+        let (pairs, epoch) = shard.take_own_pairs(r.max, r.node);
         let exhausted = pairs.is_empty();
-        Ok(Response::new(v1::TakePairsReply { pairs, exhausted }))
+        Ok(Response::new(v1::TakePairsReply { pairs, exhausted, epoch }))
     }
 
     async fn deposit(&self, req: Request<v1::DepositRequest>) -> Result<Response<v1::DepositReply>, Status> {
@@ -204,6 +204,11 @@ impl Fork for ForkService {
         let reply = v1::DepositReply { applied, duplicates };
         shard.count_link(prost::Message::encoded_len(&r) + prost::Message::encoded_len(&reply));
         Ok(Response::new(reply))
+    }
+
+    async fn replay(&self, req: Request<v1::ReplayRequest>) -> Result<Response<v1::ReplayReply>, Status> {
+        let shard = self.shard()?;
+        Ok(Response::new(v1::ReplayReply { pairs: shard.replay(req.into_inner().epoch) }))
     }
 
     async fn get_energies(

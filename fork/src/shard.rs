@@ -76,6 +76,8 @@ struct Work {
     seen: HashMap<u32, Instant>,
     /// Leases that expired so far.
     returned: u64,
+    /// Replay epoch: completions of pairs handed out in an earlier epoch do not count.
+    epoch: u64,
     /// Pairs whose deposits this fork has applied (exactly-once).
     applied: HashSet<u64>,
     /// Pairs of this fork reported complete.
@@ -133,6 +135,7 @@ impl Shard {
             leased: HashMap::new(),
             seen: HashMap::new(),
             returned: 0,
+            epoch: req.epoch,
             applied: HashSet::new(),
             done: HashSet::new(),
             energy: vec![[0; 3]; owned.len()],
@@ -257,7 +260,8 @@ impl Shard {
 
     /// Takes up to `max` unassigned pairs of this fork's own queue for `node` (first
     /// giving back the pairs of nodes whose lease expired), and renews `node`'s leases.
-    pub fn take_own_pairs(&self, max: u32, node: u32) -> Vec<u64> {
+    /// Returns the pairs and the replay epoch they are handed out in.
+    pub fn take_own_pairs(&self, max: u32, node: u32) -> (Vec<u64>, u64) {
         let max = max.clamp(1, MAX_PAIRS_PER_REQUEST) as usize;
         let now = Instant::now();
         let mut work = lock(&self.work);
@@ -275,7 +279,24 @@ impl Shard {
         for &p in &pairs {
             work.leased.insert(p, (node, now));
         }
-        pairs
+        (pairs, work.epoch)
+    }
+
+    /// Starts replay epoch `epoch` (another fork lost its energy): every pair of this
+    /// fork goes back to the queue; deposits already applied stay (the re-run ones are
+    /// duplicates here). Returns the pairs queued. An epoch not above the current one
+    /// changes nothing (a repeated call).
+    pub fn replay(&self, epoch: u64) -> u64 {
+        let mut work = lock(&self.work);
+        if epoch <= work.epoch {
+            return 0;
+        }
+        work.epoch = epoch;
+        work.queue = PairQueue::new(self.header.lights.len() as u32, self.owned.len(), self.header.plan.lrt);
+        work.leased.clear();
+        work.done.clear();
+        tracing::warn!(fork = self.place.index, epoch, pairs = work.queue.total(), "replay: every pair queued again");
+        work.queue.total()
     }
 
     /// Gives back to the queue the pairs of every node silent for longer than the lease.
@@ -387,7 +408,7 @@ impl Shard {
             } else {
                 duplicates += 1;
             }
-            if p.complete {
+            if p.complete && p.epoch == work.epoch {
                 work.done.insert(p.pair);
                 work.leased.remove(&p.pair);
             }

@@ -82,6 +82,7 @@ impl Cluster {
             header: Some(v1::SceneHeader::from(&*self.scene.header)),
             blocks,
             lease_ms: 0,
+            epoch: 0,
         }
     }
 
@@ -110,7 +111,12 @@ impl Cluster {
 }
 
 fn deposit(pair: u64, element: u32, rgb: [i64; 3], complete: bool) -> v1::PairDeposits {
-    v1::PairDeposits { pair, deposits: vec![v1::Deposit { element, r: rgb[0], g: rgb[1], b: rgb[2] }], complete }
+    v1::PairDeposits {
+        pair,
+        deposits: vec![v1::Deposit { element, r: rgb[0], g: rgb[1], b: rgb[2] }],
+        complete,
+        epoch: 0,
+    }
 }
 
 fn code<T: std::fmt::Debug>(r: Result<tonic::Response<T>, tonic::Status>) -> (Code, String) {
@@ -206,6 +212,7 @@ async fn deposits_apply_exactly_once_and_energies_sum() {
                 v1::Deposit { element: a, r: 10, g: 0, b: 0 },
             ],
             complete: true,
+            epoch: 0,
         }],
     };
     let r1 = c.clients[1].deposit(req.clone()).await.unwrap().into_inner();

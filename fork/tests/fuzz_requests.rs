@@ -33,6 +33,7 @@ fn load_request() -> v1::LoadShardRequest {
         header: Some(v1::SceneHeader::from(&*scene.header)),
         blocks,
         lease_ms: 0,
+        epoch: 0,
     }
 }
 
@@ -96,6 +97,7 @@ fn arbitrary_requests_on_a_loaded_shard_are_served_or_refused() {
             pair,
             deposits: ds.into_iter().map(|(element, v)| v1::Deposit { element, r: v, g: -v, b: v / 3 }).collect(),
             complete,
+            epoch: 0,
         });
     let request = (
         proptest::collection::vec(deposit, 0..6),
@@ -113,7 +115,7 @@ fn arbitrary_requests_on_a_loaded_shard_are_served_or_refused() {
             let _ = shard.owned_blocks(&ids);
             let puts = puts.into_iter().map(|(id, len)| v1::Block { id, data: vec![0; len] }).collect();
             let _ = shard.put_blocks(puts);
-            let got = shard.take_own_pairs(max, node);
+            let (got, _) = shard.take_own_pairs(max, node);
             prop_assert!(got.len() <= magg_fork::shard::MAX_PAIRS_PER_REQUEST as usize);
             Ok(())
         })

@@ -183,9 +183,11 @@ impl Worker {
                 }
                 let own = split.remove(&owner).unwrap_or_default();
                 for (fork, deposits) in split {
-                    round1.entry(fork).or_default().push(PairDeposits { pair, deposits, complete: false });
+                    let d = PairDeposits { pair, deposits, complete: false, epoch: got.epoch };
+                    round1.entry(fork).or_default().push(d);
                 }
-                round2.entry(owner).or_default().push(PairDeposits { pair, deposits: own, complete: true });
+                let d = PairDeposits { pair, deposits: own, complete: true, epoch: got.epoch };
+                round2.entry(owner).or_default().push(d);
             }
             while in_flight.len() >= DEPOSITS_IN_FLIGHT {
                 if let Some(t) = in_flight.pop_front() {

@@ -125,25 +125,51 @@ pub async fn drive(
     };
     progress.begin("light ray tracing", total_pairs);
     let mut last = (0u64, Instant::now());
-    let mut returned_seen = 0;
-    loop {
+    let (mut returned_seen, mut epoch_seen) = (0, 0);
+    let n_el = h.counts.elements as usize;
+    let mut element_flux: Vec<Fixed> = vec![[0; 3]; n_el];
+    // Until every pair is done and the energies are collected within one replay epoch
+    // (a fork that restarts meanwhile starts a new one).
+    let (lrt_s, t_interp) = loop {
         let (mut done, mut returned) = (0, 0);
         for i in 0..f {
             let r = forks.poll_until_up(i, true, true).await?;
             done += r.pairs_done;
             returned += r.pairs_returned;
         }
-        if returned > returned_seen {
-            // Pairs of a lost node are back on a queue: wake the nodes that ran out.
-            returned_seen = returned;
-            service.lock().pairs_epoch += 1;
+        if returned > returned_seen || forks.epoch > epoch_seen {
+            // Pairs of a lost node are back on a queue, or a replay started: wake the
+            // nodes that ran out.
+            if forks.epoch > epoch_seen {
+                last = (done, Instant::now()); // the count starts again: not a stall
+            }
+            (returned_seen, epoch_seen) = (returned, forks.epoch);
+            let mut st = service.lock();
+            st.pairs_epoch += 1;
+            st.phase = Phase::Lrt;
         }
         if done > last.0 {
             progress.advance(done - last.0);
             last = (done, Instant::now());
         }
         if done >= total_pairs {
-            break;
+            let lrt_s = t_lrt.elapsed().as_secs_f64();
+            // --- Interpolation.
+            service.lock().phase = Phase::Interp;
+            let t_interp = Instant::now();
+            for i in 0..f {
+                let r = forks.poll_until_up(i, false, true).await?;
+                for e in r.energies {
+                    match element_flux.get_mut(e.element as usize) {
+                        Some(slot) => *slot = [e.r, e.g, e.b],
+                        None => bail!("fork {i} sent energy for element {} of {n_el}", e.element),
+                    }
+                }
+            }
+            if forks.epoch == epoch_seen {
+                break (lrt_s, t_interp);
+            }
+            continue;
         }
         if last.1.elapsed() > opts.stall_timeout {
             bail!(
@@ -152,25 +178,9 @@ pub async fn drive(
             );
         }
         tokio::time::sleep(LRT_POLL).await; // one RPC per fork per poll: keep it gentle
-    }
+    };
     progress.end();
-    let lrt_s = t_lrt.elapsed().as_secs_f64();
-
-    // --- Interpolation.
-    service.lock().phase = Phase::Interp;
-    let t_interp = Instant::now();
-    let n_el = h.counts.elements as usize;
-    let mut element_flux: Vec<Fixed> = vec![[0; 3]; n_el];
     let (mut dma_bytes, mut gbus_bytes, mut fork_rpcs, mut fork_link) = (0, 0, 0, 0);
-    for i in 0..f {
-        let r = forks.poll_until_up(i, false, true).await?;
-        for e in r.energies {
-            match element_flux.get_mut(e.element as usize) {
-                Some(slot) => *slot = [e.r, e.g, e.b],
-                None => bail!("fork {i} sent energy for element {} of {n_el}", e.element),
-            }
-        }
-    }
     let vertex_irradiance =
         interpolate(&prepared.elements, &element_flux, h.counts.vertices as usize, h.energy_quantum);
     let mut per_fork: Vec<Vec<v1::Block>> = vec![Vec::new(); f];

@@ -5,9 +5,16 @@
 //! same address (empty: it says "no scene loaded"), the host loads its shard again, and
 //! the vertex energies too once interpolation has put them there. Nodes meanwhile retry
 //! their calls to it (an empty fork answers `UNAVAILABLE`). A fork that does not come
-//! back in time stops the render with an error naming it. A fork that restarts during
-//! light ray tracing has lost the energy deposited on its elements: the render stops
-//! with an error saying so (rebuilding it is future work, docs/RELIABILITY.md).
+//! back in time stops the render with an error naming it.
+//!
+//! A fork that restarts during light ray tracing has lost the energy deposited on its
+//! elements. The host then starts a replay epoch: the fork is loaded in the new epoch
+//! (all of its pairs queued), and every other fork queues all of its pairs again
+//! (`Replay`). Re-run pairs deposit the same values (seeded by pair), the forks that kept
+//! their energy drop them as duplicates (keyed by pair), and the restarted fork gets
+//! every deposit once: the result is bitwise that of a run without the failure.
+//! Completions from before the epoch are not counted, so no pair whose deposit the
+//! restarted fork lost is taken for done.
 
 use crate::faults::FaultPolicy;
 use anyhow::{bail, Context};
@@ -36,6 +43,8 @@ pub struct ForkSet<'a> {
     down_since: Vec<Option<Instant>>,
     /// Forks reloaded after a restart.
     pub restarts: u64,
+    /// Replay epoch (bumped when a fork restarts during light ray tracing).
+    pub epoch: u64,
 }
 
 async fn connect(addr: &str, token: &Token) -> anyhow::Result<ForkClient<Authed>> {
@@ -65,6 +74,7 @@ impl<'a> ForkSet<'a> {
             vertex_blocks: None,
             down_since: vec![None; addrs.len()],
             restarts: 0,
+            epoch: 0,
         })
     }
 
@@ -98,6 +108,7 @@ impl<'a> ForkSet<'a> {
             header: Some(v1::SceneHeader::from(&*self.prepared.header)),
             blocks,
             lease_ms: self.lease_ms,
+            epoch: self.epoch,
         };
         let name = self.name(i);
         self.clients[i].load_shard(req).await.with_context(|| format!("loading the shard of {name}"))?;
@@ -121,8 +132,8 @@ impl<'a> ForkSet<'a> {
     }
 
     /// Fork `i`'s energies and counters; `None` while it does not answer (within the
-    /// fork timeout). A fork that restarted empty is loaded again, unless `lrt_pending`
-    /// (the energy it held would be lost: an error).
+    /// fork timeout). A fork that restarted empty is loaded again, and if `lrt_pending`
+    /// (its energy is lost) a replay epoch starts: see the module doc.
     pub async fn poll(
         &mut self,
         i: usize,
@@ -144,15 +155,15 @@ impl<'a> ForkSet<'a> {
         let restarted =
             status.code() == Code::Unavailable && status.message() == magg_fork::ForkError::NotLoaded.to_string();
         if restarted {
-            if lrt_pending {
-                bail!(
-                    "{} restarted during light ray tracing: the energy deposited on its elements is lost; \
-                     render again",
-                    self.name(i)
-                );
-            }
             tracing::warn!("{} restarted: loading its shard again", self.name(i));
+            if lrt_pending {
+                self.epoch += 1;
+                tracing::warn!("its energy is lost: replay epoch {}, every pair traced again", self.epoch);
+            }
             self.load(i).await?;
+            if lrt_pending {
+                self.replay_others(i).await?;
+            }
             self.restarts += 1;
             self.down_since[i] = None;
             return Ok(None);
@@ -163,6 +174,21 @@ impl<'a> ForkSet<'a> {
         }
         tracing::warn!("{} does not answer ({}); waiting for it", self.name(i), status.message());
         Ok(None)
+    }
+
+    /// Tells every fork but `i` to start the current replay epoch.
+    async fn replay_others(&mut self, i: usize) -> anyhow::Result<()> {
+        for j in (0..self.len()).filter(|&j| j != i) {
+            let name = self.name(j);
+            let req = v1::ReplayRequest { epoch: self.epoch };
+            magg_node::retry("Replay", magg_node::Backoff { deadline: self.timeout, ..Default::default() }, || {
+                let (mut c, req) = (self.clients[j].clone(), req.clone());
+                async move { c.replay(req).await }
+            })
+            .await
+            .with_context(|| format!("starting a replay on {name}"))?;
+        }
+        Ok(())
     }
 
     /// Polls fork `i` until it answers (loading it again if it restarted, see
