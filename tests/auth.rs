@@ -55,13 +55,7 @@ fn nodes_without_the_token_are_refused_and_the_render_goes_on() {
 #[test]
 fn a_host_without_the_forks_token_stops_with_a_clear_error() {
     let dir = tempfile::tempdir().unwrap();
-    let fork_addr = format!("127.0.0.1:{}", free_port());
-    let fork = Command::new(magg_bin("magg-fork"))
-        .args(["--listen", &fork_addr, "--token", "fork-secret"])
-        .stdout(Stdio::null())
-        .stderr(Stdio::null())
-        .spawn()
-        .unwrap();
+    let (fork, fork_addr) = spawn_fork(0, &["--token", "fork-secret"], &dir.path().join("fork.log"));
     let _procs = Procs(vec![fork]);
     let o = magg_host()
         .arg("render")

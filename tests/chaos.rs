@@ -22,13 +22,13 @@ const SMALL: &[&str] = &["--width", "48", "--height", "40", "--light-rays", "4",
 /// several batches of pairs long, so that live nodes keep theirs.
 const LEASE: &str = "1.5";
 
-fn log_file(dir: &Path, name: &str) -> File {
-    File::create(dir.join(format!("{name}.log"))).unwrap()
+/// A fork on `port` (0: any), logging to `DIR/LOG.log`; returns it and its address.
+fn fork(dir: &Path, log: &str, port: u16) -> (Child, String) {
+    spawn_fork(port, &[], &dir.join(format!("{log}.log")))
 }
 
-fn fork(dir: &Path, log: &str, addr: &str) -> Child {
-    let log = log_file(dir, log);
-    Command::new(magg_bin("magg-fork")).args(["--listen", addr]).stdout(Stdio::null()).stderr(log).spawn().unwrap()
+fn port_of(addr: &str) -> u16 {
+    addr.rsplit(':').next().and_then(|p| p.parse().ok()).unwrap()
 }
 
 /// Kills fork process `k` and starts it again on `addr`, empty.
@@ -36,7 +36,7 @@ fn restart(procs: &mut Procs, k: usize, dir: &Path, log: &str, addr: &str) {
     procs.0[k].kill().unwrap();
     procs.0[k].wait().unwrap();
     std::thread::sleep(Duration::from_millis(200));
-    procs.0[k] = fork(dir, log, addr);
+    procs.0[k] = fork(dir, log, port_of(addr)).0;
 }
 
 /// Waits for `child` to exit, at most `secs` seconds.
@@ -92,9 +92,11 @@ fn wait_for(rx: &Receiver<String>, what: &str, n: usize) {
 fn chaos_run(dir: &Path, base: &Rendered, stem: &str, lrt_batches: usize, vrt_subscreens: usize, forks_too: bool) {
     let s = scene("magg-paper.toml");
     let mut procs = Procs(Vec::new());
-    let fork_addrs: Vec<String> = (0..3).map(|_| format!("127.0.0.1:{}", free_port())).collect();
-    for (i, a) in fork_addrs.iter().enumerate() {
-        procs.0.push(fork(dir, &format!("{stem}-fork{i}"), a));
+    let mut fork_addrs = Vec::new();
+    for i in 0..3 {
+        let (c, a) = fork(dir, &format!("{stem}-fork{i}"), 0);
+        procs.0.push(c);
+        fork_addrs.push(a);
     }
     let host_addr = format!("127.0.0.1:{}", free_port());
     let out = Rendered::at(dir, stem);
@@ -168,9 +170,11 @@ fn killed_nodes_lose_nothing_and_the_bits_are_those_of_a_clean_run() {
 fn a_fork_that_does_not_come_back_stops_the_render_naming_it_and_every_process_exits() {
     let dir = tempfile::tempdir().unwrap();
     let mut procs = Procs(Vec::new());
-    let fork_addrs: Vec<String> = (0..2).map(|_| format!("127.0.0.1:{}", free_port())).collect();
-    for (i, a) in fork_addrs.iter().enumerate() {
-        procs.0.push(fork(dir.path(), &format!("fork{i}"), a));
+    let mut fork_addrs = Vec::new();
+    for i in 0..2 {
+        let (c, a) = fork(dir.path(), &format!("fork{i}"), 0);
+        procs.0.push(c);
+        fork_addrs.push(a);
     }
     let host_addr = format!("127.0.0.1:{}", free_port());
     let forks_at = fork_addrs.join(",");

@@ -162,6 +162,40 @@ impl Drop for Procs {
     }
 }
 
+/// Starts `magg-fork --listen 127.0.0.1:PORT` (port 0: the fork picks one, which no other
+/// process can take meanwhile) with `extra` flags, its log copied to `log`; returns the
+/// process and the address it listens on, once it does.
+pub fn spawn_fork(port: u16, extra: &[&str], log: &Path) -> (Child, String) {
+    use std::io::{BufRead, Write};
+    let mut child = Command::new(magg_bin("magg-fork"))
+        .args(["--listen", &format!("127.0.0.1:{port}")])
+        .args(extra)
+        .env("NO_COLOR", "1")
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .expect("cannot start magg-fork");
+    let stderr = child.stderr.take().expect("piped stderr");
+    let mut file = std::fs::File::create(log).expect("cannot create the fork's log");
+    let (tx, rx) = std::sync::mpsc::channel();
+    std::thread::spawn(move || {
+        for line in std::io::BufReader::new(stderr).lines().map_while(Result::ok) {
+            let _ = writeln!(file, "{line}");
+            if let Some(at) = line.find("listening").and_then(|i| line[i..].find("127.0.0.1:").map(|j| i + j)) {
+                let port: String = line[at + 10..].chars().take_while(char::is_ascii_digit).collect();
+                let _ = tx.send(format!("127.0.0.1:{port}"));
+            }
+        }
+    });
+    match rx.recv_timeout(std::time::Duration::from_secs(60)) {
+        Ok(addr) => (child, addr),
+        Err(e) => {
+            let _ = child.kill();
+            panic!("magg-fork did not start listening: {e}; log in {}", log.display())
+        }
+    }
+}
+
 /// A TCP port on 127.0.0.1 that was free a moment ago.
 pub fn free_port() -> u16 {
     std::net::TcpListener::bind("127.0.0.1:0")

@@ -93,14 +93,17 @@ impl<'a> ForkSet<'a> {
         format!("fork {i} at {}", self.addrs[i])
     }
 
-    /// Loads fork `i`'s shard (every block `b` with `b mod F == i`), and its vertex
-    /// energies if they exist already.
+    /// Loads fork `i`'s shard (every block `b` with `b mod F == i`), with its vertex
+    /// energies in the same request if they exist already (so no node can read a block
+    /// between the two). Retried while the fork is unavailable: a load replaces the last.
     pub async fn load(&mut self, i: usize) -> anyhow::Result<()> {
         let f = self.len();
-        let blocks = (self.prepared.blocks.iter().enumerate())
+        let mut blocks: Vec<v1::Block> = (self.prepared.blocks.iter().enumerate())
             .filter(|(b, _)| b % f == i)
             .map(|(b, data)| block_to_wire(b as u32, data))
             .collect();
+        // Later blocks of a request replace earlier ones with the same id.
+        blocks.extend(self.vertex_blocks.as_ref().map(|v| v[i].clone()).unwrap_or_default());
         let req = LoadShardRequest {
             protocol_version: PROTOCOL_VERSION,
             fork_index: i as u32,
@@ -111,10 +114,13 @@ impl<'a> ForkSet<'a> {
             epoch: self.epoch,
         };
         let name = self.name(i);
-        self.clients[i].load_shard(req).await.with_context(|| format!("loading the shard of {name}"))?;
-        if let Some(blocks) = self.vertex_blocks.as_ref().map(|v| v[i].clone()) {
-            self.clients[i].put_blocks(PutBlocksRequest { blocks }).await.with_context(|| format!("{name}"))?;
-        }
+        let backoff = magg_node::Backoff { deadline: self.timeout, ..Default::default() };
+        magg_node::retry("LoadShard", backoff, || {
+            let (mut c, req) = (self.clients[i].clone(), req.clone());
+            async move { c.load_shard(req).await }
+        })
+        .await
+        .with_context(|| format!("loading the shard of {name}"))?;
         Ok(())
     }
 
