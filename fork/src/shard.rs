@@ -34,6 +34,9 @@ pub const MAX_DEPOSITS: usize = 1 << 20;
 pub const MAX_ADDR_LEN: usize = 256;
 /// Pair lease when `LoadShard` gives none: a node silent this long is taken for dead.
 pub const DEFAULT_LEASE: Duration = Duration::from_secs(30);
+/// A lease lasts at least this many times the longest gap seen between two requests of a
+/// node that held pairs (a live node's gap is about one batch of pairs).
+pub const GAPS_PER_LEASE: u32 = 4;
 
 /// Which fork this is, and where the others are.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -74,6 +77,9 @@ struct Work {
     leased: HashMap<u64, (u32, Instant)>,
     /// When each node last asked this fork for pairs (refreshes all its leases).
     seen: HashMap<u32, Instant>,
+    /// Longest time a node holding pairs here took to ask again: leases last at least
+    /// [`GAPS_PER_LEASE`] times this, so slow (e.g. throttled) batches do not expire.
+    max_gap: Duration,
     /// Leases that expired so far.
     returned: u64,
     /// Replay epoch: completions of pairs handed out in an earlier epoch do not count.
@@ -134,6 +140,7 @@ impl Shard {
             queue: PairQueue::new(lights, owned.len(), header.plan.lrt),
             leased: HashMap::new(),
             seen: HashMap::new(),
+            max_gap: Duration::ZERO,
             returned: 0,
             epoch: req.epoch,
             applied: HashSet::new(),
@@ -265,7 +272,12 @@ impl Shard {
         let max = max.clamp(1, MAX_PAIRS_PER_REQUEST) as usize;
         let now = Instant::now();
         let mut work = lock(&self.work);
-        work.seen.insert(node, now);
+        if let Some(last) = work.seen.insert(node, now) {
+            if work.leased.values().any(|l| l.0 == node) {
+                let gap = now.saturating_duration_since(last);
+                work.max_gap = work.max_gap.max(gap);
+            }
+        }
         self.reclaim_expired(&mut work, now);
         let mut pairs = Vec::new();
         while pairs.len() < max {
@@ -299,9 +311,10 @@ impl Shard {
         work.queue.total()
     }
 
-    /// Gives back to the queue the pairs of every node silent for longer than the lease.
+    /// Gives back to the queue the pairs of every node silent for longer than the lease
+    /// (or [`GAPS_PER_LEASE`] times the longest gap of a live node, if longer).
     fn reclaim_expired(&self, work: &mut Work, now: Instant) {
-        let lease = self.lease;
+        let lease = self.lease.max(work.max_gap * GAPS_PER_LEASE);
         let seen = &work.seen;
         let expired: Vec<u64> = work
             .leased

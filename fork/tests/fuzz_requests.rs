@@ -4,8 +4,9 @@
 //! arbitrary `Deposit`, `GetBlocks`, `PutBlocks` and `TakePairs` contents on a loaded
 //! shard. Nothing panics; refusals are errors, and a refused request changes nothing.
 
-use magg_core::preprocess::prepare;
-use magg_core::scene::parse_scene_str;
+mod common;
+
+use common::load_request;
 use magg_fork::Shard;
 use magg_proto::v1;
 use proptest::prelude::*;
@@ -15,26 +16,6 @@ use prost::Message;
 fn runner(seed: u8, cases: u32) -> TestRunner {
     let config = Config { cases, failure_persistence: None, rng_algorithm: RngAlgorithm::ChaCha, ..Config::default() };
     TestRunner::new_with_rng(config, TestRng::from_seed(RngAlgorithm::ChaCha, &[seed; 32]))
-}
-
-/// A valid `LoadShard` request of fork 0 of 2 for the paper's scene.
-fn load_request() -> v1::LoadShardRequest {
-    let text = include_str!("../../scenes/magg-paper.toml");
-    let read = |p: &std::path::Path| std::fs::read_to_string(p);
-    let scene = prepare(&parse_scene_str("magg-paper.toml", text, "scenes".as_ref(), &read).unwrap()).unwrap();
-    let blocks = (0..scene.blocks.len() as u32)
-        .filter(|b| b % 2 == 0)
-        .map(|b| magg_proto::convert::block_to_wire(b, &scene.blocks[b as usize]))
-        .collect();
-    v1::LoadShardRequest {
-        protocol_version: magg_proto::PROTOCOL_VERSION,
-        fork_index: 0,
-        fork_addrs: vec!["127.0.0.1:1".into(), "127.0.0.1:2".into()],
-        header: Some(v1::SceneHeader::from(&*scene.header)),
-        blocks,
-        lease_ms: 0,
-        epoch: 0,
-    }
 }
 
 /// Decodes `bytes` as every request message; a message that decodes is re-encoded.
