@@ -23,7 +23,8 @@ struct Args {
     /// Name in the host's logs.
     #[arg(long, default_value = "node")]
     name: String,
-    /// Give up connecting after this many seconds.
+    /// Give up connecting, or retrying a call to an unreachable peer (with backoff and
+    /// jitter), after this many seconds.
     #[arg(long, default_value_t = 30)]
     connect_timeout: u64,
     /// Extra milliseconds per pixel row: emulate a slow node (to watch adaptive
