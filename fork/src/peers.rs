@@ -97,7 +97,8 @@ impl Peers {
         if matches!(status.code(), Code::Unavailable | Code::Unknown | Code::Cancelled | Code::DeadlineExceeded) {
             lock(&self.clients).remove(&fork);
         }
-        if status.code() == Code::Unavailable {
+        // A peer unreachable, or whose connection broke under the call: the caller may retry.
+        if matches!(status.code(), Code::Unavailable | Code::Unknown | Code::Cancelled) {
             return ForkError::PeerUnavailable { addr, reason: status.message().to_string() };
         }
         ForkError::Peer { fork, addr, status }

@@ -1,5 +1,6 @@
-//! Retrying a call that failed for a transient reason (the peer is `UNAVAILABLE`: its
-//! connection broke or it is restarting), with exponential backoff and jitter, so that
+//! Retrying a call that failed for a transient reason (the peer is unreachable, its
+//! connection broke, or it is restarting: see [`transient`]), with exponential backoff
+//! and jitter, so that
 //! many nodes retrying at once do not hit a recovering peer in lock-step.
 //!
 //! Only calls that are safe to repeat go through here: reads (blocks, energies), keyed
@@ -31,10 +32,11 @@ pub fn jitter(delay: Duration) -> Duration {
     delay.mul_f64(0.5 + (nanos % 1000) as f64 / 1000.0)
 }
 
-/// True for the codes worth retrying: the peer could not be reached or dropped the
-/// connection.
+/// True for the codes worth retrying: the peer could not be reached (`UNAVAILABLE`), or
+/// the connection broke under a call in flight (tonic reports that as `UNKNOWN` or
+/// `CANCELLED`; magg's servers never answer those codes themselves).
 pub fn transient(status: &Status) -> bool {
-    status.code() == Code::Unavailable
+    matches!(status.code(), Code::Unavailable | Code::Unknown | Code::Cancelled)
 }
 
 /// Runs `call` until it succeeds, fails for a non-transient reason, or `backoff.deadline`
@@ -85,6 +87,14 @@ mod tests {
         })
         .await;
         assert_eq!(r.unwrap(), 3);
+    }
+
+    #[test]
+    fn broken_connections_are_transient_refusals_are_not() {
+        assert!(transient(&Status::unknown("transport error")));
+        assert!(transient(&Status::cancelled("connection reset")));
+        assert!(!transient(&Status::unauthenticated("no token")));
+        assert!(!transient(&Status::deadline_exceeded("slow")));
     }
 
     #[tokio::test]
