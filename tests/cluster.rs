@@ -70,21 +70,6 @@ fn eighty_nodes_on_five_forks_give_the_same_bits() {
     assert_eq!(read_json(&r.stats)["nodes"].as_u64().unwrap(), 80);
 }
 
-/// Children killed and reaped on drop, so a failing test leaves nothing behind.
-struct Procs(Vec<Child>);
-impl Drop for Procs {
-    fn drop(&mut self) {
-        for c in &mut self.0 {
-            let _ = c.kill();
-            let _ = c.wait();
-        }
-    }
-}
-
-fn free_port() -> u16 {
-    std::net::TcpListener::bind("127.0.0.1:0").unwrap().local_addr().unwrap().port()
-}
-
 fn spawn(bin: &str, args: &[String]) -> Child {
     Command::new(magg_bin(bin)).args(args).stdout(Stdio::null()).stderr(Stdio::null()).spawn().expect("spawn")
 }
@@ -107,25 +92,14 @@ fn separate_processes_on_localhost_give_the_same_bits_and_slow_nodes_are_redivid
     let forks_at = fork_addrs.join(",");
     let args: Vec<&str> =
         [SQUARE, &["--subscreen", "64", "--forks-at", &forks_at, "--listen", &host_addr, "--external-nodes"]].concat();
-    let host = {
-        let mut c = magg_host();
-        c.arg("render").arg(&s).arg("--out").arg(dir.path().join("multi.png"));
-        c.arg("--linear").arg(dir.path().join("multi.pfm")).arg("--energy").arg(dir.path().join("multi.csv"));
-        c.arg("--stats").arg(dir.path().join("multi.json")).arg("--quiet").args(&args);
-        c.stdout(Stdio::null()).stderr(Stdio::piped()).spawn().unwrap()
-    };
+    let multi = Rendered::at(dir.path(), "multi");
+    let host = multi.command(&s).args(&args).stdout(Stdio::null()).stderr(Stdio::piped()).spawn().unwrap();
     std::thread::sleep(Duration::from_millis(1500));
     // The second node is fast but not instant (5 ms a row), so that whichever node holds
     // the subscreen when the other asks, there are unstarted rows to hand over.
     procs.0.push(spawn("magg-node", &["--host".into(), host_addr.clone(), "--slow-row-ms".into(), "5".into()]));
     let out = host.wait_with_output().unwrap();
     assert!(out.status.success(), "host failed: {}", String::from_utf8_lossy(&out.stderr));
-    let multi = Rendered {
-        png: dir.path().join("multi.png"),
-        pfm: dir.path().join("multi.pfm"),
-        energy: dir.path().join("multi.csv"),
-        stats: dir.path().join("multi.json"),
-    };
     same_files(&base, &multi, "multi-process");
     let stats = read_json(&multi.stats);
     assert!(stats["work"]["redivisions"].as_u64().unwrap() > 0, "the slow node's rows were not redivided: {stats}");

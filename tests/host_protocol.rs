@@ -6,10 +6,6 @@ use magg_tests::*;
 use std::process::{Command, Stdio};
 use std::time::Duration;
 
-fn free_port() -> u16 {
-    std::net::TcpListener::bind("127.0.0.1:0").unwrap().local_addr().unwrap().port()
-}
-
 #[test]
 fn wrong_protocol_version_and_bad_requests_are_refused_and_the_render_goes_on() {
     let dir = tempfile::tempdir().unwrap();

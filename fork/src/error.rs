@@ -3,7 +3,8 @@
 //!
 //! | error | code |
 //! | --- | --- |
-//! | [`ForkError::NotLoaded`], [`ForkError::ProtocolVersion`], [`ForkError::ProfileMismatch`], [`ForkError::BlockNotLoaded`] | `FAILED_PRECONDITION` |
+//! | [`ForkError::ProtocolVersion`], [`ForkError::ProfileMismatch`], [`ForkError::BlockNotLoaded`] | `FAILED_PRECONDITION` |
+//! | [`ForkError::NotLoaded`] (a fork just started or restarted: callers retry until the host loads it) | `UNAVAILABLE` |
 //! | [`ForkError::BadHeader`], [`ForkError::BadBlock`], [`ForkError::BadRequest`], [`ForkError::BlockOutOfRange`], [`ForkError::BlockNotOwned`], [`ForkError::PairOutOfRange`], [`ForkError::ElementOutOfRange`], [`ForkError::ElementNotOwned`] | `INVALID_ARGUMENT` |
 //! | [`ForkError::TooMany`] | `RESOURCE_EXHAUSTED` |
 //! | [`ForkError::PeerUnavailable`] | `UNAVAILABLE` |
@@ -143,10 +144,10 @@ impl ForkError {
     /// The gRPC code of this error.
     pub fn code(&self) -> Code {
         match self {
-            ForkError::NotLoaded
-            | ForkError::ProtocolVersion { .. }
+            ForkError::ProtocolVersion { .. }
             | ForkError::ProfileMismatch { .. }
             | ForkError::BlockNotLoaded { .. } => Code::FailedPrecondition,
+            ForkError::NotLoaded => Code::Unavailable,
             ForkError::BadHeader(_)
             | ForkError::BadBlock(_)
             | ForkError::BadRequest(_)

@@ -12,7 +12,12 @@
 //!   `layout.element_slot(e).0 % F`; its deposits go there;
 //! - a node sends all of one pair's deposits for one fork in a single `PairDeposits`
 //!   (a repeated pair id is acknowledged and ignored), and sets `complete` on the one it
-//!   sends to the owner of the pair's element (`pair % elements`);
+//!   sends to the owner of the pair's element (`pair % elements`), with the `epoch` of
+//!   the `TakePairs` reply that handed the pair out (a completion from before a
+//!   `Replay` is not counted);
+//! - pairs are leased: a node that has not asked a fork for pairs for the lease
+//!   (`LoadShard.lease_ms`) loses its pairs there to the queue;
+//! - every call carries the cluster token when one is set ([`magg_proto::auth`]);
 //! - clients of a fork raise their decoding limit ([`connect`] does): a `GetBlocks` reply
 //!   of 4096 blocks is 8 MiB.
 //!
@@ -21,8 +26,9 @@
 //! let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await?;
 //! let addr = listener.local_addr()?;
 //! let (stop, stopped) = tokio::sync::oneshot::channel::<()>();
-//! let server = tokio::spawn(magg_fork::serve(listener, async { stopped.await.ok(); }));
-//! let mut fork = magg_fork::connect(&addr.to_string()).await?;
+//! let token = magg_proto::auth::Token::default(); // none: fine on 127.0.0.1
+//! let server = tokio::spawn(magg_fork::serve(listener, token.clone(), async { stopped.await.ok(); }));
+//! let mut fork = magg_fork::connect(&addr.to_string(), &token).await?;
 //! // fork.load_shard(...), fork.get_blocks(...), fork.take_pairs(...), ...
 //! stop.send(()).ok();
 //! server.await??;

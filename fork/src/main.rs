@@ -28,6 +28,11 @@ struct Args {
     /// fork refuses a render that runs another one. Without it, it runs the host's.
     #[arg(long, env = "MAGG_PROFILE")]
     profile: Option<String>,
+    /// Cluster token: every call must carry it, and calls to other forks carry it (the
+    /// same on every process of the cluster). Without one, any client is served: keep
+    /// the default 127.0.0.1 address then.
+    #[arg(long, env = "MAGG_TOKEN", hide_env_values = true)]
+    token: Option<String>,
     /// More log output (-v: debug, -vv: trace); RUST_LOG overrides.
     #[arg(short, long, action = clap::ArgAction::Count)]
     verbose: u8,
@@ -63,6 +68,10 @@ fn init_tracing(verbose: u8) {
 }
 
 fn run(args: Args) -> anyhow::Result<()> {
+    let token = magg_proto::auth::Token::parse(args.token).context("--token")?;
+    if let Some(w) = magg_proto::auth::exposure_warning(args.listen, &token) {
+        tracing::warn!("{w}");
+    }
     let runtime = tokio::runtime::Builder::new_multi_thread().enable_all().build().context("starting the runtime")?;
     runtime.block_on(async {
         let listener = tokio::net::TcpListener::bind(args.listen)
@@ -75,8 +84,8 @@ fn run(args: Args) -> anyhow::Result<()> {
             let profile = magg_throttle::Profile::named(p)?;
             hw = hw.pinned_to(&profile.name);
         }
-        let service = magg_fork::ForkService::with_hardware(hw);
-        magg_fork::serve_service(service, listener, magg_proto::lifecycle::shutdown_signal())
+        let service = magg_fork::ForkService::with_token(token.clone()).on_hardware(hw);
+        magg_fork::serve_service(service, token, listener, magg_proto::lifecycle::shutdown_signal())
             .await
             .context("serving")?;
         tracing::info!("fork stopped");

@@ -3,10 +3,11 @@
 //! A fork's pairs are every (light, element) with an element the fork owns, handed out in
 //! ascending pair id (`light * elements + element`, see [`magg_core::lrt::pair_id`]).
 //! The queue is a cursor over that sequence, so it costs no memory per pair however large
-//! the scene. Re-issuing the pairs of a failed node (leases) will add a second, explicit
-//! queue of returned pairs that is popped before the cursor.
+//! the scene. Pairs whose lease expired (their node died or stalled) come back on a
+//! second, explicit queue of returned pairs that is popped before the cursor.
 
 use magg_core::lrt::pair_id;
+use std::collections::BTreeSet;
 
 /// Unassigned pairs of one fork.
 #[derive(Clone, Debug)]
@@ -15,12 +16,14 @@ pub struct PairQueue {
     next: u64,
     /// Pairs in the sequence: lights x owned elements (0 when LRT is off).
     total: u64,
+    /// Pairs handed out once and given back (lease expired), ascending.
+    returned: BTreeSet<u64>,
 }
 
 impl PairQueue {
     /// The queue of `lights` lights over `owned` elements; empty when `lrt` is false.
     pub fn new(lights: u32, owned: usize, lrt: bool) -> PairQueue {
-        PairQueue { next: 0, total: if lrt { lights as u64 * owned as u64 } else { 0 } }
+        PairQueue { next: 0, total: if lrt { lights as u64 * owned as u64 } else { 0 }, returned: BTreeSet::new() }
     }
 
     /// Pairs of this fork in all (handed out or not).
@@ -28,23 +31,36 @@ impl PairQueue {
         self.total
     }
 
-    /// Pairs not handed out yet.
+    /// Pairs not handed out yet, or given back.
     pub fn remaining(&self) -> u64 {
-        self.total - self.next
+        self.total - self.next + self.returned.len() as u64
     }
 
-    /// Takes up to `max` pairs, ascending. `owned` is the fork's owned elements in
-    /// ascending order (the same slice the queue was built for), `elements` the scene's
-    /// element count.
+    /// Puts a pair that was handed out back on the queue (its lease expired).
+    pub fn give_back(&mut self, pair: u64) {
+        self.returned.insert(pair);
+    }
+
+    /// Takes up to `max` pairs: returned ones first, then the sequence, ascending. `owned`
+    /// is the fork's owned elements in ascending order (the same slice the queue was built
+    /// for), `elements` the scene's element count.
     pub fn pop(&mut self, max: usize, owned: &[u32], elements: u32) -> Vec<u64> {
         if owned.is_empty() {
             return Vec::new();
         }
-        let n = (max as u64).min(self.remaining());
+        let mut out = Vec::with_capacity(max.min(self.remaining() as usize));
+        while out.len() < max {
+            match self.returned.pop_first() {
+                Some(p) => out.push(p),
+                None => break,
+            }
+        }
+        let n = ((max - out.len()) as u64).min(self.total - self.next);
         let per_light = owned.len() as u64;
-        let out = (self.next..self.next + n)
-            .map(|k| pair_id((k / per_light) as u32, owned[(k % per_light) as usize], elements))
-            .collect();
+        out.extend(
+            (self.next..self.next + n)
+                .map(|k| pair_id((k / per_light) as u32, owned[(k % per_light) as usize], elements)),
+        );
         self.next += n;
         out
     }
@@ -96,6 +112,17 @@ mod tests {
         }
         assert_eq!(all, vec![0, 1, 4, 5, 6, 7, 10, 11]);
         assert_eq!((q.total(), q.remaining()), (8, 0));
+    }
+
+    #[test]
+    fn returned_pairs_come_first() {
+        let owned = [0u32, 1];
+        let mut q = PairQueue::new(1, owned.len(), true);
+        assert_eq!(q.pop(1, &owned, 2), vec![0]);
+        q.give_back(0);
+        assert_eq!(q.remaining(), 2);
+        assert_eq!(q.pop(5, &owned, 2), vec![0, 1]);
+        assert_eq!(q.remaining(), 0);
     }
 
     #[test]

@@ -7,12 +7,13 @@
 use crate::error::ForkError;
 use crate::locks::lock;
 use crate::server::MAX_MESSAGE_BYTES;
+use magg_proto::auth::{AddToken, Authed, Token};
 use magg_proto::v1;
 use magg_proto::v1::fork_client::ForkClient;
 use std::collections::HashMap;
 use std::sync::Mutex;
 use std::time::Duration;
-use tonic::transport::{Channel, Endpoint};
+use tonic::transport::Endpoint;
 use tonic::Code;
 
 /// How long a connection attempt to a fork may take.
@@ -30,10 +31,10 @@ pub fn fork_uri(addr: &str) -> String {
     }
 }
 
-/// Connects to the fork at `addr` (`HOST:PORT`), with the size limits of
-/// [`MAX_MESSAGE_BYTES`] both ways. Errors are [`ForkError::PeerUnavailable`] naming the
-/// address.
-pub async fn connect(addr: &str) -> Result<ForkClient<Channel>, ForkError> {
+/// Connects to the fork at `addr` (`HOST:PORT`), presenting the cluster `token`, with the
+/// size limits of [`MAX_MESSAGE_BYTES`] both ways. Errors are
+/// [`ForkError::PeerUnavailable`] naming the address.
+pub async fn connect(addr: &str, token: &Token) -> Result<ForkClient<Authed>, ForkError> {
     let unavailable = |reason: String| ForkError::PeerUnavailable { addr: addr.to_string(), reason };
     let endpoint = Endpoint::from_shared(fork_uri(addr))
         .map_err(|e| unavailable(format!("bad address: {e}")))?
@@ -43,7 +44,7 @@ pub async fn connect(addr: &str) -> Result<ForkClient<Channel>, ForkError> {
         .initial_stream_window_size(Some(4 << 20))
         .initial_connection_window_size(Some(16 << 20));
     let channel = endpoint.connect().await.map_err(|e| unavailable(error_chain(&e)))?;
-    Ok(ForkClient::new(channel)
+    Ok(ForkClient::with_interceptor(channel, AddToken(token.clone()))
         .max_decoding_message_size(MAX_MESSAGE_BYTES)
         .max_encoding_message_size(MAX_MESSAGE_BYTES))
 }
@@ -64,13 +65,15 @@ fn error_chain(e: &dyn std::error::Error) -> String {
 #[derive(Debug)]
 pub struct Peers {
     addrs: Vec<String>,
-    clients: Mutex<HashMap<u32, ForkClient<Channel>>>,
+    token: Token,
+    clients: Mutex<HashMap<u32, ForkClient<Authed>>>,
 }
 
 impl Peers {
-    /// Peers at `addrs` (by fork index); nothing is connected yet.
-    pub fn new(addrs: Vec<String>) -> Peers {
-        Peers { addrs, clients: Mutex::new(HashMap::new()) }
+    /// Peers at `addrs` (by fork index), reached with the cluster `token`; nothing is
+    /// connected yet.
+    pub fn new(addrs: Vec<String>, token: Token) -> Peers {
+        Peers { addrs, token, clients: Mutex::new(HashMap::new()) }
     }
 
     /// Address of fork `fork`.
@@ -78,11 +81,11 @@ impl Peers {
         self.addrs.get(fork as usize).map(String::as_str).unwrap_or("<no such fork>")
     }
 
-    async fn client(&self, fork: u32) -> Result<ForkClient<Channel>, ForkError> {
+    async fn client(&self, fork: u32) -> Result<ForkClient<Authed>, ForkError> {
         if let Some(c) = lock(&self.clients).get(&fork) {
             return Ok(c.clone());
         }
-        let c = connect(self.addr(fork)).await?;
+        let c = connect(self.addr(fork), &self.token).await?;
         lock(&self.clients).insert(fork, c.clone());
         Ok(c)
     }
@@ -94,7 +97,8 @@ impl Peers {
         if matches!(status.code(), Code::Unavailable | Code::Unknown | Code::Cancelled | Code::DeadlineExceeded) {
             lock(&self.clients).remove(&fork);
         }
-        if status.code() == Code::Unavailable {
+        // A peer unreachable, or whose connection broke under the call: the caller may retry.
+        if matches!(status.code(), Code::Unavailable | Code::Unknown | Code::Cancelled) {
             return ForkError::PeerUnavailable { addr, reason: status.message().to_string() };
         }
         ForkError::Peer { fork, addr, status }
@@ -133,8 +137,9 @@ impl Peers {
         Ok(Duration::from_nanos(reply.wait_ns))
     }
 
-    /// Up to `max` unassigned pairs of fork `fork`, taken on behalf of `node`.
-    pub async fn steal(&self, fork: u32, max: u32, node: u32) -> Result<Vec<u64>, ForkError> {
+    /// Up to `max` unassigned pairs of fork `fork`, taken on behalf of `node`, with the
+    /// replay epoch they were handed out in.
+    pub async fn steal(&self, fork: u32, max: u32, node: u32) -> Result<(Vec<u64>, u64), ForkError> {
         let mut client = self.client(fork).await?;
         let reply = client
             .steal_pairs(v1::TakePairsRequest { max, node })
@@ -145,6 +150,6 @@ impl Peers {
             let detail = format!("{} pairs where at most {max} were asked for", reply.pairs.len());
             return Err(ForkError::PeerReply { fork, addr: self.addr(fork).to_string(), detail });
         }
-        Ok(reply.pairs)
+        Ok((reply.pairs, reply.epoch))
     }
 }

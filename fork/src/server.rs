@@ -2,31 +2,44 @@
 //! size limits, on a listener the caller binds (so tests and the embedded cluster can use port 0).
 
 use crate::service::ForkService;
+use magg_proto::auth::{CheckToken, Token};
 use magg_proto::v1::fork_server::ForkServer;
 use std::future::Future;
 use tokio::net::TcpListener;
 use tokio_stream::wrappers::TcpListenerStream;
 use tokio_stream::StreamExt;
+use tonic::service::interceptor::InterceptedService;
 
 /// Largest message a fork accepts or sends: `LoadShard` carries a whole shard, and a
 /// `GetBlocks` reply up to 4096 blocks (8 MiB).
 pub const MAX_MESSAGE_BYTES: usize = 256 << 20;
 
-/// The tonic service of `service`, with the size limits applied.
-pub fn fork_server(service: ForkService) -> ForkServer<ForkService> {
-    ForkServer::new(service).max_decoding_message_size(MAX_MESSAGE_BYTES).max_encoding_message_size(MAX_MESSAGE_BYTES)
+/// The tonic service of `service`, with the size limits applied, refusing calls without
+/// the cluster `token` (when one is set).
+pub fn fork_server(service: ForkService, token: Token) -> InterceptedService<ForkServer<ForkService>, CheckToken> {
+    let server = ForkServer::new(service)
+        .max_decoding_message_size(MAX_MESSAGE_BYTES)
+        .max_encoding_message_size(MAX_MESSAGE_BYTES);
+    InterceptedService::new(server, CheckToken { token, server: "fork" })
 }
 
 /// Serves a fresh [`ForkService`] on `listener` until `shutdown` completes, then finishes
-/// the requests in flight and returns.
-pub async fn serve(listener: TcpListener, shutdown: impl Future<Output = ()>) -> Result<(), tonic::transport::Error> {
-    serve_service(ForkService::new(), listener, shutdown).await
+/// the requests in flight and returns. Every call must carry the cluster `token` (when
+/// one is set), and calls to other forks carry it.
+pub async fn serve(
+    listener: TcpListener,
+    token: Token,
+    shutdown: impl Future<Output = ()>,
+) -> Result<(), tonic::transport::Error> {
+    serve_service(ForkService::with_token(token.clone()), token, listener, shutdown).await
 }
 
-/// Serves `service` on `listener` until `shutdown` completes, with the standard gRPC
-/// health service beside it (SERVING from the start: a fork is ready for its shard).
+/// Serves `service` on `listener` until `shutdown` completes, checking `token` on the
+/// fork's calls, with the standard gRPC health service beside it (open to all: SERVING
+/// from the start, a fork is ready for its shard).
 pub async fn serve_service(
     service: ForkService,
+    token: Token,
     listener: TcpListener,
     shutdown: impl Future<Output = ()>,
 ) -> Result<(), tonic::transport::Error> {
@@ -44,7 +57,7 @@ pub async fn serve_service(
         .initial_connection_window_size(Some(16 << 20))
         .tcp_nodelay(true)
         .add_service(health_service)
-        .add_service(fork_server(service))
+        .add_service(fork_server(service, token))
         .serve_with_incoming_shutdown(incoming, shutdown)
         .await
 }

@@ -9,6 +9,7 @@ use crate::error::ForkError;
 use crate::hardware::ForkHardware;
 use crate::locks::{read, write};
 use crate::shard::{Shard, MAX_IDS_PER_REQUEST, MAX_PAIRS_PER_REQUEST};
+use magg_proto::auth::Token;
 use magg_proto::v1;
 use magg_proto::v1::fork_server::Fork;
 use magg_throttle::Profile;
@@ -23,17 +24,25 @@ use tonic::{Request, Response, Status};
 pub struct ForkService {
     shard: RwLock<Option<Arc<Shard>>>,
     hw: Arc<ForkHardware>,
+    token: Token,
 }
 
 impl ForkService {
-    /// A fork with no scene loaded.
+    /// A fork with no scene loaded and no cluster token.
     pub fn new() -> ForkService {
         ForkService::default()
     }
 
-    /// A fork on the given hardware (forks of one process share one G-bus this way).
-    pub fn with_hardware(hw: ForkHardware) -> ForkService {
-        ForkService { shard: RwLock::new(None), hw: Arc::new(hw) }
+    /// A fork with no scene loaded that reaches the other forks with `token`.
+    pub fn with_token(token: Token) -> ForkService {
+        ForkService { token, ..ForkService::default() }
+    }
+
+    /// The same fork on the given hardware (forks of one process share one G-bus this
+    /// way).
+    pub fn on_hardware(mut self, hw: ForkHardware) -> ForkService {
+        self.hw = Arc::new(hw);
+        self
     }
 
     /// The loaded shard, counting the RPC against it.
@@ -115,9 +124,9 @@ async fn take_pairs(
     node: u32,
 ) -> Result<v1::TakePairsReply, ForkError> {
     let max = max.clamp(1, MAX_PAIRS_PER_REQUEST);
-    let pairs = shard.take_own_pairs(max, node);
+    let (pairs, epoch) = shard.take_own_pairs(max, node);
     if !pairs.is_empty() {
-        return Ok(v1::TakePairsReply { pairs, exhausted: false });
+        return Ok(v1::TakePairsReply { pairs, exhausted: false, epoch });
     }
     let (me, forks) = (shard.placement().index, shard.placement().forks());
     let mut failure = None;
@@ -125,13 +134,13 @@ async fn take_pairs(
         let peer = (me + k) % forks;
         let stolen = shard.peers().steal(peer, max, node).await;
         // A request and a reply of pair ids cross the G-bus.
-        hw.gbus(me, shard.peers(), 16 + 8 * stolen.as_ref().map_or(0, Vec::len)).await;
+        hw.gbus(me, shard.peers(), 16 + 8 * stolen.as_ref().map_or(0, |(p, _)| p.len())).await;
         match stolen {
-            Ok(pairs) if pairs.is_empty() => {}
-            Ok(pairs) => {
+            Ok((pairs, _)) if pairs.is_empty() => {}
+            Ok((pairs, epoch)) => {
                 check_stolen(&shard, peer, &pairs)?;
                 tracing::debug!(fork = me, from = peer, pairs = pairs.len(), "stole pairs");
-                return Ok(v1::TakePairsReply { pairs, exhausted: false });
+                return Ok(v1::TakePairsReply { pairs, exhausted: false, epoch });
             }
             Err(e) => {
                 tracing::warn!(fork = me, peer, "pair stealing failed: {e}");
@@ -142,7 +151,7 @@ async fn take_pairs(
     // A fork that could not be asked may still hold pairs: not exhausted.
     match failure {
         Some(e) => Err(e),
-        None => Ok(v1::TakePairsReply { pairs: Vec::new(), exhausted: true }),
+        None => Ok(v1::TakePairsReply { pairs: Vec::new(), exhausted: true, epoch: 0 }),
     }
 }
 
@@ -169,7 +178,7 @@ impl Fork for ForkService {
             Some(Profile::from_wire(&req.profile).map_err(|e| ForkError::BadRequest(e.to_string()))?)
         };
         self.hw.check_profile(profile.as_ref())?;
-        let shard = Shard::load(req)?;
+        let shard = Shard::load(req, self.token.clone())?;
         shard.count_rpc();
         self.hw.set_profile(profile);
         // The host's upload crosses the G-bus.
@@ -228,9 +237,9 @@ impl Fork for ForkService {
         let shard = self.shard()?;
         self.hw.serve(0).await;
         let r = req.into_inner();
-        let pairs = shard.take_own_pairs(r.max, r.node);
+        let (pairs, epoch) = shard.take_own_pairs(r.max, r.node);
         let exhausted = pairs.is_empty();
-        Ok(Response::new(v1::TakePairsReply { pairs, exhausted }))
+        Ok(Response::new(v1::TakePairsReply { pairs, exhausted, epoch }))
     }
 
     async fn deposit(&self, req: Request<v1::DepositRequest>) -> Result<Response<v1::DepositReply>, Status> {
@@ -241,6 +250,11 @@ impl Fork for ForkService {
         let reply = v1::DepositReply { applied, duplicates };
         shard.count_link(prost::Message::encoded_len(&r) + prost::Message::encoded_len(&reply));
         Ok(Response::new(reply))
+    }
+
+    async fn replay(&self, req: Request<v1::ReplayRequest>) -> Result<Response<v1::ReplayReply>, Status> {
+        let shard = self.shard()?;
+        Ok(Response::new(v1::ReplayReply { pairs: shard.replay(req.into_inner().epoch) }))
     }
 
     async fn get_energies(

@@ -12,11 +12,13 @@ use crate::peers::Peers;
 use magg_core::blocks::{Block, BLOCK_SIZE};
 use magg_core::energy::Fixed;
 use magg_core::header::SceneHeader;
+use magg_proto::auth::Token;
 use magg_proto::convert::{block_from_wire, block_to_wire};
 use magg_proto::v1;
 use std::collections::{HashMap, HashSet};
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Mutex, RwLock};
+use std::time::{Duration, Instant};
 
 /// Most forks a cluster may have.
 pub const MAX_FORKS: usize = 4096;
@@ -30,6 +32,11 @@ pub const MAX_DEPOSIT_PAIRS: usize = 65_536;
 pub const MAX_DEPOSITS: usize = 1 << 20;
 /// Longest fork address accepted.
 pub const MAX_ADDR_LEN: usize = 256;
+/// Pair lease when `LoadShard` gives none: a node silent this long is taken for dead.
+pub const DEFAULT_LEASE: Duration = Duration::from_secs(30);
+/// A lease lasts at least this many times the longest gap seen between two requests of a
+/// node that held pairs (a live node's gap is about one batch of pairs).
+pub const GAPS_PER_LEASE: u32 = 4;
 
 /// Which fork this is, and where the others are.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -66,8 +73,17 @@ struct Work {
     /// Unassigned pairs of this fork.
     queue: PairQueue,
     /// Pairs of this fork handed out and not yet complete, with the node they went to
-    /// (kept for re-issue on node failure).
-    leased: HashMap<u64, u32>,
+    /// and when (given back to the queue when the lease expires: node failure).
+    leased: HashMap<u64, (u32, Instant)>,
+    /// When each node last asked this fork for pairs (refreshes all its leases).
+    seen: HashMap<u32, Instant>,
+    /// Longest time a node holding pairs here took to ask again: leases last at least
+    /// [`GAPS_PER_LEASE`] times this, so slow (e.g. throttled) batches do not expire.
+    max_gap: Duration,
+    /// Leases that expired so far.
+    returned: u64,
+    /// Replay epoch: completions of pairs handed out in an earlier epoch do not count.
+    epoch: u64,
     /// Pairs whose deposits this fork has applied (exactly-once).
     applied: HashSet<u64>,
     /// Pairs of this fork reported complete.
@@ -90,12 +106,15 @@ pub struct Shard {
     peers: Peers,
     /// Nodes the host expects (sizes guided pair batches; 0 = unknown).
     nodes: u32,
+    /// How long a node may stay silent before its pairs go back to the queue.
+    lease: Duration,
 }
 
 impl Shard {
     /// Builds the shard from a `LoadShard` request: checks the protocol version, the
-    /// placement, the header and every block, then builds the pair queue.
-    pub fn load(req: v1::LoadShardRequest) -> Result<Shard, ForkError> {
+    /// placement, the header and every block, then builds the pair queue. Other forks
+    /// are reached with the cluster `token`.
+    pub fn load(req: v1::LoadShardRequest, token: Token) -> Result<Shard, ForkError> {
         if req.protocol_version != magg_proto::PROTOCOL_VERSION {
             return Err(ForkError::ProtocolVersion { got: req.protocol_version, want: magg_proto::PROTOCOL_VERSION });
         }
@@ -118,9 +137,14 @@ impl Shard {
         let owned: Vec<u32> =
             (0..header.counts.elements).filter(|&e| header.layout.element_slot(e).0 % f == index).collect();
         let lights = header.lights.len() as u32;
+        let lease = if req.lease_ms == 0 { DEFAULT_LEASE } else { Duration::from_millis(req.lease_ms as u64) };
         let work = Work {
             queue: PairQueue::new(lights, owned.len(), header.plan.lrt),
             leased: HashMap::new(),
+            seen: HashMap::new(),
+            max_gap: Duration::ZERO,
+            returned: 0,
+            epoch: req.epoch,
             applied: HashSet::new(),
             done: HashSet::new(),
             energy: vec![[0; 3]; owned.len()],
@@ -131,9 +155,10 @@ impl Shard {
             owned,
             work: Mutex::new(work),
             traffic: Traffic::default(),
-            peers: Peers::new(place.addrs.clone()),
+            peers: Peers::new(place.addrs.clone(), token),
             place,
             nodes: req.nodes,
+            lease,
         };
         shard.put_blocks(req.blocks)?;
         Ok(shard)
@@ -243,16 +268,85 @@ impl Shard {
             .collect()
     }
 
-    /// Takes up to `max` unassigned pairs of this fork's own queue for `node`.
-    pub fn take_own_pairs(&self, max: u32, node: u32) -> Vec<u64> {
-        let mut work = lock(&self.work);
+    /// Takes up to `max` unassigned pairs of this fork's own queue for `node` (first
+    /// giving back the pairs of nodes whose lease expired), and renews `node`'s leases.
+    /// Returns the pairs and the replay epoch they are handed out in.
+    pub fn take_own_pairs(&self, max: u32, node: u32) -> (Vec<u64>, u64) {
         let max = max.clamp(1, MAX_PAIRS_PER_REQUEST);
-        let max = crate::pairs::guided_batch(max, work.queue.remaining(), self.place.forks(), self.nodes) as usize;
-        let pairs = work.queue.pop(max, &self.owned, self.header.counts.elements);
-        for &p in &pairs {
-            work.leased.insert(p, node);
+        let now = Instant::now();
+        let mut work = lock(&self.work);
+        if let Some(last) = work.seen.insert(node, now) {
+            if work.leased.values().any(|l| l.0 == node) {
+                let gap = now.saturating_duration_since(last);
+                work.max_gap = work.max_gap.max(gap);
+            }
         }
-        pairs
+        self.reclaim_expired(&mut work, now);
+        let max = crate::pairs::guided_batch(max, work.queue.remaining(), self.place.forks(), self.nodes) as usize;
+        let mut pairs = Vec::new();
+        while pairs.len() < max {
+            let got = work.queue.pop(max - pairs.len(), &self.owned, self.header.counts.elements);
+            if got.is_empty() {
+                break;
+            }
+            // A given-back pair may have been completed since by its first (slow) node.
+            pairs.extend(got.into_iter().filter(|p| !work.done.contains(p)));
+        }
+        for &p in &pairs {
+            work.leased.insert(p, (node, now));
+        }
+        (pairs, work.epoch)
+    }
+
+    /// Starts replay epoch `epoch` (another fork lost its energy): every pair of this
+    /// fork goes back to the queue; deposits already applied stay (the re-run ones are
+    /// duplicates here). Returns the pairs queued. An epoch not above the current one
+    /// changes nothing (a repeated call).
+    pub fn replay(&self, epoch: u64) -> u64 {
+        let mut work = lock(&self.work);
+        if epoch <= work.epoch {
+            return 0;
+        }
+        work.epoch = epoch;
+        work.queue = PairQueue::new(self.header.lights.len() as u32, self.owned.len(), self.header.plan.lrt);
+        work.leased.clear();
+        work.done.clear();
+        tracing::warn!(fork = self.place.index, epoch, pairs = work.queue.total(), "replay: every pair queued again");
+        work.queue.total()
+    }
+
+    /// Gives back to the queue the pairs of every node silent for longer than the lease
+    /// (or [`GAPS_PER_LEASE`] times the longest gap of a live node, if longer).
+    fn reclaim_expired(&self, work: &mut Work, now: Instant) {
+        let lease = self.lease.max(work.max_gap * GAPS_PER_LEASE);
+        let seen = &work.seen;
+        let expired: Vec<u64> = work
+            .leased
+            .iter()
+            .filter(|(_, &(node, at))| {
+                let last = seen.get(&node).map_or(at, |&s| s.max(at));
+                now.saturating_duration_since(last) > lease
+            })
+            .map(|(&p, _)| p)
+            .collect();
+        if expired.is_empty() {
+            return;
+        }
+        let mut nodes: Vec<u32> = expired.iter().filter_map(|p| work.leased.get(p).map(|l| l.0)).collect();
+        nodes.sort_unstable();
+        nodes.dedup();
+        for p in &expired {
+            work.leased.remove(p);
+            work.queue.give_back(*p);
+        }
+        work.returned += expired.len() as u64;
+        tracing::warn!(
+            fork = self.place.index,
+            pairs = expired.len(),
+            ?nodes,
+            "pair leases expired (node silent for over {:?}): pairs back on the queue",
+            lease
+        );
     }
 
     /// The id range of pairs: `lights * elements`.
@@ -331,7 +425,7 @@ impl Shard {
             } else {
                 duplicates += 1;
             }
-            if p.complete {
+            if p.complete && p.epoch == work.epoch {
                 work.done.insert(p.pair);
                 work.leased.remove(&p.pair);
             }
@@ -342,7 +436,8 @@ impl Shard {
     /// Energies of every owned element (ascending id; none when `summary_only`), pair
     /// progress, and the traffic counters of [`Shard::traffic`].
     pub fn energies(&self, summary_only: bool) -> v1::GetEnergiesReply {
-        let work = lock(&self.work);
+        let mut work = lock(&self.work);
+        self.reclaim_expired(&mut work, Instant::now());
         let energies = if summary_only {
             Vec::new()
         } else {
@@ -360,6 +455,7 @@ impl Shard {
             gbus_bytes: self.traffic.gbus_bytes.load(Ordering::Relaxed),
             rpcs: self.traffic.rpcs.load(Ordering::Relaxed),
             link_bytes: self.traffic.link_bytes.load(Ordering::Relaxed),
+            pairs_returned: work.returned,
             ..Default::default()
         }
     }

@@ -5,12 +5,12 @@ use magg_core::blocks::BLOCK_SIZE;
 use magg_core::lrt::pair_id;
 use magg_core::preprocess::{prepare, PreparedScene};
 use magg_core::scene::parse_scene_str;
+use magg_proto::auth::Authed;
 use magg_proto::v1;
 use magg_proto::v1::fork_client::ForkClient;
 use std::collections::BTreeSet;
 use tokio::sync::oneshot;
 use tokio::task::JoinHandle;
-use tonic::transport::Channel;
 use tonic::Code;
 
 const FORKS: u32 = 3;
@@ -29,7 +29,7 @@ fn paper_scene() -> PreparedScene {
 struct Cluster {
     scene: PreparedScene,
     addrs: Vec<String>,
-    clients: Vec<ForkClient<Channel>>,
+    clients: Vec<ForkClient<Authed>>,
     stops: Vec<oneshot::Sender<()>>,
     servers: Vec<JoinHandle<Result<(), tonic::transport::Error>>>,
 }
@@ -43,12 +43,12 @@ impl Cluster {
             addrs.push(listener.local_addr().unwrap().to_string());
             let (stop, stopped) = oneshot::channel::<()>();
             stops.push(stop);
-            servers.push(tokio::spawn(magg_fork::serve(listener, async {
+            servers.push(tokio::spawn(magg_fork::serve(listener, Default::default(), async {
                 stopped.await.ok();
             })));
         }
         for a in &addrs {
-            clients.push(magg_fork::connect(a).await.unwrap());
+            clients.push(magg_fork::connect(a, &Default::default()).await.unwrap());
         }
         Cluster { scene: paper_scene(), addrs, clients, stops, servers }
     }
@@ -110,7 +110,12 @@ impl Cluster {
 }
 
 fn deposit(pair: u64, element: u32, rgb: [i64; 3], complete: bool) -> v1::PairDeposits {
-    v1::PairDeposits { pair, deposits: vec![v1::Deposit { element, r: rgb[0], g: rgb[1], b: rgb[2] }], complete }
+    v1::PairDeposits {
+        pair,
+        deposits: vec![v1::Deposit { element, r: rgb[0], g: rgb[1], b: rgb[2] }],
+        complete,
+        epoch: 0,
+    }
 }
 
 fn code<T: std::fmt::Debug>(r: Result<tonic::Response<T>, tonic::Status>) -> (Code, String) {
@@ -206,6 +211,7 @@ async fn deposits_apply_exactly_once_and_energies_sum() {
                 v1::Deposit { element: a, r: 10, g: 0, b: 0 },
             ],
             complete: true,
+            epoch: 0,
         }],
     };
     let r1 = c.clients[1].deposit(req.clone()).await.unwrap().into_inner();
@@ -254,9 +260,9 @@ async fn bad_requests_get_the_right_codes_and_the_server_keeps_serving() {
     let mut c = Cluster::start().await;
     // Before LoadShard.
     let (k, m) = code(c.clients[0].get_energies(v1::GetEnergiesRequest { summary_only: true }).await);
-    assert_eq!((k, m.as_str()), (Code::FailedPrecondition, "no scene loaded"));
+    assert_eq!((k, m.as_str()), (Code::Unavailable, "no scene loaded"));
     let (k, _) = code(c.clients[0].take_pairs(v1::TakePairsRequest { max: 1, node: 0 }).await);
-    assert_eq!(k, Code::FailedPrecondition);
+    assert_eq!(k, Code::Unavailable, "an empty fork is retried until the host loads it");
     // Wrong protocol version.
     let mut req = c.load_request(0);
     req.protocol_version = magg_proto::PROTOCOL_VERSION + 1;

@@ -143,6 +143,9 @@ pub struct RenderArgs {
     /// Scene overrides: accuracy knobs and output size.
     #[command(flatten)]
     pub knobs: Knobs,
+    /// Fault handling and access: node leases, fork timeout, cluster token.
+    #[command(flatten)]
+    pub faults: crate::faults::FaultArgs,
 }
 
 /// Overrides of the scene's `[render]` settings.
@@ -252,6 +255,8 @@ pub struct RenderConfig {
     pub view: Option<(String, bool, u64)>,
     /// Where the cluster runs.
     pub mode: Mode,
+    /// Memory bound in MiB (refused up front above it).
+    pub max_memory_mb: u64,
 }
 
 /// How the render is run.
@@ -270,6 +275,8 @@ pub enum Mode {
         external_nodes: bool,
         /// Phase stall limit.
         stall_timeout: std::time::Duration,
+        /// Node leases, fork timeout, cluster token.
+        faults: crate::faults::FaultPolicy,
     },
 }
 
@@ -332,6 +339,7 @@ impl RenderArgs {
             bail!("--scheme {:?}: expected \"magg\" or \"paper\"", self.scheme);
         };
         Ok(RenderConfig {
+            max_memory_mb: self.faults.max_memory_mb,
             scene: self.scene,
             out: (self.out, out_fmt),
             linear,
@@ -358,6 +366,7 @@ impl RenderArgs {
                     listen: self.listen,
                     external_nodes: self.external_nodes,
                     stall_timeout: std::time::Duration::from_secs(self.stall_timeout),
+                    faults: self.faults.policy()?,
                 }
             },
         })

@@ -1,11 +1,13 @@
 //! Connecting to a peer with exponential backoff and jitter, naming the address on
-//! failure.
+//! failure; every call on the channel gets a deadline.
 
+use crate::retry::jitter;
 use crate::NodeError;
 use std::time::Duration;
 use tonic::transport::{Channel, Endpoint};
 
-/// Retry policy of connections.
+/// Retry policy of connections and of calls that failed for a transient reason, and the
+/// deadline of every call.
 #[derive(Clone, Copy, Debug)]
 pub struct Backoff {
     /// First delay.
@@ -14,11 +16,23 @@ pub struct Backoff {
     pub max: Duration,
     /// Give up after this long.
     pub deadline: Duration,
+    /// Deadline of each call on a channel (a stalled peer fails the call with
+    /// `DEADLINE_EXCEEDED` instead of hanging the caller).
+    pub call_timeout: Duration,
 }
+
+/// Default deadline of one call: far above any healthy call (the largest, a
+/// `GetBlocks` of 4096 blocks, is 8 MB), far below "hung".
+pub const CALL_TIMEOUT: Duration = Duration::from_secs(60);
 
 impl Default for Backoff {
     fn default() -> Self {
-        Backoff { initial: Duration::from_millis(50), max: Duration::from_secs(2), deadline: Duration::from_secs(30) }
+        Backoff {
+            initial: Duration::from_millis(50),
+            max: Duration::from_secs(2),
+            deadline: Duration::from_secs(30),
+            call_timeout: CALL_TIMEOUT,
+        }
     }
 }
 
@@ -38,6 +52,7 @@ pub async fn connect_with_backoff(addr: &str, backoff: Backoff) -> Result<Channe
     let endpoint = Endpoint::from_shared(uri.clone())
         .map_err(|e| NodeError::Connect { addr: addr.to_string(), reason: e.to_string() })?
         .connect_timeout(Duration::from_secs(2))
+        .timeout(backoff.call_timeout)
         .tcp_nodelay(true)
         // Block replies are up to 64 KB and more: windows large enough that HTTP/2 flow
         // control never stalls a reply waiting for a WINDOW_UPDATE round trip.
@@ -58,13 +73,7 @@ pub async fn connect_with_backoff(addr: &str, backoff: Backoff) -> Result<Channe
                     });
                 }
                 tracing::warn!("cannot reach {addr} (attempt {attempt}): {e}; retrying in {delay:?}");
-                // Jitter in [0.5, 1.5) x delay, from the clock's low bits.
-                let nanos = std::time::SystemTime::now()
-                    .duration_since(std::time::UNIX_EPOCH)
-                    .map(|d| d.subsec_nanos())
-                    .unwrap_or(0);
-                let jitter = 0.5 + (nanos % 1000) as f64 / 1000.0;
-                tokio::time::sleep(delay.mul_f64(jitter)).await;
+                tokio::time::sleep(jitter(delay)).await;
                 delay = (delay * 2).min(backoff.max);
             }
         }

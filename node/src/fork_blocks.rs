@@ -1,28 +1,32 @@
 //! The node's block source: its home fork over gRPC (the paper's DMA path).
 
+use crate::connect::Backoff;
 use crate::pace::NodePace;
+use crate::retry::retry;
 use magg_core::blocks::{Block, BlockError, BlockSource, BLOCK_SIZE};
+use magg_proto::auth::Authed;
 use magg_proto::v1::fork_client::ForkClient;
-use magg_proto::v1::GetBlocksRequest;
+use magg_proto::v1::{GetBlocksReply, GetBlocksRequest};
 use prost::Message;
 use std::sync::Arc;
 use tokio::runtime::Handle;
-use tonic::transport::Channel;
 
 /// Fetches blocks from the node's home fork. Called from the kernels' worker threads
 /// (not from async code): each fetch blocks on the runtime. Under a throttled profile
 /// the request pays the node's link (the paper's request packet); the blocks come back
 /// over the fork's DMA engine, which the fork pays.
 pub struct ForkBlocks {
-    client: ForkClient<Channel>,
+    client: ForkClient<Authed>,
     rt: Handle,
+    backoff: Backoff,
     pace: Option<Arc<NodePace>>,
 }
 
 impl ForkBlocks {
-    /// A source reading through `client` on runtime `rt`.
-    pub fn new(client: ForkClient<Channel>, rt: Handle) -> Self {
-        ForkBlocks { client, rt, pace: None }
+    /// A source reading through `client` on runtime `rt`, retrying an unreachable fork
+    /// per `backoff`.
+    pub fn new(client: ForkClient<Authed>, rt: Handle, backoff: Backoff) -> Self {
+        ForkBlocks { client, rt, backoff, pace: None }
     }
 
     /// The same, paying the link of `pace` for each request.
@@ -31,24 +35,24 @@ impl ForkBlocks {
         self
     }
 
-    fn request(&self, req: &GetBlocksRequest) {
+    /// One `GetBlocks` call (a read: safe to retry); its request pays the link.
+    fn get(&self, ids: &[u32]) -> Result<GetBlocksReply, tonic::Status> {
+        let req = GetBlocksRequest { ids: ids.to_vec() };
         if let Some(p) = &self.pace {
             p.send_blocking(req.encoded_len());
         }
+        self.rt.block_on(retry("GetBlocks", self.backoff, || {
+            let (mut client, req) = (self.client.clone(), req.clone());
+            async move { client.get_blocks(req).await.map(|r| r.into_inner()) }
+        }))
     }
 }
 
 impl BlockSource for ForkBlocks {
     fn fetch_batch(&self, ids: &[u32], out: &mut [Box<Block>]) -> Result<(), BlockError> {
         let first = ids.first().copied().unwrap_or(0);
-        let mut client = self.client.clone();
-        let req = GetBlocksRequest { ids: ids.to_vec() };
-        self.request(&req);
-        let reply = self
-            .rt
-            .block_on(async move { client.get_blocks(req).await })
-            .map_err(|s| BlockError::Unavailable { id: first, reason: s.message().to_string() })?
-            .into_inner();
+        let reply =
+            self.get(ids).map_err(|s| BlockError::Unavailable { id: first, reason: s.message().to_string() })?;
         if reply.blocks.len() != ids.len() {
             return Err(BlockError::Unavailable {
                 id: first,
@@ -65,14 +69,7 @@ impl BlockSource for ForkBlocks {
     }
 
     fn fetch(&self, id: u32, out: &mut Block) -> Result<(), BlockError> {
-        let mut client = self.client.clone();
-        let req = GetBlocksRequest { ids: vec![id] };
-        self.request(&req);
-        let reply = self
-            .rt
-            .block_on(async move { client.get_blocks(req).await })
-            .map_err(|s| BlockError::Unavailable { id, reason: s.message().to_string() })?
-            .into_inner();
+        let reply = self.get(&[id]).map_err(|s| BlockError::Unavailable { id, reason: s.message().to_string() })?;
         match reply.blocks.into_iter().next() {
             Some(b) if b.id == id && b.data.len() == BLOCK_SIZE => {
                 out.copy_from_slice(&b.data);

@@ -22,10 +22,12 @@ mod fork_blocks;
 mod node;
 mod pace;
 mod report;
+mod retry;
 mod work;
 
-pub use connect::{connect_with_backoff, Backoff};
+pub use connect::{connect_with_backoff, Backoff, CALL_TIMEOUT};
 pub use error::NodeError;
 pub use fork_blocks::ForkBlocks;
 pub use node::{run, run_with_runtime, NodeConfig, NodeSummary};
 pub use pace::{NodePace, Processor};
+pub use retry::{jitter, retry, transient};

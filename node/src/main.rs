@@ -29,7 +29,8 @@ struct Args {
     /// Name in the host's logs.
     #[arg(long, default_value = "node", env = "MAGG_NODE_NAME")]
     name: String,
-    /// Give up connecting after this many seconds (with --repeat: try again, forever).
+    /// Give up connecting, or retrying a call to an unreachable peer (with backoff and
+    /// jitter), after this many seconds (with --repeat: try again, forever).
     #[arg(long, default_value_t = 30, env = "MAGG_CONNECT_TIMEOUT")]
     connect_timeout: u64,
     /// Extra milliseconds per pixel row: emulate a slow node (to watch adaptive
@@ -50,6 +51,13 @@ struct Args {
     /// node can be health-checked (`magg-node probe ADDR`); a node serves nothing else.
     #[arg(long, env = "MAGG_HEALTH_LISTEN")]
     health_listen: Option<SocketAddr>,
+    /// Extra milliseconds per (light, element) pair: emulate a slow node in light ray
+    /// tracing (fault tests kill such a node in the middle of its pairs).
+    #[arg(long, default_value_t = 0)]
+    slow_pair_ms: u64,
+    /// Cluster token presented on every call (the host's and forks' --token).
+    #[arg(long, env = "MAGG_TOKEN", hide_env_values = true)]
+    token: Option<String>,
     /// More log output.
     #[arg(short, long, action = clap::ArgAction::Count)]
     verbose: u8,
@@ -92,6 +100,7 @@ fn run(args: Args) -> anyhow::Result<()> {
             _ => anyhow::bail!("--cache-blocks {s:?}: expected a positive block count or \"unlimited\""),
         },
     };
+    let token = magg_proto::auth::Token::parse(args.token).map_err(|e| anyhow::anyhow!("--token: {e}"))?;
     let cfg = magg_node::NodeConfig {
         host: args.host,
         threads: args.threads,
@@ -103,6 +112,8 @@ fn run(args: Args) -> anyhow::Result<()> {
             Some(p) => Some(magg_throttle::Profile::named(p)?.name),
             None => None,
         },
+        pair_delay: Duration::from_millis(args.slow_pair_ms),
+        token,
     };
     // A node keeps no state of its own: on Ctrl-C or SIGTERM it just exits (cleanly: in
     // a container it is PID 1, which has no default action for SIGTERM).

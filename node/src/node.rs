@@ -9,6 +9,7 @@ use crate::NodeError;
 use magg_core::blocks::{BlockCache, BlockSource};
 use magg_core::header::SceneHeader;
 use magg_core::view::SceneView;
+use magg_proto::auth::{AddToken, Token};
 use magg_proto::v1::fork_client::ForkClient;
 use magg_proto::v1::host_client::HostClient;
 use magg_proto::v1::RegisterRequest;
@@ -41,6 +42,11 @@ pub struct NodeConfig {
     /// The hardware profile this node was started with (`--profile`): a render with
     /// another one is refused. `None`: run whatever the host sends.
     pub profile: Option<String>,
+    /// Extra time spent per (light, element) pair: emulates a slow node in LRT (to
+    /// watch pair leases expire and move to others).
+    pub pair_delay: std::time::Duration,
+    /// Cluster token presented on every call (none: the cluster checks none).
+    pub token: Token,
 }
 
 impl Default for NodeConfig {
@@ -53,6 +59,8 @@ impl Default for NodeConfig {
             backoff: Backoff::default(),
             row_delay: std::time::Duration::ZERO,
             profile: None,
+            pair_delay: std::time::Duration::ZERO,
+            token: Token::default(),
         }
     }
 }
@@ -82,7 +90,8 @@ pub fn run(cfg: &NodeConfig) -> Result<NodeSummary, NodeError> {
 /// of the runtime's (the kernels block on it).
 pub fn run_with_runtime(rt: Handle, cfg: &NodeConfig) -> Result<NodeSummary, NodeError> {
     let channel = rt.block_on(connect_with_backoff(&cfg.host, cfg.backoff))?;
-    let mut host = HostClient::new(channel).max_decoding_message_size(256 << 20);
+    let auth = AddToken(cfg.token.clone());
+    let mut host = HostClient::with_interceptor(channel, auth.clone()).max_decoding_message_size(256 << 20);
     let req =
         RegisterRequest { protocol_version: PROTOCOL_VERSION, name: cfg.name.clone(), threads: cfg.threads.max(1) };
     let reg = rt.block_on(host.register(req)).map_err(NodeError::rpc("Register"))?.into_inner();
@@ -114,7 +123,7 @@ pub fn run_with_runtime(rt: Handle, cfg: &NodeConfig) -> Result<NodeSummary, Nod
     let mut forks = Vec::with_capacity(reg.fork_addrs.len());
     for addr in &reg.fork_addrs {
         let ch = rt.block_on(connect_with_backoff(addr, cfg.backoff))?;
-        forks.push(ForkClient::new(ch).max_decoding_message_size(64 << 20));
+        forks.push(ForkClient::with_interceptor(ch, auth.clone()).max_decoding_message_size(64 << 20));
     }
     let home = reg.home_fork as usize;
     let cache_blocks = match cfg.cache_blocks {
@@ -131,7 +140,7 @@ pub fn run_with_runtime(rt: Handle, cfg: &NodeConfig) -> Result<NodeSummary, Nod
     let handles: Vec<_> = (0..threads)
         .map(|index| {
             let source: Arc<dyn BlockSource> =
-                Arc::new(ForkBlocks::new(forks[home].clone(), rt.clone()).paced(pace.clone()));
+                Arc::new(ForkBlocks::new(forks[home].clone(), rt.clone(), cfg.backoff).paced(pace.clone()));
             let l = header.layout;
             let mut cache = BlockCache::new(source, per_worker).with_home(home as u32, forks.len() as u32);
             // The paper's scheme asks for one block per request.
@@ -156,6 +165,8 @@ pub fn run_with_runtime(rt: Handle, cfg: &NodeConfig) -> Result<NodeSummary, Nod
                 pace: pace.clone(),
                 cpu: Processor::default(),
                 scheme,
+                pair_delay: cfg.pair_delay,
+                backoff: cfg.backoff,
             };
             std::thread::Builder::new()
                 .name(format!("magg-node-{}-{index}", reg.node))

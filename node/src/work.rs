@@ -1,7 +1,9 @@
 //! The work loops of one node worker: pairs from the home fork, subscreens from the host.
 
+use crate::connect::Backoff;
 use crate::pace::{NodePace, Processor};
 use crate::report::{Totals, WorkerTotals};
+use crate::retry::retry;
 use crate::NodeError;
 use magg_core::camera::CameraRig;
 use magg_core::energy::Fixed;
@@ -9,6 +11,7 @@ use magg_core::lrt::trace_pair;
 use magg_core::trace::TraceScratch;
 use magg_core::view::SceneView;
 use magg_core::vrt::shade_pixel;
+use magg_proto::auth::Authed;
 use magg_proto::v1::fork_client::ForkClient;
 use magg_proto::v1::host_client::HostClient;
 use magg_proto::v1::next_work_reply::Kind;
@@ -22,7 +25,6 @@ use std::sync::Arc;
 use std::time::{Duration, Instant};
 use tokio::runtime::Handle;
 use tokio::task::JoinHandle;
-use tonic::transport::Channel;
 
 /// Longest pause between work requests of an idle node.
 pub const MAX_WAIT: Duration = Duration::from_millis(50);
@@ -49,9 +51,9 @@ pub struct Worker {
     /// Runtime the RPCs run on.
     pub rt: Handle,
     /// The host.
-    pub host: HostClient<Channel>,
+    pub host: HostClient<Authed>,
     /// Every fork, by index (deposits go to the owning fork).
-    pub forks: Vec<ForkClient<Channel>>,
+    pub forks: Vec<ForkClient<Authed>>,
     /// The home fork's index.
     pub home: usize,
     /// Node-wide totals.
@@ -66,6 +68,10 @@ pub struct Worker {
     pub cpu: Processor,
     /// The paper's schedule or ours.
     pub scheme: Scheme,
+    /// Emulated extra time per (light, element) pair.
+    pub pair_delay: Duration,
+    /// Retries of calls that failed for a transient reason.
+    pub backoff: Backoff,
 }
 
 impl Worker {
@@ -101,10 +107,15 @@ impl Worker {
             let reply = match handed.take() {
                 Some(r) => r,
                 None => {
-                    let mut host = self.host.clone();
                     let req = NextWorkRequest { node: self.node, report: Some(self.totals.report()) };
                     let sent = req.encoded_len();
-                    let reply = self.rt.block_on(host.next_work(req)).map_err(NodeError::rpc("NextWork"))?.into_inner();
+                    // A lost answer is harmless: a subscreen handed out and never traced
+                    // goes back to the queue when its lease expires.
+                    let call = retry("NextWork", self.backoff, || {
+                        let (mut host, req) = (self.host.clone(), req.clone());
+                        async move { host.next_work(req).await.map(|r| r.into_inner()) }
+                    });
+                    let reply = self.rt.block_on(call).map_err(NodeError::rpc("NextWork"))?;
                     self.link_blocking(sent, reply.encoded_len());
                     reply
                 }
@@ -153,15 +164,21 @@ impl Worker {
         let mut scratch = TraceScratch::default();
         let max = if self.scheme == Scheme::Paper { 1 } else { PAIR_BATCH };
         let pace = self.pace.clone();
-        let take = move |home: ForkClient<Channel>, node: u32| {
+        // Lost answers are harmless: pairs handed out and never traced go back to the
+        // queue when their lease expires.
+        let backoff = self.backoff;
+        let take = move |home: ForkClient<Authed>, node: u32| {
             let pace = pace.clone();
             async move {
-                let mut home = home;
                 let req = TakePairsRequest { max, node };
                 if let Some(p) = &pace {
                     p.send(req.encoded_len()).await;
                 }
-                let reply = home.take_pairs(req).await.map(|r| r.into_inner());
+                let reply = retry("TakePairs", backoff, move || {
+                    let (mut home, req) = (home.clone(), req.clone());
+                    async move { home.take_pairs(req).await.map(|r| r.into_inner()) }
+                })
+                .await;
                 if let (Some(p), Ok(r)) = (&pace, &reply) {
                     p.recv(r.encoded_len()).await;
                 }
@@ -185,6 +202,7 @@ impl Worker {
                 continue;
             }
             next = self.rt.spawn(take(self.forks[self.home].clone(), self.node));
+            tracing::debug!(node = self.node, pairs = got.pairs.len(), "tracing a batch of pairs");
             // Per fork: round 1 carries deposits on forks other than the pair's owner;
             // round 2 carries the owner's deposits and marks the pair complete, so that a
             // pair counted as done has all its energy in place.
@@ -197,6 +215,9 @@ impl Worker {
                 let (light, element) = ((pair / elements) as u32, (pair % elements) as u32);
                 let r = trace_pair(&mut self.view, &mut scratch, light, element)?;
                 self.compute();
+                if !self.pair_delay.is_zero() {
+                    std::thread::sleep(self.pair_delay);
+                }
                 self.mine.pairs += 1;
                 self.mine.tally = self.mine.tally.add(r.tally);
                 let owner = self.owner_of(element);
@@ -206,16 +227,24 @@ impl Worker {
                 }
                 let own = split.remove(&owner).unwrap_or_default();
                 for (fork, deposits) in split {
-                    round1.entry(fork).or_default().push(PairDeposits { pair, deposits, complete: false });
+                    let d = PairDeposits { pair, deposits, complete: false, epoch: got.epoch };
+                    round1.entry(fork).or_default().push(d);
                 }
-                round2.entry(owner).or_default().push(PairDeposits { pair, deposits: own, complete: true });
+                let d = PairDeposits { pair, deposits: own, complete: true, epoch: got.epoch };
+                round2.entry(owner).or_default().push(d);
             }
             while in_flight.len() >= DEPOSITS_IN_FLIGHT {
                 if let Some(t) = in_flight.pop_front() {
                     self.rt.block_on(t).map_err(|e| NodeError::Worker(e.to_string()))??;
                 }
             }
-            in_flight.push_back(self.rt.spawn(send_deposits(self.forks.clone(), self.pace.clone(), round1, round2)));
+            in_flight.push_back(self.rt.spawn(send_deposits(
+                self.forks.clone(),
+                self.pace.clone(),
+                round1,
+                round2,
+                self.backoff,
+            )));
             self.publish();
         }
         for t in in_flight {
@@ -236,6 +265,7 @@ impl Worker {
                 s.w, s.h, s.x, s.y
             )));
         }
+        tracing::debug!(node = self.node, id = s.id, "tracing a subscreen {}x{}+{}+{}", s.w, s.h, s.x, s.y);
         // A camera path sends each frame's camera with its subscreens.
         let camera = match s.camera.clone() {
             Some(c) => magg_core::scene::Camera::try_from(c).map_err(|e| NodeError::Convert(e.to_string()))?,
@@ -264,7 +294,6 @@ impl Worker {
             if y < end && since.elapsed() < ROW_REPORT {
                 continue;
             }
-            let mut host = self.host.clone();
             let last = y >= end;
             if last {
                 self.mine.tiles += 1;
@@ -272,12 +301,19 @@ impl Worker {
             }
             let req = SubmitRowsRequest { node: self.node, subscreen: s.id, rows: std::mem::take(&mut rows), last };
             let sent = req.encoded_len();
-            let reply = self.rt.block_on(host.submit_rows(req)).map_err(NodeError::rpc("SubmitRows"))?.into_inner();
+            // Repeated rows are acknowledged and ignored: safe to retry.
+            let call = retry("SubmitRows", self.backoff, || {
+                let (mut host, req) = (self.host.clone(), req.clone());
+                async move { host.submit_rows(req).await.map(|r| r.into_inner()) }
+            });
+            let reply = self.rt.block_on(call).map_err(NodeError::rpc("SubmitRows"))?;
             self.link_blocking(sent, reply.encoded_len());
             since = Instant::now();
+            // Stop before row `from`: rows not started were redivided; a `from` at or
+            // before `y` means the subscreen was revoked (this node was taken for lost).
             if let Some(from) = reply.give_back_from {
-                if from >= y && from < end {
-                    end = from;
+                if from < end {
+                    end = from.max(y);
                 }
             }
             if last {
@@ -289,24 +325,31 @@ impl Worker {
     }
 }
 
-/// Sends a batch's deposits: every round-1 message, then every round-2 message.
+/// Sends a batch's deposits: every round-1 message, then every round-2 message. Deposits
+/// are keyed by pair: a retried one is applied once.
 async fn send_deposits(
-    forks: Vec<ForkClient<Channel>>,
+    forks: Vec<ForkClient<Authed>>,
     pace: Option<Arc<NodePace>>,
     round1: BTreeMap<usize, Vec<PairDeposits>>,
     round2: BTreeMap<usize, Vec<PairDeposits>>,
+    backoff: Backoff,
 ) -> Result<(), NodeError> {
     for round in [round1, round2] {
         for (fork, pairs) in round {
             let Some(client) = forks.get(fork) else {
                 return Err(NodeError::Convert(format!("fork {fork} of {}", forks.len())));
             };
-            let mut c = client.clone();
             let req = DepositRequest { pairs };
             if let Some(p) = &pace {
                 p.send(req.encoded_len()).await;
             }
-            let reply = c.deposit(req).await.map_err(NodeError::rpc("Deposit"))?.into_inner();
+            let reply = retry("Deposit", backoff, || {
+                let (mut c, req) = (client.clone(), req.clone());
+                async move { c.deposit(req).await }
+            })
+            .await
+            .map_err(NodeError::rpc("Deposit"))?
+            .into_inner();
             if let Some(p) = &pace {
                 p.recv(reply.encoded_len()).await;
             }

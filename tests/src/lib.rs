@@ -22,7 +22,7 @@ pub mod docker;
 
 use std::ffi::OsStr;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::{Child, Command, Output};
 use std::sync::OnceLock;
 
 /// The workspace root (the parent of this package).
@@ -131,30 +131,86 @@ pub struct Rendered {
     pub stats: PathBuf,
 }
 
+impl Rendered {
+    /// The files `<stem>.png`, `<stem>.pfm`, `<stem>.csv` and `<stem>.json` in `dir`.
+    pub fn at(dir: &Path, stem: &str) -> Rendered {
+        Rendered {
+            png: dir.join(format!("{stem}.png")),
+            pfm: dir.join(format!("{stem}.pfm")),
+            energy: dir.join(format!("{stem}.csv")),
+            stats: dir.join(format!("{stem}.json")),
+        }
+    }
+
+    /// A `magg-host render SCENE` command writing these files, quiet.
+    pub fn command(&self, scene: &Path) -> Command {
+        let mut c = magg_host();
+        c.arg("render").arg(scene).arg("--out").arg(&self.png).arg("--linear").arg(&self.pfm);
+        c.arg("--energy").arg(&self.energy).arg("--stats").arg(&self.stats).arg("--quiet");
+        c
+    }
+}
+
+/// Children killed and reaped on drop, so that a failing test leaves no process behind.
+#[derive(Debug, Default)]
+pub struct Procs(pub Vec<Child>);
+
+impl Drop for Procs {
+    fn drop(&mut self) {
+        for c in &mut self.0 {
+            let _ = c.kill();
+            let _ = c.wait();
+        }
+    }
+}
+
+/// Starts `magg-fork --listen 127.0.0.1:PORT` (port 0: the fork picks one, which no other
+/// process can take meanwhile) with `extra` flags, its log copied to `log`; returns the
+/// process and the address it listens on, once it does.
+pub fn spawn_fork(port: u16, extra: &[&str], log: &Path) -> (Child, String) {
+    use std::io::{BufRead, Write};
+    let mut child = Command::new(magg_bin("magg-fork"))
+        .args(["--listen", &format!("127.0.0.1:{port}")])
+        .args(extra)
+        .env("NO_COLOR", "1")
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .expect("cannot start magg-fork");
+    let stderr = child.stderr.take().expect("piped stderr");
+    let mut file = std::fs::File::create(log).expect("cannot create the fork's log");
+    let (tx, rx) = std::sync::mpsc::channel();
+    std::thread::spawn(move || {
+        for line in std::io::BufReader::new(stderr).lines().map_while(Result::ok) {
+            let _ = writeln!(file, "{line}");
+            if let Some(at) = line.find("listening").and_then(|i| line[i..].find("127.0.0.1:").map(|j| i + j)) {
+                let port: String = line[at + 10..].chars().take_while(char::is_ascii_digit).collect();
+                let _ = tx.send(format!("127.0.0.1:{port}"));
+            }
+        }
+    });
+    match rx.recv_timeout(std::time::Duration::from_secs(60)) {
+        Ok(addr) => (child, addr),
+        Err(e) => {
+            let _ = child.kill();
+            panic!("magg-fork did not start listening: {e}; log in {}", log.display())
+        }
+    }
+}
+
+/// A TCP port on 127.0.0.1 that was free a moment ago.
+pub fn free_port() -> u16 {
+    std::net::TcpListener::bind("127.0.0.1:0")
+        .and_then(|l| l.local_addr())
+        .map(|a| a.port())
+        .expect("cannot bind a port on 127.0.0.1")
+}
+
 /// Renders `scene` into `dir` as `<stem>.png`, `<stem>.pfm`, `<stem>.csv` and
 /// `<stem>.json`, with `extra` flags (overrides, cluster shape), and checks it succeeded.
 pub fn render(scene: &Path, dir: &Path, stem: &str, extra: &[&str]) -> Rendered {
-    let r = Rendered {
-        png: dir.join(format!("{stem}.png")),
-        pfm: dir.join(format!("{stem}.pfm")),
-        energy: dir.join(format!("{stem}.csv")),
-        stats: dir.join(format!("{stem}.json")),
-    };
-    let out = magg_host()
-        .arg("render")
-        .arg(scene)
-        .arg("--out")
-        .arg(&r.png)
-        .arg("--linear")
-        .arg(&r.pfm)
-        .arg("--energy")
-        .arg(&r.energy)
-        .arg("--stats")
-        .arg(&r.stats)
-        .arg("--quiet")
-        .args(extra)
-        .output()
-        .expect("cannot start magg-host");
+    let r = Rendered::at(dir, stem);
+    let out = r.command(scene).args(extra).output().expect("cannot start magg-host");
     assert_success(&out, &format!("magg-host render {} {}", scene.display(), extra.join(" ")));
     r
 }

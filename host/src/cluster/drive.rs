@@ -2,9 +2,10 @@
 
 use super::emulation::{cpu_share, preprocess_time, process_cpu_s};
 use super::events::EventSender;
+use super::forks::ForkSet;
 use super::schedule::Scheduler;
 use super::service::{HostService, HostState, Phase};
-use anyhow::{bail, Context};
+use anyhow::bail;
 use magg_core::energy::{interpolate, vertex_energy_blocks, Fixed};
 use magg_core::lrt::LrtTally;
 use magg_core::math::Rgb;
@@ -12,21 +13,23 @@ use magg_core::preprocess::PreparedScene;
 use magg_core::progress::Progress;
 use magg_core::render::{subscreens, FrameSink, RenderOutput, Sequence};
 use magg_core::stats::*;
+use magg_proto::auth::CheckToken;
 use magg_proto::convert::block_to_wire;
-use magg_proto::v1::fork_client::ForkClient;
+use magg_proto::v1;
 use magg_proto::v1::host_server::HostServer;
-use magg_proto::v1::{self, GetEnergiesRequest, LoadShardRequest, PutBlocksRequest};
-use magg_proto::PROTOCOL_VERSION;
 use magg_throttle::{Profile, Scheme};
 use std::time::{Duration, Instant};
 use tokio::net::TcpListener;
-use tonic::transport::Channel;
+use tonic::service::interceptor::InterceptedService;
 
 /// Interval of the host's LRT progress polls.
 const LRT_POLL: Duration = Duration::from_millis(25);
 /// The same under a throttled profile, where the poll sets the resolution of the
 /// modelled LRT time (the polls cost the forks nothing there).
 const LRT_POLL_THROTTLED: Duration = Duration::from_millis(5);
+
+/// Interval of the host's checks that every fork is alive during VRT.
+const FORK_CHECK: Duration = Duration::from_millis(500);
 
 /// How to drive a render.
 #[derive(Clone, Debug)]
@@ -49,6 +52,8 @@ pub struct DriveOptions {
     pub sequence: Sequence,
     /// Where the host service sends events for a watcher (the live view).
     pub events: Option<EventSender>,
+    /// Node leases, fork timeout, cluster token.
+    pub faults: crate::faults::FaultPolicy,
 }
 
 /// Accepted connections with Nagle's algorithm off: the protocol is many small
@@ -62,9 +67,14 @@ fn nodelay_incoming(listener: TcpListener) -> impl tokio_stream::Stream<Item = s
     })
 }
 
-async fn connect_fork(addr: &str) -> anyhow::Result<ForkClient<Channel>> {
-    let ch = magg_node::connect_with_backoff(addr, magg_node::Backoff::default()).await?;
-    Ok(ForkClient::new(ch).max_decoding_message_size(512 << 20).max_encoding_message_size(512 << 20))
+/// Sets the phase to [`Phase::Done`] when dropped: a render that fails still lets the
+/// nodes go.
+struct DoneOnDrop(HostService);
+
+impl Drop for DoneOnDrop {
+    fn drop(&mut self) {
+        self.0.lock().phase = Phase::Done;
+    }
 }
 
 fn rgb(c: &Option<v1::Rgb>) -> Rgb {
@@ -96,31 +106,12 @@ pub async fn drive(
     let preprocess_model =
         if throttled { preprocess_time(&opts.profile, opts.scheme, prepared, f as u32) } else { Duration::ZERO };
     tokio::time::sleep(opts.profile.dilate(preprocess_model)).await;
-    let mut forks = Vec::with_capacity(f);
-    for addr in &opts.forks {
-        forks.push(connect_fork(addr).await?);
+    let mut forks =
+        ForkSet::connect(prepared, &opts.forks, &opts.faults).await?.for_render(wire_profile.clone(), opts.nodes);
+    for i in 0..f {
+        forks.load(i).await?;
     }
-    // Load the shards.
     let wire_header = v1::SceneHeader::from(&*h);
-    for (i, fork) in forks.iter_mut().enumerate() {
-        let blocks = prepared
-            .blocks
-            .iter()
-            .enumerate()
-            .filter(|(b, _)| b % f == i)
-            .map(|(b, data)| block_to_wire(b as u32, data))
-            .collect();
-        let req = LoadShardRequest {
-            protocol_version: PROTOCOL_VERSION,
-            fork_index: i as u32,
-            fork_addrs: opts.forks.clone(),
-            header: Some(wire_header.clone()),
-            blocks,
-            profile: wire_profile.clone(),
-            nodes: opts.nodes,
-        };
-        fork.load_shard(req).await.with_context(|| format!("loading the shard of fork {i} at {}", opts.forks[i]))?;
-    }
 
     // Serve the host service.
     let loaded = opts.sequence.energies.clone();
@@ -140,6 +131,7 @@ pub async fn drive(
         rpcs: 0,
         frame_camera: None,
         events: opts.events.clone(),
+        pairs_epoch: 0,
     });
     let (stop_tx, stop_rx) = tokio::sync::oneshot::channel::<()>();
     let (health, health_service) = magg_proto::lifecycle::health_service();
@@ -148,11 +140,16 @@ pub async fn drive(
         .initial_stream_window_size(Some(4 << 20))
         .initial_connection_window_size(Some(16 << 20))
         .add_service(health_service)
-        .add_service(HostServer::new(service.clone()).max_decoding_message_size(16 << 20))
+        .add_service(InterceptedService::new(
+            HostServer::new(service.clone()).max_decoding_message_size(16 << 20),
+            CheckToken { token: opts.faults.token.clone(), server: "host" },
+        ))
         .serve_with_incoming_shutdown(nodelay_incoming(listener), async {
             let _ = stop_rx.await;
         });
     let server = tokio::spawn(server);
+    // However the render ends, nodes asking for work hear "done" and exit.
+    let _done_on_exit = DoneOnDrop(service.clone());
 
     // Preprocessing ends when every shard is loaded.
     let preprocess_wall = t_start.elapsed().as_secs_f64();
@@ -182,74 +179,85 @@ pub async fn drive(
         0
     } else {
         let mut t = 0;
-        for fork in forks.iter_mut() {
-            t += fork.get_energies(GetEnergiesRequest { summary_only: true }).await?.into_inner().pairs_total;
+        for i in 0..f {
+            t += forks.poll_until_up(i, true, true).await?.pairs_total;
         }
         t
     };
-    if loaded.is_none() {
-        progress.begin("light ray tracing", total_pairs);
-    }
-    let mut last = (0u64, Instant::now());
-    while loaded.is_none() {
-        let mut done = 0;
-        for (i, fork) in forks.iter_mut().enumerate() {
-            let r = fork
-                .get_energies(GetEnergiesRequest { summary_only: true })
-                .await
-                .with_context(|| format!("fork {i} at {}", opts.forks[i]))?;
-            done += r.into_inner().pairs_done;
-        }
-        if done > last.0 {
-            progress.advance(done - last.0);
-            last = (done, Instant::now());
-        }
-        if done >= total_pairs {
-            break;
-        }
-        if last.1.elapsed() > opts.stall_timeout {
-            bail!(
-                "light ray tracing stalled at {done} of {total_pairs} pairs for {:?} (are nodes connected?)",
-                opts.stall_timeout
-            );
-        }
-        tokio::time::sleep(poll).await; // one RPC per fork per poll: keep it gentle
-    }
-    if loaded.is_none() {
-        progress.end();
-    }
-    let lrt_s = if loaded.is_some() { 0.0 } else { t_lrt.elapsed().as_secs_f64() };
-
-    // --- Interpolation.
-    service.lock().phase = Phase::Interp;
-    let t_interp = Instant::now();
     let n_el = h.counts.elements as usize;
-    let (mut dma_bytes, mut gbus_bytes, mut fork_rpcs, mut fork_link) = (0, 0, 0, 0);
     let mut busy = EmulatedBusy { preprocess_s: preprocess_model.as_secs_f64(), ..Default::default() };
-    let (element_flux, vertex_irradiance) = match &loaded {
-        Some(e) => (e.element_flux.clone(), e.vertex_irradiance.clone()),
+    let (lrt_s, t_interp, element_flux, vertex_irradiance) = match &loaded {
+        Some(e) => {
+            service.lock().phase = Phase::Interp;
+            (0.0, Instant::now(), e.element_flux.clone(), e.vertex_irradiance.clone())
+        }
         None => {
+            progress.begin("light ray tracing", total_pairs);
+            let mut last = (0u64, Instant::now());
+            let (mut returned_seen, mut epoch_seen) = (0, 0);
             let mut element_flux: Vec<Fixed> = vec![[0; 3]; n_el];
-            for (i, fork) in forks.iter_mut().enumerate() {
-                let r = fork.get_energies(GetEnergiesRequest { summary_only: false }).await?.into_inner();
-                for e in r.energies {
-                    match element_flux.get_mut(e.element as usize) {
-                        Some(slot) => *slot = [e.r, e.g, e.b],
-                        None => bail!("fork {i} sent energy for element {} of {n_el}", e.element),
-                    }
+            // Until every pair is done and the energies are collected within one replay
+            // epoch (a fork that restarts meanwhile starts a new one).
+            let (lrt_s, t_interp) = loop {
+                let (mut done, mut returned) = (0, 0);
+                for i in 0..f {
+                    let r = forks.poll_until_up(i, true, true).await?;
+                    done += r.pairs_done;
+                    returned += r.pairs_returned;
                 }
-            }
+                if returned > returned_seen || forks.epoch > epoch_seen {
+                    // Pairs of a lost node are back on a queue, or a replay started: wake
+                    // the nodes that ran out.
+                    if forks.epoch > epoch_seen {
+                        last = (done, Instant::now()); // the count starts again: not a stall
+                    }
+                    (returned_seen, epoch_seen) = (returned, forks.epoch);
+                    let mut st = service.lock();
+                    st.pairs_epoch += 1;
+                    st.phase = Phase::Lrt;
+                }
+                if done > last.0 {
+                    progress.advance(done - last.0);
+                    last = (done, Instant::now());
+                }
+                if done >= total_pairs {
+                    let lrt_s = t_lrt.elapsed().as_secs_f64();
+                    // --- Interpolation.
+                    service.lock().phase = Phase::Interp;
+                    let t_interp = Instant::now();
+                    for i in 0..f {
+                        let r = forks.poll_until_up(i, false, true).await?;
+                        for e in r.energies {
+                            match element_flux.get_mut(e.element as usize) {
+                                Some(slot) => *slot = [e.r, e.g, e.b],
+                                None => bail!("fork {i} sent energy for element {} of {n_el}", e.element),
+                            }
+                        }
+                    }
+                    if forks.epoch == epoch_seen {
+                        break (lrt_s, t_interp);
+                    }
+                    continue;
+                }
+                if last.1.elapsed() > opts.stall_timeout {
+                    bail!(
+                        "light ray tracing stalled at {done} of {total_pairs} pairs for {:?} (are nodes connected?)",
+                        opts.stall_timeout
+                    );
+                }
+                tokio::time::sleep(poll).await; // one RPC per fork per poll: keep it gentle
+            };
+            progress.end();
             let v = interpolate(&prepared.elements, &element_flux, h.counts.vertices as usize, h.energy_quantum);
-            (element_flux, v)
+            (lrt_s, t_interp, element_flux, v)
         }
     };
+    let (mut dma_bytes, mut gbus_bytes, mut fork_rpcs, mut fork_link) = (0, 0, 0, 0);
     let mut per_fork: Vec<Vec<v1::Block>> = vec![Vec::new(); f];
     for (id, block) in vertex_energy_blocks(&vertex_irradiance, &h.layout) {
         per_fork[id as usize % f].push(block_to_wire(id, &block));
     }
-    for (fork, blocks) in forks.iter_mut().zip(per_fork) {
-        fork.put_blocks(PutBlocksRequest { blocks }).await?;
-    }
+    forks.put_vertex_blocks(per_fork).await?;
     let interp_s = t_interp.elapsed().as_secs_f64();
 
     // --- VRT, one pass per camera; a camera path sends each frame's camera along with
@@ -275,9 +283,27 @@ pub async fn drive(
         }
         progress.begin("viewing ray tracing", s.width as u64 * s.height as u64);
         let mut last_rows = (0u64, Instant::now());
+        let mut last_check = Instant::now();
         loop {
+            // A fork that died is waited for (and loaded again when it is back) or named.
+            if last_check.elapsed() > FORK_CHECK {
+                for i in 0..f {
+                    forks.poll(i, true, false).await?;
+                }
+                last_check = Instant::now();
+            }
             let (done, px) = {
-                let st = service.lock();
+                let mut st = service.lock();
+                if let Some(sc) = st.schedule.as_mut() {
+                    let lost = sc.expire(opts.faults.lease);
+                    if !lost.is_empty() {
+                        tracing::warn!(
+                            ?lost,
+                            "nodes silent for over {:?}: their subscreens are back on the queue",
+                            opts.faults.lease
+                        );
+                    }
+                }
                 let sc = st.schedule.as_ref();
                 (sc.is_some_and(|s| s.is_done()), sc.map_or(0, |s| s.pixels_done()))
             };
@@ -310,15 +336,15 @@ pub async fn drive(
     service.lock().phase = Phase::Done;
     let deadline = Instant::now() + Duration::from_secs(5);
     while Instant::now() < deadline {
-        if service.lock().nodes.iter().all(|n| n.finished()) {
+        if service.lock().nodes.iter().all(|n| n.finished_or_gone(Duration::from_secs(2))) {
             break;
         }
         tokio::time::sleep(Duration::from_millis(5)).await;
     }
     // Give the final reports a moment to land.
     tokio::time::sleep(Duration::from_millis(20)).await;
-    for fork in forks.iter_mut() {
-        let r = fork.get_energies(GetEnergiesRequest { summary_only: true }).await?.into_inner();
+    for i in 0..f {
+        let r = forks.poll_until_up(i, true, false).await?;
         dma_bytes += r.dma_bytes;
         gbus_bytes += r.gbus_bytes;
         fork_rpcs += r.rpcs;

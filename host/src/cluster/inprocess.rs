@@ -35,6 +35,8 @@ pub struct InProcessOptions {
     pub sequence: magg_core::render::Sequence,
     /// Where the host service sends events for a watcher (the live view).
     pub events: Option<super::events::EventSender>,
+    /// Node leases, fork timeout, and the cluster token of every process.
+    pub faults: crate::faults::FaultPolicy,
 }
 
 /// Runs the cluster and returns the render.
@@ -57,10 +59,16 @@ pub fn render_in_process(
             let listener = rt.block_on(TcpListener::bind("127.0.0.1:0")).context("binding a fork port on 127.0.0.1")?;
             fork_addrs.push(listener.local_addr()?.to_string());
             let mut stop = stop_tx.subscribe();
-            let service = magg_fork::ForkService::with_hardware(magg_fork::ForkHardware::new(gbus.clone(), true));
-            fork_tasks.push(rt.spawn(magg_fork::serve_service(service, listener, async move {
-                let _ = stop.recv().await;
-            })));
+            let service = magg_fork::ForkService::with_token(opts.faults.token.clone())
+                .on_hardware(magg_fork::ForkHardware::new(gbus.clone(), true));
+            fork_tasks.push(rt.spawn(magg_fork::serve_service(
+                service,
+                opts.faults.token.clone(),
+                listener,
+                async move {
+                    let _ = stop.recv().await;
+                },
+            )));
         }
     }
 
@@ -69,6 +77,9 @@ pub fn render_in_process(
         .block_on(TcpListener::bind(&opts.listen))
         .with_context(|| format!("binding the host address {}", opts.listen))?;
     let host_addr = listener.local_addr()?.to_string();
+    if let Some(w) = magg_proto::auth::exposure_warning(listener.local_addr()?, &opts.faults.token) {
+        tracing::warn!("{w}");
+    }
     tracing::info!("host serving nodes on {host_addr}, forks at {}", fork_addrs.join(","));
 
     // Nodes, each on a thread of its own.
@@ -82,6 +93,8 @@ pub fn render_in_process(
                 backoff: magg_node::Backoff::default(),
                 row_delay: Duration::ZERO,
                 profile: None,
+                pair_delay: Duration::ZERO,
+                token: opts.faults.token.clone(),
             };
             let handle = rt.handle().clone();
             std::thread::Builder::new()
@@ -101,6 +114,7 @@ pub fn render_in_process(
         scheme: opts.scheme,
         sequence: opts.sequence.clone(),
         events: opts.events.clone(),
+        faults: opts.faults.clone(),
     };
     let result = rt.block_on(drive(prepared, &drive_opts, listener, progress, sink));
     let mut node_err = None;

@@ -12,6 +12,7 @@
 mod drive;
 pub mod emulation;
 pub mod events;
+pub mod forks;
 mod inprocess;
 pub mod schedule;
 pub mod service;

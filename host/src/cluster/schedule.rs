@@ -2,11 +2,17 @@
 //! out on request; when the queue is empty while nodes are still busy, a busy node is
 //! asked to give back the rows it has not started, and those become a new subscreen for
 //! an idle node (adaptive redivision).
+//!
+//! A subscreen is leased: when its node sends no rows for longer than the lease (it died
+//! or stalled), the rows not received yet go back to the queue and the subscreen is
+//! revoked. Rows already received are kept, and every row is written exactly once: rows
+//! of a revoked subscreen are dropped, and the node sending them is told to stop.
 
 use magg_core::frame::Frame;
 use magg_core::math::Rgb;
 use magg_core::vrt::Subscreen;
-use std::collections::{BTreeMap, VecDeque};
+use std::collections::{BTreeMap, BTreeSet, VecDeque};
+use std::time::{Duration, Instant};
 
 /// What an idle node should do.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -54,13 +60,19 @@ struct Active {
     end: u32,
     node: u32,
     split_wanted: bool,
+    /// When it was handed out or last sent rows.
+    seen: Instant,
 }
 
 /// Subscreen queue, work in progress and the frame being assembled.
 pub struct Scheduler {
     queue: VecDeque<Subscreen>,
     active: BTreeMap<u64, Active>,
+    /// Subscreens whose lease expired: their late rows are dropped.
+    revoked: BTreeSet<u64>,
     next_id: u64,
+    /// Subscreens revoked because their node went silent.
+    pub revocations: u64,
     /// Adaptive redivisions so far.
     pub redivisions: u64,
     /// Subscreens handed out (redivided parts included).
@@ -75,7 +87,9 @@ impl Scheduler {
         Scheduler {
             queue: tiles.into(),
             active: BTreeMap::new(),
+            revoked: BTreeSet::new(),
             next_id: 0,
+            revocations: 0,
             redivisions: 0,
             handed_out: 0,
             frame: Frame::new(width, height),
@@ -94,7 +108,17 @@ impl Scheduler {
             let id = self.next_id;
             self.next_id += 1;
             self.handed_out += 1;
-            self.active.insert(id, Active { rect, next_row: rect.y, end: rect.y + rect.h, node, split_wanted: false });
+            self.active.insert(
+                id,
+                Active {
+                    rect,
+                    next_row: rect.y,
+                    end: rect.y + rect.h,
+                    node,
+                    split_wanted: false,
+                    seen: Instant::now(),
+                },
+            );
             return Next::Trace(id, rect);
         }
         if self.is_done() {
@@ -116,8 +140,15 @@ impl Scheduler {
     }
 
     /// Stores rows of subscreen `id` (in order, starting at its next row); returns the
-    /// row from which the node must stop (its unstarted rows were redivided), if any.
+    /// row from which the node must stop (its unstarted rows were redivided), if any. A
+    /// revoked subscreen's rows are dropped and the answer is row 0: stop now.
     pub fn submit(&mut self, id: u64, rows: &[(u32, &[f32])]) -> Result<Option<u32>, RowError> {
+        if self.revoked.contains(&id) {
+            return Ok(Some(0));
+        }
+        if let Some(a) = self.active.get_mut(&id) {
+            a.seen = Instant::now();
+        }
         for &(y, rgb) in rows {
             self.store_row(id, y, rgb)?;
         }
@@ -165,6 +196,24 @@ impl Scheduler {
         give_back
     }
 
+    /// Revokes every subscreen whose node sent nothing for longer than `lease`: its rows
+    /// not received yet go to the front of the queue. Returns the nodes that lost one.
+    pub fn expire(&mut self, lease: Duration) -> Vec<u32> {
+        let expired: Vec<u64> =
+            self.active.iter().filter(|(_, a)| a.seen.elapsed() > lease).map(|(&id, _)| id).collect();
+        let mut nodes = Vec::new();
+        for id in expired {
+            let Some(a) = self.active.remove(&id) else { continue };
+            if a.next_row < a.end {
+                self.queue.push_front(Subscreen { x: a.rect.x, y: a.next_row, w: a.rect.w, h: a.end - a.next_row });
+            }
+            self.revoked.insert(id);
+            self.revocations += 1;
+            nodes.push(a.node);
+        }
+        nodes
+    }
+
     /// Pixels received so far.
     pub fn pixels_done(&self) -> u64 {
         self.pixels_done
@@ -205,6 +254,26 @@ mod tests {
         assert!(s.is_done());
         assert_eq!(s.next(0), Next::Done);
         assert_eq!(s.frame().get(0, 7), [2.0; 3]);
+    }
+
+    #[test]
+    fn a_silent_node_loses_its_unsent_rows_and_its_late_rows_are_dropped() {
+        let mut s = Scheduler::new(4, 4, vec![Subscreen { x: 0, y: 0, w: 4, h: 4 }]);
+        let Next::Trace(id, _) = s.next(0) else { panic!() };
+        s.submit(id, &[(0, &row(4, 1.0))]).unwrap();
+        assert!(s.expire(Duration::from_secs(60)).is_empty(), "a fresh lease does not expire");
+        std::thread::sleep(Duration::from_millis(5));
+        assert_eq!(s.expire(Duration::from_millis(1)), vec![0]);
+        // The late node is told to stop; its rows are not written.
+        assert_eq!(s.submit(id, &[(1, &row(4, 9.0))]).unwrap(), Some(0));
+        let Next::Trace(id2, t) = s.next(1) else { panic!("rows 1..4 are back on the queue") };
+        assert_eq!((t.y, t.h), (1, 3));
+        for y in 1..4 {
+            s.submit(id2, &[(y, &row(4, 2.0))]).unwrap();
+        }
+        assert!(s.is_done());
+        assert_eq!((s.frame().get(0, 0), s.frame().get(0, 1)), ([1.0; 3], [2.0; 3]));
+        assert_eq!(s.revocations, 1);
     }
 
     #[test]

@@ -9,6 +9,7 @@ use magg_proto::v1::{
 };
 use magg_proto::PROTOCOL_VERSION;
 use std::sync::{Arc, Mutex, MutexGuard};
+use std::time::{Duration, Instant};
 use tokio::sync::Notify;
 use tonic::{Request, Response, Status};
 
@@ -37,6 +38,10 @@ pub struct NodeEntry {
     pub report: v1::NodeReport,
     /// It was told to trace pairs already in this LRT phase.
     pub told_pairs: bool,
+    /// The [`HostState::pairs_epoch`] it was last told to trace pairs in.
+    pub pairs_epoch: u64,
+    /// When it last called the host (NextWork, SubmitRows).
+    pub last_seen: Option<Instant>,
     /// Worker threads it runs (each asks for work on its own).
     pub threads: u32,
     /// How many of its workers were told the render is done.
@@ -49,6 +54,11 @@ impl NodeEntry {
     /// Every worker of the node has heard that the render is done.
     pub fn finished(&self) -> bool {
         self.told_done >= self.threads.max(1)
+    }
+
+    /// Finished, or silent for longer than `grace` (a node that died: nobody waits for it).
+    pub fn finished_or_gone(&self, grace: Duration) -> bool {
+        self.finished() || self.last_seen.is_none_or(|t| t.elapsed() > grace)
     }
 }
 
@@ -78,6 +88,9 @@ pub struct HostState {
     pub frame_camera: Option<v1::Camera>,
     /// Where to send events for watchers (the live view), if any.
     pub events: Option<EventSender>,
+    /// Bumped when forks give back pairs of lost nodes during LRT: every node that has
+    /// run out of pairs is told to trace pairs again.
+    pub pairs_epoch: u64,
 }
 
 impl HostState {
@@ -115,11 +128,13 @@ impl HostService {
     /// The next work of `node` in `phase` (shared by NextWork and the reply to the rows
     /// that end a subscreen).
     fn assign(&self, s: &mut HostState, node: u32, phase: Phase) -> NextWorkReply {
+        let epoch = s.pairs_epoch;
         let wait = NextWorkReply { kind: Kind::Wait as i32, subscreen: None, wait_ms: WAIT_MS };
         match phase {
             Phase::Lrt => match s.nodes.get_mut(node as usize) {
-                Some(e) if !e.told_pairs => {
+                Some(e) if !e.told_pairs || e.pairs_epoch < epoch => {
                     e.told_pairs = true;
+                    e.pairs_epoch = epoch;
                     NextWorkReply { kind: Kind::Pairs as i32, subscreen: None, wait_ms: 0 }
                 }
                 _ => wait,
@@ -173,7 +188,12 @@ impl Host for HostService {
             return Err(Status::resource_exhausted("too many nodes registered"));
         }
         let node = s.nodes.len() as u32;
-        s.nodes.push(NodeEntry { name: r.name.clone(), threads: r.threads.clamp(1, 1024), ..Default::default() });
+        s.nodes.push(NodeEntry {
+            name: r.name.clone(),
+            threads: r.threads.clamp(1, 1024),
+            last_seen: Some(Instant::now()),
+            ..Default::default()
+        });
         s.rpcs += 1;
         s.emit(|| ClusterEvent::Registered { node, name: r.name.clone() });
         let forks = s.fork_addrs.len().max(1) as u32;
@@ -204,6 +224,7 @@ impl Host for HostService {
         if let Some(rep) = r.report {
             entry.report = rep;
         }
+        entry.last_seen = Some(Instant::now());
         let reply = self.assign(&mut s, r.node, phase);
         let reply_len = prost::Message::encoded_len(&reply) as u64;
         s.link_bytes += reply_len;
@@ -227,6 +248,7 @@ impl Host for HostService {
             return Err(Status::invalid_argument(format!("node {} is not registered", r.node)));
         };
         entry.link_bytes += request_len;
+        entry.last_seen = Some(Instant::now());
         let Some(schedule) = s.schedule.as_mut() else {
             return Err(Status::failed_precondition("no viewing ray tracing in progress"));
         };

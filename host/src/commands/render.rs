@@ -24,6 +24,7 @@ pub fn run(cfg: RenderConfig) -> anyhow::Result<()> {
         q.apply(&mut scene);
     }
     cfg.knobs.apply(&mut scene.settings)?;
+    crate::memory::check(&scene, cfg.max_memory_mb)?;
     let plan = if cfg.all_effects { EffectsPlan::forced_on(&scene) } else { EffectsPlan::for_scene(&scene) };
     let prepared = preprocess::prepare_with_plan(&scene, plan)?;
     if !cfg.quiet {
@@ -76,7 +77,7 @@ pub fn run(cfg: RenderConfig) -> anyhow::Result<()> {
     };
     let out = match &cfg.mode {
         Mode::Embedded => render::render_sequence(&prepared, &opts, progress, &sequence, &mut sink)?,
-        Mode::Cluster { forks_at, listen, external_nodes, stall_timeout } => {
+        Mode::Cluster { forks_at, listen, external_nodes, stall_timeout, faults } => {
             let cluster = InProcessOptions {
                 nodes: if *external_nodes { 0 } else { opts.node_count() },
                 forks: cfg.forks,
@@ -89,6 +90,7 @@ pub fn run(cfg: RenderConfig) -> anyhow::Result<()> {
                 scheme: cfg.scheme,
                 sequence: sequence.clone(),
                 events: live.as_ref().map(|l| l.cluster_events()),
+                faults: faults.clone(),
             };
             render_in_process(&prepared, &cluster, progress, &mut sink)?
         }

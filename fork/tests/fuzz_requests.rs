@@ -1,0 +1,104 @@
+//! Fuzzing what a fork decodes from the wire, with proptest (fixed seed, bounded cases,
+//! seconds in CI): arbitrary bytes as every request message of the protocol, mutated
+//! `LoadShard` requests (scene header and block conversion, placement checks), and
+//! arbitrary `Deposit`, `GetBlocks`, `PutBlocks` and `TakePairs` contents on a loaded
+//! shard. Nothing panics; refusals are errors, and a refused request changes nothing.
+
+mod common;
+
+use common::load_request;
+use magg_fork::Shard;
+use magg_proto::v1;
+use proptest::prelude::*;
+use proptest::test_runner::{Config, RngAlgorithm, TestRng, TestRunner};
+use prost::Message;
+
+fn runner(seed: u8, cases: u32) -> TestRunner {
+    let config = Config { cases, failure_persistence: None, rng_algorithm: RngAlgorithm::ChaCha, ..Config::default() };
+    TestRunner::new_with_rng(config, TestRng::from_seed(RngAlgorithm::ChaCha, &[seed; 32]))
+}
+
+/// Decodes `bytes` as every request message; a message that decodes is re-encoded.
+fn decode_all(bytes: &[u8]) {
+    macro_rules! each {
+        ($($t:ty),*) => {$(
+            if let Ok(m) = <$t>::decode(bytes) {
+                let _ = m.encode_to_vec();
+            }
+        )*};
+    }
+    each!(
+        v1::LoadShardRequest,
+        v1::PutBlocksRequest,
+        v1::GetBlocksRequest,
+        v1::TakePairsRequest,
+        v1::DepositRequest,
+        v1::GetEnergiesRequest,
+        v1::RegisterRequest,
+        v1::NextWorkRequest,
+        v1::SubmitRowsRequest
+    );
+}
+
+#[test]
+fn arbitrary_bytes_decode_or_fail_cleanly_as_every_request() {
+    runner(1, 1024).run(&proptest::collection::vec(any::<u8>(), 0..256), |b| Ok(decode_all(&b))).unwrap();
+}
+
+#[test]
+fn mutated_load_shard_requests_load_or_are_refused() {
+    let good = load_request().encode_to_vec();
+    // Header fields come first in the encoding: mutate there most of the time.
+    let head = good.len().min(4096);
+    let edits = proptest::collection::vec((0..head, any::<u8>()), 1..6);
+    runner(2, 256)
+        .run(&(edits, 0..good.len() + 1), |(edits, cut)| {
+            let mut bytes = good.clone();
+            for (at, v) in edits {
+                bytes[at] = v;
+            }
+            bytes.truncate(cut.max(head));
+            decode_all(&bytes);
+            if let Ok(req) = v1::LoadShardRequest::decode(bytes.as_slice()) {
+                let _ = Shard::load(req, Default::default());
+            }
+            Ok(())
+        })
+        .unwrap();
+}
+
+#[test]
+fn arbitrary_requests_on_a_loaded_shard_are_served_or_refused() {
+    let shard = Shard::load(load_request(), Default::default()).unwrap();
+    let pairs = shard.pair_count();
+    let blocks = shard.header().layout.total;
+    let elements = shard.header().counts.elements;
+    let deposit = (0..pairs + 4, proptest::collection::vec((0..elements + 4, any::<i64>()), 0..8), any::<bool>())
+        .prop_map(|(pair, ds, complete)| v1::PairDeposits {
+            pair,
+            deposits: ds.into_iter().map(|(element, v)| v1::Deposit { element, r: v, g: -v, b: v / 3 }).collect(),
+            complete,
+            epoch: 0,
+        });
+    let request = (
+        proptest::collection::vec(deposit, 0..6),
+        proptest::collection::vec(0..blocks + 4, 0..8),
+        proptest::collection::vec((0..blocks + 4, 0..2100usize), 0..3),
+        any::<u32>(),
+        any::<u32>(),
+    );
+    runner(3, 512)
+        .run(&request, |(deposits, ids, puts, max, node)| {
+            let before = shard.energies(false);
+            if shard.deposit(&deposits).is_err() {
+                prop_assert_eq!(before.energies, shard.energies(false).energies, "a refused deposit changed energy");
+            }
+            let _ = shard.owned_blocks(&ids);
+            let puts = puts.into_iter().map(|(id, len)| v1::Block { id, data: vec![0; len] }).collect();
+            let _ = shard.put_blocks(puts);
+            let (got, _) = shard.take_own_pairs(max, node);
+            prop_assert!(got.len() <= magg_fork::shard::MAX_PAIRS_PER_REQUEST as usize);
+            Ok(())
+        })
+        .unwrap();
+}

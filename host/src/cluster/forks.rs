@@ -1,0 +1,231 @@
+//! The host's side of the forks: loading their shards, polling them, and bringing back a
+//! fork that died.
+//!
+//! A fork that stops answering is polled until `--fork-timeout`; if it comes back on the
+//! same address (empty: it says "no scene loaded"), the host loads its shard again, and
+//! the vertex energies too once interpolation has put them there. Nodes meanwhile retry
+//! their calls to it (an empty fork answers `UNAVAILABLE`). A fork that does not come
+//! back in time stops the render with an error naming it.
+//!
+//! A fork that restarts during light ray tracing has lost the energy deposited on its
+//! elements. The host then starts a replay epoch: the fork is loaded in the new epoch
+//! (all of its pairs queued), and every other fork queues all of its pairs again
+//! (`Replay`). Re-run pairs deposit the same values (seeded by pair), the forks that kept
+//! their energy drop them as duplicates (keyed by pair), and the restarted fork gets
+//! every deposit once: the result is bitwise that of a run without the failure.
+//! Completions from before the epoch are not counted, so no pair whose deposit the
+//! restarted fork lost is taken for done.
+
+use crate::faults::FaultPolicy;
+use anyhow::{bail, Context};
+use magg_core::preprocess::PreparedScene;
+use magg_proto::auth::{AddToken, Authed, Token};
+use magg_proto::convert::block_to_wire;
+use magg_proto::v1::fork_client::ForkClient;
+use magg_proto::v1::{self, GetEnergiesRequest, LoadShardRequest, PutBlocksRequest};
+use magg_proto::PROTOCOL_VERSION;
+use std::time::{Duration, Instant};
+use tonic::Code;
+
+/// Longest wait for one poll of a fork (a stalled fork counts as down).
+const POLL_TIMEOUT: Duration = Duration::from_secs(5);
+
+/// Every fork of the render, as the host drives them.
+pub struct ForkSet<'a> {
+    prepared: &'a PreparedScene,
+    addrs: Vec<String>,
+    clients: Vec<ForkClient<Authed>>,
+    lease_ms: u32,
+    timeout: Duration,
+    /// Vertex-energy blocks of each fork, once interpolation has made them.
+    vertex_blocks: Option<Vec<Vec<v1::Block>>>,
+    /// Since when each fork has not answered.
+    down_since: Vec<Option<Instant>>,
+    /// Forks reloaded after a restart.
+    pub restarts: u64,
+    /// Replay epoch (bumped when a fork restarts during light ray tracing).
+    pub epoch: u64,
+    /// Hardware profile sent with every shard (`Profile::to_wire`; empty: native).
+    profile: String,
+    /// Nodes the render expects (sizes the forks' guided pair batches).
+    nodes: u32,
+}
+
+async fn connect(addr: &str, token: &Token) -> anyhow::Result<ForkClient<Authed>> {
+    let ch = magg_node::connect_with_backoff(addr, magg_node::Backoff::default()).await?;
+    Ok(ForkClient::with_interceptor(ch, AddToken(token.clone()))
+        .max_decoding_message_size(512 << 20)
+        .max_encoding_message_size(512 << 20))
+}
+
+impl<'a> ForkSet<'a> {
+    /// Connects to the forks at `addrs` (by index).
+    pub async fn connect(
+        prepared: &'a PreparedScene,
+        addrs: &[String],
+        faults: &FaultPolicy,
+    ) -> anyhow::Result<ForkSet<'a>> {
+        let mut clients = Vec::with_capacity(addrs.len());
+        for addr in addrs {
+            clients.push(connect(addr, &faults.token).await?);
+        }
+        Ok(ForkSet {
+            prepared,
+            addrs: addrs.to_vec(),
+            clients,
+            lease_ms: faults.lease.as_millis().clamp(1, u32::MAX as u128) as u32,
+            timeout: faults.fork_timeout,
+            vertex_blocks: None,
+            down_since: vec![None; addrs.len()],
+            restarts: 0,
+            epoch: 0,
+            profile: String::new(),
+            nodes: 0,
+        })
+    }
+
+    /// The same forks, loaded for a render under hardware profile `profile` (wire form)
+    /// with `nodes` expected nodes.
+    pub fn for_render(mut self, profile: String, nodes: u32) -> ForkSet<'a> {
+        self.profile = profile;
+        self.nodes = nodes;
+        self
+    }
+
+    /// Number of forks.
+    pub fn len(&self) -> usize {
+        self.clients.len()
+    }
+
+    /// True with no fork.
+    pub fn is_empty(&self) -> bool {
+        self.clients.is_empty()
+    }
+
+    /// "fork I at ADDR", for messages.
+    pub fn name(&self, i: usize) -> String {
+        format!("fork {i} at {}", self.addrs[i])
+    }
+
+    /// Loads fork `i`'s shard (every block `b` with `b mod F == i`), with its vertex
+    /// energies in the same request if they exist already (so no node can read a block
+    /// between the two). Retried while the fork is unavailable: a load replaces the last.
+    pub async fn load(&mut self, i: usize) -> anyhow::Result<()> {
+        let f = self.len();
+        let mut blocks: Vec<v1::Block> = (self.prepared.blocks.iter().enumerate())
+            .filter(|(b, _)| b % f == i)
+            .map(|(b, data)| block_to_wire(b as u32, data))
+            .collect();
+        // Later blocks of a request replace earlier ones with the same id.
+        blocks.extend(self.vertex_blocks.as_ref().map(|v| v[i].clone()).unwrap_or_default());
+        let req = LoadShardRequest {
+            protocol_version: PROTOCOL_VERSION,
+            fork_index: i as u32,
+            fork_addrs: self.addrs.clone(),
+            header: Some(v1::SceneHeader::from(&*self.prepared.header)),
+            blocks,
+            lease_ms: self.lease_ms,
+            epoch: self.epoch,
+            profile: self.profile.clone(),
+            nodes: self.nodes,
+        };
+        let name = self.name(i);
+        let backoff = magg_node::Backoff { deadline: self.timeout, ..Default::default() };
+        magg_node::retry("LoadShard", backoff, || {
+            let (mut c, req) = (self.clients[i].clone(), req.clone());
+            async move { c.load_shard(req).await }
+        })
+        .await
+        .with_context(|| format!("loading the shard of {name}"))?;
+        Ok(())
+    }
+
+    /// Stores the vertex-energy blocks on their forks (and keeps them, to reload a fork).
+    pub async fn put_vertex_blocks(&mut self, per_fork: Vec<Vec<v1::Block>>) -> anyhow::Result<()> {
+        for (i, blocks) in per_fork.iter().enumerate() {
+            let name = self.name(i);
+            self.clients[i]
+                .put_blocks(PutBlocksRequest { blocks: blocks.clone() })
+                .await
+                .with_context(|| format!("storing vertex energies on {name}"))?;
+        }
+        self.vertex_blocks = Some(per_fork);
+        Ok(())
+    }
+
+    /// Fork `i`'s energies and counters; `None` while it does not answer (within the
+    /// fork timeout). A fork that restarted empty is loaded again, and if `lrt_pending`
+    /// (its energy is lost) a replay epoch starts: see the module doc.
+    pub async fn poll(
+        &mut self,
+        i: usize,
+        summary_only: bool,
+        lrt_pending: bool,
+    ) -> anyhow::Result<Option<v1::GetEnergiesReply>> {
+        let mut client = self.clients[i].clone();
+        let call = client.get_energies(GetEnergiesRequest { summary_only });
+        let status = match tokio::time::timeout(POLL_TIMEOUT, call).await {
+            Ok(Ok(r)) => {
+                if self.down_since[i].take().is_some() {
+                    tracing::warn!("{} answers again", self.name(i));
+                }
+                return Ok(Some(r.into_inner()));
+            }
+            Ok(Err(s)) => s,
+            Err(_) => tonic::Status::deadline_exceeded(format!("no answer within {POLL_TIMEOUT:?}")),
+        };
+        let restarted =
+            status.code() == Code::Unavailable && status.message() == magg_fork::ForkError::NotLoaded.to_string();
+        if restarted {
+            tracing::warn!("{} restarted: loading its shard again", self.name(i));
+            if lrt_pending {
+                self.epoch += 1;
+                tracing::warn!("its energy is lost: replay epoch {}, every pair traced again", self.epoch);
+            }
+            self.load(i).await?;
+            if lrt_pending {
+                self.replay_others(i).await?;
+            }
+            self.restarts += 1;
+            self.down_since[i] = None;
+            return Ok(None);
+        }
+        let since = *self.down_since[i].get_or_insert_with(Instant::now);
+        if since.elapsed() > self.timeout {
+            bail!("{} has not answered for {:?} (--fork-timeout): {}", self.name(i), self.timeout, status.message());
+        }
+        tracing::warn!("{} does not answer ({}); waiting for it", self.name(i), status.message());
+        Ok(None)
+    }
+
+    /// Tells every fork but `i` to start the current replay epoch.
+    async fn replay_others(&mut self, i: usize) -> anyhow::Result<()> {
+        for j in (0..self.len()).filter(|&j| j != i) {
+            let name = self.name(j);
+            let req = v1::ReplayRequest { epoch: self.epoch };
+            magg_node::retry("Replay", magg_node::Backoff { deadline: self.timeout, ..Default::default() }, || {
+                let (mut c, req) = (self.clients[j].clone(), req.clone());
+                async move { c.replay(req).await }
+            })
+            .await
+            .with_context(|| format!("starting a replay on {name}"))?;
+        }
+        Ok(())
+    }
+
+    /// Polls fork `i` until it answers (loading it again if it restarted, see
+    /// [`ForkSet::poll`]), or the fork timeout passes.
+    pub async fn poll_until_up(
+        &mut self,
+        i: usize,
+        summary_only: bool,
+        lrt_pending: bool,
+    ) -> anyhow::Result<v1::GetEnergiesReply> {
+        loop {
+            if let Some(r) = self.poll(i, summary_only, lrt_pending).await? {
+                return Ok(r);
+            }
+            tokio::time::sleep(Duration::from_millis(100)).await;
+        }
+    }
+}

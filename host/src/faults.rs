@@ -1,0 +1,80 @@
+//! Flags of `magg-host render` about faults and access: how long a silent node keeps its
+//! work, and the cluster token every process must present.
+//!
+//! Kept apart from [`crate::cli`] so these options read as one group in `--help` and in
+//! the code.
+
+use anyhow::{bail, Context};
+use clap::Args;
+use magg_proto::auth::Token;
+use std::time::Duration;
+
+/// Fault-handling and access flags of `render`.
+#[derive(Debug, Args)]
+pub struct FaultArgs {
+    /// Cluster token: every process of the cluster must present it on every call (give
+    /// the same to magg-fork and magg-node). Forks and nodes started in this process get
+    /// it. Without one, any client is served: keep the default 127.0.0.1 addresses then.
+    #[arg(long, env = "MAGG_TOKEN", hide_env_values = true)]
+    pub token: Option<String>,
+    /// Seconds a node may stay silent before its leased (light, element) pairs and its
+    /// subscreen are handed to other nodes (it died or stalled). Re-run pairs deposit
+    /// exactly once and re-traced rows are written once, so the image is unchanged.
+    #[arg(long, default_value_t = 30.0, value_name = "SECS")]
+    pub lease_timeout: f64,
+    /// Seconds a fork may stay unreachable before the render stops with an error naming
+    /// it. A fork restarted on the same address within this time (after light ray
+    /// tracing) gets its shard back and the render goes on.
+    #[arg(long, default_value_t = 30.0, value_name = "SECS")]
+    pub fork_timeout: f64,
+    /// Refuse, before preprocessing, a scene whose render would need more than this many
+    /// MiB (estimated from its element count and image size; the estimate is printed).
+    #[arg(long, default_value_t = crate::memory::DEFAULT_MAX_MEMORY_MB, value_name = "MB")]
+    pub max_memory_mb: u64,
+}
+
+/// How the cluster copes with lost processes, and who may join: [`FaultArgs`] checked.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct FaultPolicy {
+    /// A node silent this long loses its pairs (on the forks) and its subscreen.
+    pub lease: Duration,
+    /// A fork unreachable this long stops the render.
+    pub fork_timeout: Duration,
+    /// Cluster token: presented to forks, required from nodes (none: no check).
+    pub token: Token,
+}
+
+impl Default for FaultPolicy {
+    fn default() -> Self {
+        FaultPolicy { lease: Duration::from_secs(30), fork_timeout: Duration::from_secs(30), token: Token::default() }
+    }
+}
+
+impl FaultArgs {
+    /// The checked policy.
+    pub fn policy(&self) -> anyhow::Result<FaultPolicy> {
+        Ok(FaultPolicy { lease: self.lease()?, fork_timeout: self.fork_timeout()?, token: self.token()? })
+    }
+
+    /// The cluster token, checked.
+    pub fn token(&self) -> anyhow::Result<Token> {
+        Token::parse(self.token.clone()).context("--token")
+    }
+
+    /// The node lease, checked.
+    pub fn lease(&self) -> anyhow::Result<Duration> {
+        seconds("lease-timeout", self.lease_timeout)
+    }
+
+    /// The fork timeout, checked.
+    pub fn fork_timeout(&self) -> anyhow::Result<Duration> {
+        seconds("fork-timeout", self.fork_timeout)
+    }
+}
+
+fn seconds(flag: &str, s: f64) -> anyhow::Result<Duration> {
+    if !(s.is_finite() && (0.05..=86_400.0).contains(&s)) {
+        bail!("--{flag} {s}: must be 0.05..=86400 seconds");
+    }
+    Ok(Duration::from_secs_f64(s))
+}

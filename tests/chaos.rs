@@ -1,0 +1,205 @@
+//! Chaos: real magg-fork, magg-node and magg-host processes on localhost, with a node
+//! killed in the middle of light ray tracing, another in the middle of viewing ray
+//! tracing (and a node joining late), and a fork killed and restarted on its address in
+//! each phase. The image and the energies must be bitwise those of a
+//! clean embedded run: leased pairs and subscreens of the dead nodes go to the others,
+//! re-run pairs deposit exactly once, every pixel row is written once, a fork restarted
+//! in LRT gets its energy rebuilt by a replay, and one restarted in VRT gets its shard and
+//! vertex energies back. A fork that does not come back stops the
+//! render with an error naming it, and every process exits.
+
+use magg_tests::*;
+use std::fs::File;
+use std::io::{BufRead, BufReader};
+use std::path::Path;
+use std::process::{Child, Command, Stdio};
+use std::sync::mpsc::{channel, Receiver};
+use std::time::{Duration, Instant};
+
+const SMALL: &[&str] = &["--width", "48", "--height", "40", "--light-rays", "4", "--pixel-samples", "1"];
+
+/// Lease of the chaos runs: short, so a dead node's work moves on quickly, and still
+/// several batches of pairs long, so that live nodes keep theirs.
+const LEASE: &str = "1.5";
+
+/// A fork on `port` (0: any), logging to `DIR/LOG.log`; returns it and its address.
+fn fork(dir: &Path, log: &str, port: u16) -> (Child, String) {
+    spawn_fork(port, &[], &dir.join(format!("{log}.log")))
+}
+
+fn port_of(addr: &str) -> u16 {
+    addr.rsplit(':').next().and_then(|p| p.parse().ok()).unwrap()
+}
+
+/// Kills fork process `k` and starts it again on `addr`, empty.
+fn restart(procs: &mut Procs, k: usize, dir: &Path, log: &str, addr: &str) {
+    procs.0[k].kill().unwrap();
+    procs.0[k].wait().unwrap();
+    std::thread::sleep(Duration::from_millis(200));
+    procs.0[k] = fork(dir, log, port_of(addr)).0;
+}
+
+/// Waits for `child` to exit, at most `secs` seconds.
+fn wait_exit(child: &mut Child, secs: u64) -> Option<std::process::ExitStatus> {
+    let deadline = Instant::now() + Duration::from_secs(secs);
+    while Instant::now() < deadline {
+        if let Some(st) = child.try_wait().unwrap() {
+            return Some(st);
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    None
+}
+
+/// A node whose debug log lines come back on a channel (to kill it at a chosen moment).
+fn node(procs: &mut Procs, host: &str, name: &str, extra: &[&str]) -> (usize, Receiver<String>) {
+    let mut child = Command::new(magg_bin("magg-node"))
+        .args(["--host", host, "--name", name])
+        .args(extra)
+        .env("RUST_LOG", "magg_node=debug")
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("spawn magg-node");
+    let (tx, rx) = channel();
+    let stderr = child.stderr.take().unwrap();
+    std::thread::spawn(move || {
+        for line in BufReader::new(stderr).lines().map_while(Result::ok) {
+            let _ = tx.send(line);
+        }
+    });
+    procs.0.push(child);
+    (procs.0.len() - 1, rx)
+}
+
+/// Waits for the `n`-th log line containing `what`; panics after a bound.
+fn wait_for(rx: &Receiver<String>, what: &str, n: usize) {
+    let deadline = Instant::now() + Duration::from_secs(30);
+    let mut seen = 0;
+    while seen < n {
+        let left = deadline.saturating_duration_since(Instant::now());
+        match rx.recv_timeout(left) {
+            Ok(line) if line.contains(what) => seen += 1,
+            Ok(_) => {}
+            Err(e) => panic!("no {n}th {what:?} line from the node ({seen} seen): {e}"),
+        }
+    }
+}
+
+/// One chaos run: kill a node after its `lrt_batches`-th batch of pairs began, another
+/// after its `vrt_subscreens`-th subscreen began, and with `forks_too` restart a fork
+/// right after each kill; compare with `base`.
+fn chaos_run(dir: &Path, base: &Rendered, stem: &str, lrt_batches: usize, vrt_subscreens: usize, forks_too: bool) {
+    let s = scene("magg-paper.toml");
+    let mut procs = Procs(Vec::new());
+    let mut fork_addrs = Vec::new();
+    for i in 0..3 {
+        let (c, a) = fork(dir, &format!("{stem}-fork{i}"), 0);
+        procs.0.push(c);
+        fork_addrs.push(a);
+    }
+    let host_addr = format!("127.0.0.1:{}", free_port());
+    let out = Rendered::at(dir, stem);
+    let forks_at = fork_addrs.join(",");
+    let host_log = dir.join(format!("{stem}-host.log"));
+    let mut host = out
+        .command(&s)
+        .args(["--subscreen", "16", "--forks-at", &forks_at, "--listen", &host_addr])
+        .args(["--external-nodes", "--lease-timeout", LEASE, "--stall-timeout", "30"])
+        .args(SMALL)
+        .stdout(Stdio::null())
+        .stderr(File::create(&host_log).unwrap())
+        .spawn()
+        .unwrap();
+    let slow = ["--slow-pair-ms", "1", "--slow-row-ms", "10"];
+    let (lrt_victim, lrt_log) = node(&mut procs, &host_addr, "lrt-victim", &slow);
+    let (_, _keep1) = node(&mut procs, &host_addr, "survivor", &slow);
+
+    wait_for(&lrt_log, "tracing a batch of pairs", lrt_batches);
+    procs.0[lrt_victim].kill().unwrap();
+    // Fork 2 dies in light ray tracing, losing the energy deposited on its elements, and
+    // comes back empty on the same address.
+    if forks_too {
+        restart(&mut procs, 2, dir, &format!("{stem}-fork2-again"), &fork_addrs[2]);
+    }
+    // A node joining in the middle of the render gets work too; it is the one killed
+    // in viewing ray tracing.
+    let (vrt_victim, vrt_log) = node(&mut procs, &host_addr, "vrt-victim", &slow);
+    wait_for(&vrt_log, "tracing a subscreen", vrt_subscreens);
+    procs.0[vrt_victim].kill().unwrap();
+    // Fork 1 dies in viewing ray tracing and comes back empty on the same address.
+    if forks_too {
+        restart(&mut procs, 1, dir, &format!("{stem}-fork1-again"), &fork_addrs[1]);
+    }
+
+    let Some(status) = wait_exit(&mut host, 60) else {
+        let _ = host.kill();
+        let _ = host.wait();
+        panic!("{stem}: the host did not finish: {}", std::fs::read_to_string(&host_log).unwrap_or_default());
+    };
+    let host_text = std::fs::read_to_string(&host_log).unwrap();
+    if forks_too {
+        assert!(host_text.contains("fork 1 at") && host_text.contains("restarted"), "{stem}: fork 1: {host_text}");
+        assert!(host_text.contains("replay epoch 1"), "{stem}: no replay after fork 2 restarted: {host_text}");
+    }
+    assert!(status.success(), "{stem}: host failed: {host_text}");
+    assert!(host_text.contains("subscreens are back on the queue"), "{stem}: no subscreen was revoked: {host_text}");
+    let forks_text: String =
+        (0..3).map(|i| std::fs::read_to_string(dir.join(format!("{stem}-fork{i}.log"))).unwrap()).collect();
+    // With a fork restarted in LRT, the replay may take the dead node's pairs back first.
+    let taken_back = forks_text.contains("pair leases expired") || (forks_too && forks_text.contains("replay"));
+    assert!(taken_back, "{stem}: the dead node's pairs were not taken back: {forks_text}");
+    assert_eq!(std::fs::read(&base.pfm).unwrap(), std::fs::read(&out.pfm).unwrap(), "{stem}: image differs");
+    assert_eq!(std::fs::read(&base.energy).unwrap(), std::fs::read(&out.energy).unwrap(), "{stem}: energies differ");
+    assert_eq!(std::fs::read(&base.png).unwrap(), std::fs::read(&out.png).unwrap(), "{stem}: PNG differs");
+    assert_eq!(read_json(&out.stats)["nodes"].as_u64().unwrap(), 3, "{stem}: three nodes registered");
+}
+
+#[test]
+fn killed_nodes_lose_nothing_and_the_bits_are_those_of_a_clean_run() {
+    let dir = tempfile::tempdir().unwrap();
+    let s = scene("magg-paper.toml");
+    let base = render(&s, dir.path(), "embedded", &[SMALL, &["--embedded"]].concat());
+    // Kill points: early in each phase, then later; forks restarted on two of the runs.
+    chaos_run(dir.path(), &base, "early", 1, 1, false);
+    chaos_run(dir.path(), &base, "mid", 2, 1, true);
+    chaos_run(dir.path(), &base, "later", 3, 2, true);
+}
+
+#[test]
+fn a_fork_that_does_not_come_back_stops_the_render_naming_it_and_every_process_exits() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut procs = Procs(Vec::new());
+    let mut fork_addrs = Vec::new();
+    for i in 0..2 {
+        let (c, a) = fork(dir.path(), &format!("fork{i}"), 0);
+        procs.0.push(c);
+        fork_addrs.push(a);
+    }
+    let host_addr = format!("127.0.0.1:{}", free_port());
+    let forks_at = fork_addrs.join(",");
+    let mut host = Rendered::at(dir.path(), "lost")
+        .command(&scene("magg-paper.toml"))
+        .args(["--subscreen", "16", "--forks-at", &forks_at, "--listen", &host_addr, "--external-nodes"])
+        .args(["--fork-timeout", "2"])
+        .args(SMALL)
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    // Nodes give up on an unreachable peer after 3 s of retries.
+    let (n, log) = node(&mut procs, &host_addr, "n", &["--slow-row-ms", "20", "--connect-timeout", "3"]);
+    wait_for(&log, "tracing a subscreen", 1);
+    procs.0[1].kill().unwrap();
+    let status = wait_exit(&mut host, 40).expect("the host did not stop");
+    let mut err = String::new();
+    std::io::Read::read_to_string(host.stderr.as_mut().unwrap(), &mut err).unwrap();
+    assert_eq!(status.code(), Some(1), "{err}");
+    let last = err.lines().last().unwrap_or_default();
+    assert!(
+        last.starts_with("magg-host: error:") && last.contains(&format!("fork 1 at {}", fork_addrs[1])),
+        "the error does not name the fork: {err}"
+    );
+    assert!(last.contains("--fork-timeout"), "{err}");
+    assert!(wait_exit(&mut procs.0[n], 40).is_some(), "the node did not exit after the host stopped");
+}
