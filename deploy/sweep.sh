@@ -12,7 +12,7 @@
 #   deploy/sweep.sh sweep-mp -- --multi-process deploy/local-cluster.sh   # separate processes
 #   deploy/sweep.sh quick -- --nodes 5,20,80 --cache-blocks 20,40 -- --width 200 --height 200
 #
-# The full grid takes about 10 minutes on a 2-core machine: every run lasts its modelled
+# The full grid takes about 6-10 minutes on a 2-core machine: every run lasts its modelled
 # time times the dilation (grown with the node count so that the emulating machine stays
 # under half busy; the table's last column shows its real CPU share).
 set -euo pipefail

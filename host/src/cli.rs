@@ -295,6 +295,15 @@ pub fn parse_cache_blocks(s: &str) -> anyhow::Result<Option<u64>> {
 impl RenderArgs {
     /// Checks every flag before anything runs.
     pub fn validate(self) -> anyhow::Result<RenderConfig> {
+        // Outputs are written during and after the render: a missing folder is an error
+        // now, not after minutes of tracing.
+        let outputs = [Some(&self.out), self.linear.as_ref(), self.stats.as_ref(), self.energy.as_ref()];
+        for p in outputs.into_iter().chain([self.save_energy.as_ref()]).flatten() {
+            let dir = p.parent().filter(|d| !d.as_os_str().is_empty()).unwrap_or(std::path::Path::new("."));
+            if !dir.is_dir() {
+                bail!("{}: cannot write there: folder {} does not exist", p.display(), dir.display());
+            }
+        }
         let out_fmt = ImageFormat::of(&self.out)?;
         let linear = match self.linear {
             Some(p) => {

@@ -19,7 +19,6 @@ pub fn load_request() -> v1::LoadShardRequest {
         fork_addrs: vec!["127.0.0.1:1".into(), "127.0.0.1:2".into()],
         header: Some(v1::SceneHeader::from(&*scene.header)),
         blocks,
-        lease_ms: 0,
-        epoch: 0,
+        ..Default::default()
     }
 }

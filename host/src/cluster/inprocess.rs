@@ -117,6 +117,12 @@ pub fn render_in_process(
         faults: opts.faults.clone(),
     };
     let result = rt.block_on(drive(prepared, &drive_opts, listener, progress, sink));
+    if result.is_err() {
+        // The render failed: its nodes may be retrying a host that is gone. Stop the
+        // forks and report; the node threads end on their own (retry deadline).
+        let _ = stop_tx.send(());
+        return result;
+    }
     let mut node_err = None;
     for t in node_threads {
         match t.join() {
