@@ -21,7 +21,7 @@ use tokio::runtime::Handle;
 
 /// Blocks fetched per cache miss when the cache is unlimited (the missed one and the
 /// following ones of the same kind on the same fork): 16 KB per request.
-pub const PREFETCH_BLOCKS: u32 = 32;
+pub const PREFETCH_BLOCKS: u32 = 4096;
 
 /// How to run a node.
 #[derive(Clone, Debug)]
