@@ -74,6 +74,19 @@ fn native_profile_takes_the_layer_out() {
     assert!(s["per_node"][0].get("cpu_s").is_none(), "native run reports modelled node time");
 }
 
+/// `magg-host render magg-paper.toml --out <tmp>/x.png ARGS`, run to completion.
+fn render_with(args: &[&str]) -> std::process::Output {
+    let dir = tempfile::tempdir().unwrap();
+    magg_host()
+        .arg("render")
+        .arg(scene("magg-paper.toml"))
+        .arg("--out")
+        .arg(dir.path().join("x.png"))
+        .args(args)
+        .output()
+        .unwrap()
+}
+
 #[test]
 fn bad_profiles_and_schemes_are_refused_in_one_line() {
     for (args, needle) in [
@@ -82,15 +95,7 @@ fn bad_profiles_and_schemes_are_refused_in_one_line() {
         (vec!["--scheme", "fast"], "--scheme"),
         (vec!["--profile", "magg1993", "--embedded"], "embedded"),
     ] {
-        let dir = tempfile::tempdir().unwrap();
-        let out = magg_host()
-            .arg("render")
-            .arg(scene("magg-paper.toml"))
-            .arg("--out")
-            .arg(dir.path().join("x.png"))
-            .args(&args)
-            .output()
-            .unwrap();
+        let out = render_with(&args);
         let line = assert_user_error(&out, &args.join(" "));
         assert!(line.contains(needle), "{args:?}: {line}");
     }
@@ -124,16 +129,7 @@ fn a_fork_started_with_another_profile_refuses_the_render() {
         assert!(t.elapsed() < std::time::Duration::from_secs(20), "magg-fork never listened on {addr}");
         std::thread::sleep(std::time::Duration::from_millis(20));
     }
-    let dir = tempfile::tempdir().unwrap();
-    let out = magg_host()
-        .arg("render")
-        .arg(scene("magg-paper.toml"))
-        .arg("--out")
-        .arg(dir.path().join("x.png"))
-        .args(["--forks-at", &addr, "--nodes", "1", "--stall-timeout", "5", "-q"])
-        .args(SMALL)
-        .output()
-        .unwrap();
+    let out = render_with(&with(&["--forks-at", &addr, "--nodes", "1", "--stall-timeout", "5", "-q"]));
     let line = assert_user_error(&out, "native host, magg1993 fork");
     assert!(line.contains("magg1993") && line.contains("native"), "{line}");
 }
