@@ -116,6 +116,10 @@ pub struct RenderArgs {
     /// Start no node in this process: wait for magg-node processes to register.
     #[arg(long, env = "MAGG_EXTERNAL_NODES")]
     pub external_nodes: bool,
+    /// With --external-nodes: start the light pass once this many nodes have registered
+    /// (or after --stall-timeout with those that have), so that every node takes part.
+    #[arg(long, default_value_t = 0, env = "MAGG_MIN_NODES")]
+    pub min_nodes: u32,
     /// Abort when a phase makes no progress for this many seconds.
     #[arg(long, default_value_t = 60)]
     pub stall_timeout: u64,
@@ -273,6 +277,8 @@ pub enum Mode {
         listen: String,
         /// Wait for external nodes instead of starting them.
         external_nodes: bool,
+        /// External nodes to wait for before the light pass.
+        min_nodes: u32,
         /// Phase stall limit.
         stall_timeout: std::time::Duration,
         /// Node leases, fork timeout, cluster token.
@@ -374,6 +380,7 @@ impl RenderArgs {
                     forks_at: self.forks_at.iter().map(|a| a.trim().to_string()).collect(),
                     listen: self.listen,
                     external_nodes: self.external_nodes,
+                    min_nodes: self.min_nodes,
                     stall_timeout: std::time::Duration::from_secs(self.stall_timeout),
                     faults: self.faults.policy()?,
                 }

@@ -15,6 +15,8 @@ use tokio::net::TcpListener;
 pub struct InProcessOptions {
     /// Nodes to run in this process.
     pub nodes: u32,
+    /// Nodes of other processes to wait for before the light pass.
+    pub external_nodes: u32,
     /// Forks to run in this process (ignored when `forks_at` is given).
     pub forks: u32,
     /// External forks to use instead.
@@ -108,7 +110,7 @@ pub fn render_in_process(
         forks: fork_addrs,
         cache_blocks: opts.cache_blocks,
         subscreen: opts.subscreen,
-        nodes: opts.nodes,
+        nodes: opts.nodes + opts.external_nodes,
         stall_timeout: opts.stall_timeout,
         profile: opts.profile.clone(),
         scheme: opts.scheme,

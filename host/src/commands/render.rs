@@ -77,9 +77,10 @@ pub fn run(cfg: RenderConfig) -> anyhow::Result<()> {
     };
     let out = match &cfg.mode {
         Mode::Embedded => render::render_sequence(&prepared, &opts, progress, &sequence, &mut sink)?,
-        Mode::Cluster { forks_at, listen, external_nodes, stall_timeout, faults } => {
+        Mode::Cluster { forks_at, listen, external_nodes, min_nodes, stall_timeout, faults } => {
             let cluster = InProcessOptions {
                 nodes: if *external_nodes { 0 } else { opts.node_count() },
+                external_nodes: if *external_nodes { *min_nodes } else { 0 },
                 forks: cfg.forks,
                 forks_at: forks_at.clone(),
                 listen: listen.clone(),
