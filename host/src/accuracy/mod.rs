@@ -5,6 +5,7 @@
 //! `magg-host accuracy SCENE` ([`crate::commands::accuracy`]) drives them; docs/ACCURACY.md
 //! has the measured tables.
 
+pub mod closed_form;
 pub mod grid;
 pub mod metrics;
 pub mod pareto;

@@ -9,7 +9,7 @@
 
 use crate::accuracy::grid::{self, GridSize, Point, Setting};
 use crate::accuracy::plot::{Plot, Series, PALETTE};
-use crate::accuracy::{metrics, pareto};
+use crate::accuracy::{closed_form, metrics, pareto};
 use crate::{cli::ImageFormat, images, scene_file};
 use anyhow::{bail, Context};
 use clap::Args;
@@ -77,6 +77,9 @@ pub struct Row {
     pub png_psnr: Option<f64>,
     /// RMSE of element irradiance (only at the reference's element size).
     pub element_rmse: Option<f64>,
+    /// Relative RMSE of the vertex irradiance against the closed form I cos/r^2, where
+    /// it holds (see [`crate::accuracy::closed_form`]).
+    pub vertex_cf_rel_rmse: Option<f64>,
 }
 
 struct Measured {
@@ -85,6 +88,7 @@ struct Measured {
     frame: Frame,
     irradiance: Vec<Rgb>,
     elements: u32,
+    vertex_cf: Option<f64>,
 }
 
 fn render_point(scene: &Scene, point: &Point, seed: u64, nodes: u32) -> anyhow::Result<Measured> {
@@ -101,6 +105,7 @@ fn render_point(scene: &Scene, point: &Point, seed: u64, nodes: u32) -> anyhow::
         frame: out.frame,
         irradiance,
         elements: prepared.header.counts.elements,
+        vertex_cf: closed_form::vertex_rel_rmse(&prepared, &out.stats.light, &out.vertex_irradiance),
     })
 }
 
@@ -152,12 +157,14 @@ pub fn run(args: &AccuracyArgs) -> anyhow::Result<()> {
     for setting in settings {
         let (mut secs, mut mse, mut rel, mut png, mut el) = (0.0, Some(0.0), Some(0.0), Some(0.0), Some(0.0));
         let mut modelled = 0.0;
+        let mut vertex_cf = Some(0.0);
         let mut elements = 0;
         let comparable = setting.point.element_scale == ref_point.element_scale;
         for seed in 1..=args.seeds as u64 {
             let m = render_point(&scene, &setting.point, seed, args.nodes)?;
             secs += m.seconds;
             modelled += m.modelled_s;
+            vertex_cf = vertex_cf.zip(m.vertex_cf).map(|(a, b)| a + b);
             elements = m.elements;
             let add = |acc: Option<f64>, x: Option<f64>| Some(acc? + x?);
             mse = add(mse, metrics::image_mse(&m.frame, &reference.frame));
@@ -175,6 +182,7 @@ pub fn run(args: &AccuracyArgs) -> anyhow::Result<()> {
             image_rel_mse: rel.map(|v| v / n),
             png_psnr: png.map(|v| metrics::psnr_db(v / n)),
             element_rmse: el.map(|v| (v / n).sqrt()),
+            vertex_cf_rel_rmse: vertex_cf.map(|v| v / n),
             setting,
         };
         if !args.quiet {
@@ -210,7 +218,10 @@ pub fn run(args: &AccuracyArgs) -> anyhow::Result<()> {
         ref_point.pixel_samples
     );
     println!("## All settings\n\n{}", markdown(&rows, 0..rows.len()));
-    println!("## Pareto front (cheapest setting in modelled time for each image_rel_mse level)\n\n{}", markdown(&rows, front));
+    println!(
+        "## Pareto front (cheapest setting in modelled time for each image_rel_mse level)\n\n{}",
+        markdown(&rows, front)
+    );
     if !args.quiet {
         eprintln!("-> {} and {}", csv_path.display(), out_dir.join("reference.png").display());
         for p in &plots {
@@ -307,13 +318,13 @@ fn field(s: &str) -> String {
 /// The CSV text of `rows`: one line per setting; a missing error is an empty field.
 pub fn csv(rows: &[Row]) -> String {
     let mut s = String::from(
-        "knob,value,element_size,light_rays,pixel_samples,lrt_depth,vrt_depth,diffuse_bounces,seconds,modelled_s,image_rmse,image_rel_mse,png_psnr,element_rmse,elements\n",
+        "knob,value,element_size,light_rays,pixel_samples,lrt_depth,vrt_depth,diffuse_bounces,seconds,modelled_s,image_rmse,image_rel_mse,png_psnr,element_rmse,elements,vertex_cf_rel_rmse\n",
     );
     for r in rows {
         let p = &r.setting.point;
         let _ = writeln!(
             s,
-            "{},{},{},{},{},{},{},{},{:.6},{:.4},{},{},{},{},{}",
+            "{},{},{},{},{},{},{},{},{:.6},{:.4},{},{},{},{},{},{}",
             field(&r.setting.knob),
             field(&r.setting.value),
             r.element_size,
@@ -328,7 +339,8 @@ pub fn csv(rows: &[Row]) -> String {
             opt(r.image_rel_mse, 6),
             r.png_psnr.filter(|x| x.is_finite()).map(|x| format!("{x:.3}")).unwrap_or_default(),
             opt(r.element_rmse, 6),
-            r.elements
+            r.elements,
+            opt(r.vertex_cf_rel_rmse, 6)
         );
     }
     s
@@ -337,15 +349,15 @@ pub fn csv(rows: &[Row]) -> String {
 /// A markdown table of the rows at `idx`, in that order.
 pub fn markdown(rows: &[Row], idx: impl IntoIterator<Item = usize>) -> String {
     let mut s = String::from(
-        "| knob | value | elements | light rays | pixel samples | lrt/vrt depth | diffuse | seconds | T800 s | image RMSE | image rel. MSE | PNG PSNR (dB) | element RMSE |\n\
-         | --- | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |\n",
+        "| knob | value | elements | light rays | pixel samples | lrt/vrt depth | diffuse | seconds | T800 s | image RMSE | image rel. MSE | PNG PSNR (dB) | element RMSE | vertex vs closed form |\n\
+         | --- | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |\n",
     );
     for i in idx {
         let r = &rows[i];
         let p = &r.setting.point;
         let _ = writeln!(
             s,
-            "| {} | {} | {} | {} | {} | {}/{} | {} | {:.3} | {:.2} | {} | {} | {} | {} |",
+            "| {} | {} | {} | {} | {} | {}/{} | {} | {:.3} | {:.2} | {} | {} | {} | {} | {} |",
             r.setting.knob,
             r.setting.value,
             r.elements,
@@ -359,7 +371,8 @@ pub fn markdown(rows: &[Row], idx: impl IntoIterator<Item = usize>) -> String {
             opt(r.image_rmse, 2),
             opt(r.image_rel_mse, 2),
             r.png_psnr.map(|x| format!("{x:.2}")).unwrap_or_default(),
-            opt(r.element_rmse, 2)
+            opt(r.element_rmse, 2),
+            opt(r.vertex_cf_rel_rmse, 2)
         );
     }
     s
@@ -391,6 +404,7 @@ mod tests {
             image_rel_mse: rel,
             png_psnr: Some(metrics::psnr_db(0.0)),
             element_rmse: None,
+            vertex_cf_rel_rmse: None,
         }
     }
 
