@@ -53,7 +53,12 @@ pub struct FaultPolicy {
 
 impl Default for FaultPolicy {
     fn default() -> Self {
-        FaultPolicy { lease: Duration::from_secs(30), fork_timeout: Duration::from_secs(30), token: Token::default(), tls: Default::default() }
+        FaultPolicy {
+            lease: Duration::from_secs(30),
+            fork_timeout: Duration::from_secs(30),
+            token: Token::default(),
+            tls: Default::default(),
+        }
     }
 }
 

@@ -165,6 +165,20 @@ pub fn uri(addr: &str) -> String {
     }
 }
 
+/// A hint to add to a connection error whose text (`error`) looks like the two ends
+/// disagree about TLS: a plaintext client of a TLS server sees HTTP/2 frame errors, a
+/// TLS client of a plaintext server sees a corrupt TLS record. Empty otherwise.
+pub fn mismatch_hint(error: &str) -> &'static str {
+    if client_enabled() {
+        if error.contains("corrupt message") || error.contains("InvalidContentType") {
+            return " (is the peer serving plaintext? give it --tls-cert and --tls-key)";
+        }
+    } else if error.contains("frame with invalid size") || error.contains("h2 protocol error") {
+        return " (is the peer serving TLS? give this process --tls-ca)";
+    }
+    ""
+}
+
 /// An endpoint to `addr` ([`uri`]), verifying the peer against the installed CA when
 /// there is one. Callers add their timeouts and window sizes.
 pub fn endpoint(addr: &str) -> Result<Endpoint, tonic::transport::Error> {
