@@ -33,6 +33,9 @@ struct Args {
     /// the default 127.0.0.1 address then.
     #[arg(long, env = "MAGG_TOKEN", hide_env_values = true)]
     token: Option<String>,
+    /// TLS: this fork's certificate and key, and the CA its peers' certificates chain to.
+    #[command(flatten)]
+    tls: magg_proto::tls::TlsFiles,
     /// More log output (-v: debug, -vv: trace); RUST_LOG overrides.
     #[arg(short, long, action = clap::ArgAction::Count)]
     verbose: u8,
@@ -43,6 +46,10 @@ struct Args {
 
 fn main() -> ExitCode {
     let args = Args::parse();
+    if let Err(e) = magg_proto::tls::install_files(&args.tls) {
+        eprintln!("magg-fork: {e}");
+        return ExitCode::FAILURE;
+    }
     if let Some(magg_proto::lifecycle::ProbeCommand::Probe(p)) = &args.command {
         return magg_proto::lifecycle::probe_command("magg-fork", &p.addr);
     }

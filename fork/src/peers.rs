@@ -13,7 +13,6 @@ use magg_proto::v1::fork_client::ForkClient;
 use std::collections::HashMap;
 use std::sync::Mutex;
 use std::time::Duration;
-use tonic::transport::Endpoint;
 use tonic::Code;
 
 /// How long a connection attempt to a fork may take.
@@ -21,22 +20,12 @@ pub const CONNECT_TIMEOUT: Duration = Duration::from_secs(5);
 /// How long one fork-to-fork call may take.
 pub const PEER_CALL_TIMEOUT: Duration = Duration::from_secs(60);
 
-/// The URI of a fork address: `HOST:PORT` becomes `http://HOST:PORT`; an address with a
-/// scheme is kept.
-pub fn fork_uri(addr: &str) -> String {
-    if addr.contains("://") {
-        addr.to_string()
-    } else {
-        format!("http://{addr}")
-    }
-}
-
 /// Connects to the fork at `addr` (`HOST:PORT`), presenting the cluster `token`, with the
 /// size limits of [`MAX_MESSAGE_BYTES`] both ways. Errors are
 /// [`ForkError::PeerUnavailable`] naming the address.
 pub async fn connect(addr: &str, token: &Token) -> Result<ForkClient<Authed>, ForkError> {
     let unavailable = |reason: String| ForkError::PeerUnavailable { addr: addr.to_string(), reason };
-    let endpoint = Endpoint::from_shared(fork_uri(addr))
+    let endpoint = magg_proto::tls::endpoint(addr)
         .map_err(|e| unavailable(format!("bad address: {e}")))?
         .connect_timeout(CONNECT_TIMEOUT)
         .timeout(PEER_CALL_TIMEOUT)

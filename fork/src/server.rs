@@ -52,7 +52,7 @@ pub async fn serve_service(
     });
     let (health, health_service) = magg_proto::lifecycle::health_service();
     health.set_serving::<ForkServer<ForkService>>().await;
-    tonic::transport::Server::builder()
+    magg_proto::tls::server_builder()?
         .initial_stream_window_size(Some(4 << 20))
         .initial_connection_window_size(Some(16 << 20))
         .tcp_nodelay(true)

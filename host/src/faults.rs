@@ -31,6 +31,11 @@ pub struct FaultArgs {
     /// MiB (estimated from its element count and image size; the estimate is printed).
     #[arg(long, default_value_t = crate::memory::DEFAULT_MAX_MEMORY_MB, value_name = "MB")]
     pub max_memory_mb: u64,
+    /// TLS for the cluster's channels (with --forks-at or --external-nodes; a render
+    /// wholly inside this process ignores them): the host's certificate and key, served
+    /// to nodes, and the CA that forks' certificates chain to.
+    #[command(flatten)]
+    pub tls: magg_proto::tls::TlsFiles,
 }
 
 /// How the cluster copes with lost processes, and who may join: [`FaultArgs`] checked.
@@ -42,18 +47,44 @@ pub struct FaultPolicy {
     pub fork_timeout: Duration,
     /// Cluster token: presented to forks, required from nodes (none: no check).
     pub token: Token,
+    /// TLS files, installed when the render reaches other processes.
+    pub tls: magg_proto::tls::TlsFiles,
 }
 
 impl Default for FaultPolicy {
     fn default() -> Self {
-        FaultPolicy { lease: Duration::from_secs(30), fork_timeout: Duration::from_secs(30), token: Token::default() }
+        FaultPolicy {
+            lease: Duration::from_secs(30),
+            fork_timeout: Duration::from_secs(30),
+            token: Token::default(),
+            tls: Default::default(),
+        }
+    }
+}
+
+impl FaultPolicy {
+    /// Installs the TLS files for this process when the render reaches other processes
+    /// (`external`); a render wholly inside this process talks over 127.0.0.1 only and
+    /// ignores them, saying so.
+    pub fn install_tls(&self, external: bool) -> anyhow::Result<()> {
+        if external {
+            magg_proto::tls::install_files(&self.tls)?;
+        } else if !self.tls.is_empty() {
+            tracing::warn!("TLS files ignored: forks and nodes run inside this process");
+        }
+        Ok(())
     }
 }
 
 impl FaultArgs {
     /// The checked policy.
     pub fn policy(&self) -> anyhow::Result<FaultPolicy> {
-        Ok(FaultPolicy { lease: self.lease()?, fork_timeout: self.fork_timeout()?, token: self.token()? })
+        Ok(FaultPolicy {
+            lease: self.lease()?,
+            fork_timeout: self.fork_timeout()?,
+            token: self.token()?,
+            tls: self.tls.clone(),
+        })
     }
 
     /// The cluster token, checked.

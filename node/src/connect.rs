@@ -4,7 +4,7 @@
 use crate::retry::jitter;
 use crate::NodeError;
 use std::time::Duration;
-use tonic::transport::{Channel, Endpoint};
+use tonic::transport::Channel;
 
 /// Retry policy of connections and of calls that failed for a transient reason, and the
 /// deadline of every call.
@@ -36,20 +36,10 @@ impl Default for Backoff {
     }
 }
 
-/// `http://ADDR` unless a scheme is given.
-pub fn uri_of(addr: &str) -> String {
-    if addr.contains("://") {
-        addr.to_string()
-    } else {
-        format!("http://{addr}")
-    }
-}
-
 /// Connects to `addr`, retrying with exponential backoff and jitter until
 /// `backoff.deadline`; logs each failed attempt with the address.
 pub async fn connect_with_backoff(addr: &str, backoff: Backoff) -> Result<Channel, NodeError> {
-    let uri = uri_of(addr);
-    let endpoint = Endpoint::from_shared(uri.clone())
+    let endpoint = magg_proto::tls::endpoint(addr)
         .map_err(|e| NodeError::Connect { addr: addr.to_string(), reason: e.to_string() })?
         .connect_timeout(Duration::from_secs(2))
         .timeout(backoff.call_timeout)

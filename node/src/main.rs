@@ -58,6 +58,10 @@ struct Args {
     /// Cluster token presented on every call (the host's and forks' --token).
     #[arg(long, env = "MAGG_TOKEN", hide_env_values = true)]
     token: Option<String>,
+    /// TLS: the CA that the host's and forks' certificates chain to (every connection is
+    /// then https); a certificate and key only for --health-listen.
+    #[command(flatten)]
+    tls: magg_proto::tls::TlsFiles,
     /// More log output.
     #[arg(short, long, action = clap::ArgAction::Count)]
     verbose: u8,
@@ -68,6 +72,10 @@ struct Args {
 
 fn main() -> ExitCode {
     let args = Args::parse();
+    if let Err(e) = magg_proto::tls::install_files(&args.tls) {
+        eprintln!("magg-node: error: {e}");
+        return ExitCode::FAILURE;
+    }
     if let Some(magg_proto::lifecycle::ProbeCommand::Probe(p)) = &args.command {
         return magg_proto::lifecycle::probe_command("magg-node", &p.addr);
     }

@@ -16,6 +16,7 @@
 pub mod auth;
 pub mod convert;
 pub mod lifecycle;
+pub mod tls;
 
 /// Generated code of package `magg.v1`.
 #[allow(missing_docs, clippy::all)]

@@ -19,7 +19,6 @@
 
 use std::process::ExitCode;
 use std::time::Duration;
-use tonic::transport::Endpoint;
 use tonic_health::pb::health_check_response::ServingStatus as WireStatus;
 use tonic_health::pb::health_client::HealthClient;
 use tonic_health::pb::HealthCheckRequest;
@@ -42,7 +41,7 @@ pub async fn serve_health(
     shutdown: impl std::future::Future<Output = ()>,
 ) -> Result<(), tonic::transport::Error> {
     let (_reporter, health) = health_service();
-    tonic::transport::Server::builder()
+    crate::tls::server_builder()?
         .add_service(health)
         .serve_with_incoming_shutdown(tokio_stream::wrappers::TcpListenerStream::new(listener), shutdown)
         .await
@@ -88,8 +87,7 @@ pub enum ProbeError {
 /// Asks the health service at `addr` (`HOST:PORT` or a URI) for the whole server's status
 /// (service ""), giving up after `timeout`.
 pub async fn probe(addr: &str, timeout: Duration) -> Result<ServingStatus, ProbeError> {
-    let uri = if addr.contains("://") { addr.to_string() } else { format!("http://{addr}") };
-    let endpoint = Endpoint::from_shared(uri)
+    let endpoint = crate::tls::endpoint(addr)
         .map_err(|e| ProbeError::Address { addr: addr.to_string(), reason: e.to_string() })?
         .connect_timeout(timeout)
         .timeout(timeout);

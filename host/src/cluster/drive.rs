@@ -136,7 +136,8 @@ pub async fn drive(
     let (stop_tx, stop_rx) = tokio::sync::oneshot::channel::<()>();
     let (health, health_service) = magg_proto::lifecycle::health_service();
     health.set_serving::<HostServer<HostService>>().await;
-    let server = tonic::transport::Server::builder()
+    let server = magg_proto::tls::server_builder()
+        .map_err(|e| anyhow::anyhow!("host server TLS: {e}"))?
         .initial_stream_window_size(Some(4 << 20))
         .initial_connection_window_size(Some(16 << 20))
         .add_service(health_service)

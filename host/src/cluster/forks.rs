@@ -136,7 +136,10 @@ impl<'a> ForkSet<'a> {
             async move { c.load_shard(req).await }
         })
         .await
-        .with_context(|| format!("loading the shard of {name}"))?;
+        .map_err(|e| {
+            let hint = magg_proto::tls::mismatch_hint(&e.to_string());
+            anyhow::Error::new(e).context(format!("loading the shard of {name}{hint}"))
+        })?;
         Ok(())
     }
 

@@ -78,6 +78,7 @@ pub fn run(cfg: RenderConfig) -> anyhow::Result<()> {
     let out = match &cfg.mode {
         Mode::Embedded => render::render_sequence(&prepared, &opts, progress, &sequence, &mut sink)?,
         Mode::Cluster { forks_at, listen, external_nodes, min_nodes, stall_timeout, faults } => {
+            faults.install_tls(!forks_at.is_empty() || *external_nodes)?;
             let cluster = InProcessOptions {
                 nodes: if *external_nodes { 0 } else { opts.node_count() },
                 external_nodes: if *external_nodes { *min_nodes } else { 0 },
