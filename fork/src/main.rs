@@ -23,19 +23,9 @@ struct Args {
     /// services and the standard gRPC health service are served there.
     #[arg(long, default_value = "127.0.0.1:7100", env = "MAGG_FORK_LISTEN")]
     listen: SocketAddr,
-    /// Hardware profile (DESIGN.md §4): a built-in name (native, magg1993) or a profile
-    /// file. The host sends the profile of each render with the shard; with this flag the
-    /// fork refuses a render that runs another one. Without it, it runs the host's.
-    #[arg(long, env = "MAGG_PROFILE")]
-    profile: Option<String>,
-    /// Cluster token: every call must carry it, and calls to other forks carry it (the
-    /// same on every process of the cluster). Without one, any client is served: keep
-    /// the default 127.0.0.1 address then.
-    #[arg(long, env = "MAGG_TOKEN", hide_env_values = true)]
-    token: Option<String>,
-    /// TLS: this fork's certificate and key, and the CA its peers' certificates chain to.
+    /// Profile, token and TLS: the flags every cluster process shares.
     #[command(flatten)]
-    tls: magg_proto::tls::TlsFiles,
+    cluster: magg_proto::lifecycle::ClusterArgs,
     /// More log output (-v: debug, -vv: trace); RUST_LOG overrides.
     #[arg(short, long, action = clap::ArgAction::Count)]
     verbose: u8,
@@ -46,12 +36,8 @@ struct Args {
 
 fn main() -> ExitCode {
     let args = Args::parse();
-    if let Err(e) = magg_proto::tls::install_files(&args.tls) {
-        eprintln!("magg-fork: {e}");
-        return ExitCode::FAILURE;
-    }
-    if let Some(magg_proto::lifecycle::ProbeCommand::Probe(p)) = &args.command {
-        return magg_proto::lifecycle::probe_command("magg-fork", &p.addr);
+    if let Some(code) = magg_proto::lifecycle::start("magg-fork", &args.cluster, &args.command) {
+        return code;
     }
     init_tracing(args.verbose);
     match run(args) {
@@ -75,7 +61,7 @@ fn init_tracing(verbose: u8) {
 }
 
 fn run(args: Args) -> anyhow::Result<()> {
-    let token = magg_proto::auth::Token::parse(args.token).context("--token")?;
+    let token = magg_proto::auth::Token::parse(args.cluster.token).context("--token")?;
     if let Some(w) = magg_proto::auth::exposure_warning(args.listen, &token) {
         tracing::warn!("{w}");
     }
@@ -87,7 +73,7 @@ fn run(args: Args) -> anyhow::Result<()> {
         let local = listener.local_addr().context("reading the bound address")?;
         tracing::info!(%local, "fork listening");
         let mut hw = magg_fork::ForkHardware::default();
-        if let Some(p) = &args.profile {
+        if let Some(p) = &args.cluster.profile {
             let profile = magg_throttle::Profile::named(p)?;
             hw = hw.pinned_to(&profile.name);
         }

@@ -37,11 +37,6 @@ struct Args {
     /// redivision move its unstarted rows to others).
     #[arg(long, default_value_t = 0)]
     slow_row_ms: u64,
-    /// Hardware profile (DESIGN.md §4): a built-in name (native, magg1993) or a profile
-    /// file. The host sends each render's profile; with this flag the node refuses a
-    /// render that runs another one. Without it, it runs the host's.
-    #[arg(long, env = "MAGG_PROFILE")]
-    profile: Option<String>,
     /// After a render, wait for the next host and render again, until stopped (Ctrl-C,
     /// SIGTERM): a node as a long-lived service (docker compose, a Kubernetes Deployment).
     /// Without it the node exits when its render is done.
@@ -55,13 +50,9 @@ struct Args {
     /// tracing (fault tests kill such a node in the middle of its pairs).
     #[arg(long, default_value_t = 0)]
     slow_pair_ms: u64,
-    /// Cluster token presented on every call (the host's and forks' --token).
-    #[arg(long, env = "MAGG_TOKEN", hide_env_values = true)]
-    token: Option<String>,
-    /// TLS: the CA that the host's and forks' certificates chain to (every connection is
-    /// then https); a certificate and key only for --health-listen.
+    /// Profile, token and TLS: the flags every cluster process shares.
     #[command(flatten)]
-    tls: magg_proto::tls::TlsFiles,
+    cluster: magg_proto::lifecycle::ClusterArgs,
     /// More log output.
     #[arg(short, long, action = clap::ArgAction::Count)]
     verbose: u8,
@@ -72,12 +63,8 @@ struct Args {
 
 fn main() -> ExitCode {
     let args = Args::parse();
-    if let Err(e) = magg_proto::tls::install_files(&args.tls) {
-        eprintln!("magg-node: error: {e}");
-        return ExitCode::FAILURE;
-    }
-    if let Some(magg_proto::lifecycle::ProbeCommand::Probe(p)) = &args.command {
-        return magg_proto::lifecycle::probe_command("magg-node", &p.addr);
+    if let Some(code) = magg_proto::lifecycle::start("magg-node", &args.cluster, &args.command) {
+        return code;
     }
     let level = match args.verbose {
         0 => "warn",
@@ -108,7 +95,7 @@ fn run(args: Args) -> anyhow::Result<()> {
             _ => anyhow::bail!("--cache-blocks {s:?}: expected a positive block count or \"unlimited\""),
         },
     };
-    let token = magg_proto::auth::Token::parse(args.token).map_err(|e| anyhow::anyhow!("--token: {e}"))?;
+    let token = magg_proto::auth::Token::parse(args.cluster.token).map_err(|e| anyhow::anyhow!("--token: {e}"))?;
     let cfg = magg_node::NodeConfig {
         host: args.host,
         threads: args.threads,
@@ -116,7 +103,7 @@ fn run(args: Args) -> anyhow::Result<()> {
         name: args.name,
         backoff: magg_node::Backoff { deadline: Duration::from_secs(args.connect_timeout), ..Default::default() },
         row_delay: Duration::from_millis(args.slow_row_ms),
-        profile: match &args.profile {
+        profile: match &args.cluster.profile {
             Some(p) => Some(magg_throttle::Profile::named(p)?.name),
             None => None,
         },

@@ -148,6 +148,39 @@ pub fn probe_blocking(addr: &str) -> Result<(), ProbeError> {
     }
 }
 
+/// The flags every cluster process (magg-fork, magg-node) shares, flattened into each
+/// binary's arguments.
+#[derive(Clone, Debug, clap::Args)]
+pub struct ClusterArgs {
+    /// Hardware profile (DESIGN.md §4): a built-in name (native, magg1993) or a profile
+    /// file. The host sends each render's profile; with this flag the process refuses a
+    /// render that runs another one. Without it, it runs the host's.
+    #[arg(long, env = "MAGG_PROFILE")]
+    pub profile: Option<String>,
+    /// Cluster token: presented on every call, and required on every call a fork serves
+    /// (the same on every process of the cluster). Without one, any client is served:
+    /// keep the default 127.0.0.1 addresses then.
+    #[arg(long, env = "MAGG_TOKEN", hide_env_values = true)]
+    pub token: Option<String>,
+    /// TLS: the certificate and key of what this process serves, and the CA its peers'
+    /// certificates chain to (every connection is then https).
+    #[command(flatten)]
+    pub tls: crate::tls::TlsFiles,
+}
+
+/// What a cluster process does first: puts its TLS files in force and, when asked to
+/// `probe ADDR`, probes. `Some(code)` means: exit with it now.
+pub fn start(program: &str, cluster: &ClusterArgs, command: &Option<ProbeCommand>) -> Option<ExitCode> {
+    if let Err(e) = crate::tls::install_files(&cluster.tls) {
+        eprintln!("{program}: error: {e}");
+        return Some(ExitCode::FAILURE);
+    }
+    match command {
+        Some(ProbeCommand::Probe(p)) => Some(probe_command(program, &p.addr)),
+        None => None,
+    }
+}
+
 /// The `probe ADDR` subcommand of every binary: prints `ADDR: SERVING` and exits 0 when
 /// the process at `addr` reports SERVING within 3 seconds; prints why not and exits 1
 /// otherwise.
