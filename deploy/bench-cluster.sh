@@ -1,15 +1,21 @@
 #!/usr/bin/env bash
-# Overhead of the cluster (forks, nodes and host over gRPC on 127.0.0.1, in one process)
-# against the rendering core driven directly, same scene, same node count, unlimited
-# cache. Prints a markdown table; every run is --release.
+# Overhead of the cluster (forks, nodes and host in one process, talking gRPC through
+# the in-process transport) against the rendering core driven directly, same scene,
+# same node count, unlimited cache; and of the same cluster with every call over
+# 127.0.0.1 sockets (MAGG_TRANSPORT=tcp). Prints a markdown table; every run is --release.
 #
 #   deploy/bench-cluster.sh [REPEATS] [SCENE...]
 #
-# Default: 3 repeats of scenes/magg-paper.toml and scenes/large.toml, 2 nodes.
+# Default: 7 repeats of scenes/magg-paper.toml and scenes/large.toml, 2 nodes (NODES=n).
+#
+# The three modes run interleaved (core, cluster, tcp, core, ...), so that a slow spell
+# of a shared machine hits all of them alike; the overhead is the median over repeats of
+# the ratio of each cluster run to the core run just before it. Best and median times
+# are given too.
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
 cd "$root"
-repeats=${1:-3}
+repeats=${1:-7}
 shift || true
 scenes=("$@")
 [ ${#scenes[@]} -gt 0 ] || scenes=(scenes/magg-paper.toml scenes/large.toml)
@@ -22,26 +28,39 @@ trap 'rm -rf "$tmp"' EXIT
 field() { # field FILE KEY -> first numeric value of "KEY": N
   sed -n "s/.*\"$2\": \([0-9.e+-]*\).*/\1/p" "$1" | head -n 1
 }
-best() { # best of N runs of the given mode: prints "total lrt vrt"
-  local mode=$1 scene=$2 b=""
-  for ((i = 0; i < repeats; i++)); do
-    "$bin" render "$scene" --out "$tmp/o.png" --stats "$tmp/s.json" --nodes "$nodes" --quiet $mode
-    local t; t=$(field "$tmp/s.json" total_s)
-    if [ -z "$b" ] || awk "BEGIN{exit !($t < ${b%% *})}"; then
-      b="$t $(field "$tmp/s.json" lrt_s) $(field "$tmp/s.json" vrt_s)"
-    fi
-  done
-  echo "$b"
+run() { # run MODE SCENE -> "total lrt vrt" of one render
+  local mode=$1 scene=$2
+  case $mode in
+    core) "$bin" render "$scene" --out "$tmp/o.png" --stats "$tmp/s.json" --nodes "$nodes" --quiet --embedded ;;
+    cluster) MAGG_TRANSPORT=in-process "$bin" render "$scene" --out "$tmp/o.png" --stats "$tmp/s.json" --nodes "$nodes" --quiet ;;
+    tcp) MAGG_TRANSPORT=tcp "$bin" render "$scene" --out "$tmp/o.png" --stats "$tmp/s.json" --nodes "$nodes" --quiet ;;
+  esac
+  echo "$(field "$tmp/s.json" total_s) $(field "$tmp/s.json" lrt_s) $(field "$tmp/s.json" vrt_s)"
+}
+stats() { # stats < "x..." lines -> "best median"
+  sort -g | awk '{v[NR]=$1} END {m = (NR % 2) ? v[(NR+1)/2] : (v[NR/2]+v[NR/2+1])/2; printf "%.3f %.3f", v[1], m}'
 }
 
 echo "machine: $(lscpu 2>/dev/null | sed -n 's/^Model name: *//p' | head -n 1), $(nproc) cores; load $(cut -d' ' -f1-3 /proc/loadavg)"
-echo "nodes: $nodes, cache unlimited, best of $repeats runs"
+echo "nodes: $nodes, cache unlimited, $repeats interleaved repeats; times best / median (s)"
 echo
-echo "| scene | core total s | cluster total s | overhead | core LRT s | cluster LRT s | core VRT s | cluster VRT s |"
-echo "|---|---:|---:|---:|---:|---:|---:|---:|"
+echo "| scene | mode | total s | LRT s | VRT s | overhead (median ratio) |"
+echo "|---|---|---:|---:|---:|---:|"
 for s in "${scenes[@]}"; do
-  read -r ct cl cv < <(best --embedded "$s")
-  read -r gt gl gv < <(best "" "$s")
-  over=$(awk "BEGIN{printf \"%+.1f%%\", 100*($gt-$ct)/$ct}")
-  echo "| $(basename "$s" .toml) | $ct | $gt | $over | $cl | $gl | $cv | $gv |"
+  : >"$tmp/core" ; : >"$tmp/cluster" ; : >"$tmp/tcp"
+  for ((i = 0; i < repeats; i++)); do
+    for mode in core cluster tcp; do run $mode "$s" >>"$tmp/$mode"; done
+  done
+  name=$(basename "$s" .toml)
+  for mode in core cluster tcp; do
+    read -r tb tm < <(cut -d' ' -f1 "$tmp/$mode" | stats)
+    read -r lb lm < <(cut -d' ' -f2 "$tmp/$mode" | stats)
+    read -r vb vm < <(cut -d' ' -f3 "$tmp/$mode" | stats)
+    if [ $mode = core ]; then
+      over="-"
+    else
+      over=$(paste -d' ' "$tmp/$mode" "$tmp/core" | awk '{print $1 / $4}' | stats | awk '{printf "%+.1f%%", 100 * ($2 - 1)}')
+    fi
+    echo "| $name | $mode | $tb / $tm | $lb / $lm | $vb / $vm | $over |"
+  done
 done

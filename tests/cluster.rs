@@ -38,12 +38,15 @@ fn in_process_cluster_matches_the_embedded_core_bit_for_bit() {
                 &["--nodes", "1", "--forks", "1"],
                 &["--nodes", "4", "--forks", "5"],
                 &["--nodes", "3", "--forks", "3", "--cache-blocks", "400"],
+                // Every call over 127.0.0.1 sockets instead of the in-process transport.
+                &["--nodes", "3", "--forks", "2", "--transport", "tcp"],
             ]
         } else {
             &[
                 &["--nodes", "1", "--forks", "1"],
                 &["--nodes", "4", "--forks", "5"],
                 &["--nodes", "16", "--forks", "3", "--cache-blocks", "20"],
+                &["--nodes", "4", "--forks", "5", "--transport", "tcp"],
             ]
         };
         for (i, shape) in shapes.iter().enumerate() {

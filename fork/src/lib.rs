@@ -35,6 +35,7 @@
 //! # Ok(()) }
 //! ```
 
+pub mod bits;
 pub mod error;
 pub mod hardware;
 mod locks;

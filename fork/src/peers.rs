@@ -32,7 +32,9 @@ pub async fn connect(addr: &str, token: &Token) -> Result<ForkClient<Authed>, Fo
         .tcp_nodelay(true)
         .initial_stream_window_size(Some(4 << 20))
         .initial_connection_window_size(Some(16 << 20));
-    let channel = endpoint.connect().await.map_err(|e| unavailable(error_chain(&e)))?;
+    let channel = magg_proto::transport::connect(endpoint, Some(PEER_CALL_TIMEOUT))
+        .await
+        .map_err(|e| unavailable(error_chain(&e)))?;
     Ok(ForkClient::with_interceptor(channel, AddToken(token.clone()))
         .max_decoding_message_size(MAX_MESSAGE_BYTES)
         .max_encoding_message_size(MAX_MESSAGE_BYTES))

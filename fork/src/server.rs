@@ -5,6 +5,7 @@ use crate::service::ForkService;
 use magg_proto::auth::{CheckToken, Token};
 use magg_proto::v1::fork_server::ForkServer;
 use std::future::Future;
+use std::sync::Arc;
 use tokio::net::TcpListener;
 use tokio_stream::wrappers::TcpListenerStream;
 use tokio_stream::StreamExt;
@@ -15,9 +16,13 @@ use tonic::service::interceptor::InterceptedService;
 pub const MAX_MESSAGE_BYTES: usize = 256 << 20;
 
 /// The tonic service of `service`, with the size limits applied, refusing calls without
-/// the cluster `token` (when one is set).
-pub fn fork_server(service: ForkService, token: Token) -> InterceptedService<ForkServer<ForkService>, CheckToken> {
-    let server = ForkServer::new(service)
+/// the cluster `token` (when one is set). What a socket serves, and what the in-process
+/// transport ([`magg_proto::transport::register`]) calls.
+pub fn fork_server(
+    service: impl Into<Arc<ForkService>>,
+    token: Token,
+) -> InterceptedService<ForkServer<ForkService>, CheckToken> {
+    let server = ForkServer::from_arc(service.into())
         .max_decoding_message_size(MAX_MESSAGE_BYTES)
         .max_encoding_message_size(MAX_MESSAGE_BYTES);
     InterceptedService::new(server, CheckToken { token, server: "fork" })
@@ -38,7 +43,7 @@ pub async fn serve(
 /// fork's calls, with the standard gRPC health service beside it (open to all: SERVING
 /// from the start, a fork is ready for its shard).
 pub async fn serve_service(
-    service: ForkService,
+    service: impl Into<Arc<ForkService>>,
     token: Token,
     listener: TcpListener,
     shutdown: impl Future<Output = ()>,

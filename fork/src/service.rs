@@ -245,7 +245,7 @@ impl Fork for ForkService {
     async fn deposit(&self, req: Request<v1::DepositRequest>) -> Result<Response<v1::DepositReply>, Status> {
         let shard = self.shard()?;
         let r = req.into_inner();
-        self.hw.serve(r.pairs.iter().map(|p| p.deposits.len()).sum()).await;
+        self.hw.serve(r.pairs.iter().map(|p| p.elements.len()).sum()).await;
         let (applied, duplicates) = shard.deposit(&r.pairs)?;
         let reply = v1::DepositReply { applied, duplicates };
         shard.count_link(prost::Message::encoded_len(&r) + prost::Message::encoded_len(&reply));
@@ -254,7 +254,8 @@ impl Fork for ForkService {
 
     async fn replay(&self, req: Request<v1::ReplayRequest>) -> Result<Response<v1::ReplayReply>, Status> {
         let shard = self.shard()?;
-        Ok(Response::new(v1::ReplayReply { pairs: shard.replay(req.into_inner().epoch) }))
+        let r = req.into_inner();
+        Ok(Response::new(v1::ReplayReply { pairs: shard.replay(r.epoch, r.lost_fork) }))
     }
 
     async fn get_energies(

@@ -5,17 +5,18 @@
 //! refused request leaves the state as it was. The gRPC layer ([`crate::service`]) adds
 //! the peer calls (G-bus fetches, pair stealing).
 
+use crate::bits::Bitset;
 use crate::error::ForkError;
 use crate::locks::{lock, read, write};
 use crate::pairs::PairQueue;
 use crate::peers::Peers;
-use magg_core::blocks::{Block, BLOCK_SIZE};
+use magg_core::blocks::BLOCK_SIZE;
 use magg_core::energy::Fixed;
 use magg_core::header::SceneHeader;
 use magg_proto::auth::Token;
-use magg_proto::convert::{block_from_wire, block_to_wire};
+use magg_proto::convert::block_bytes_from_wire;
 use magg_proto::v1;
-use std::collections::{HashMap, HashSet};
+use std::collections::HashMap;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Mutex, RwLock};
 use std::time::{Duration, Instant};
@@ -84,10 +85,13 @@ struct Work {
     returned: u64,
     /// Replay epoch: completions of pairs handed out in an earlier epoch do not count.
     epoch: u64,
-    /// Pairs whose deposits this fork has applied (exactly-once).
-    applied: HashSet<u64>,
-    /// Pairs of this fork reported complete.
-    done: HashSet<u64>,
+    /// Pairs (by id) whose deposits this fork has applied (exactly-once).
+    applied: Bitset,
+    /// Pairs of this fork reported complete, by local index (see [`Shard::local_pair`]).
+    done: Bitset,
+    /// For each other fork, the complete pairs of this fork (local index) that deposited
+    /// on it: the pairs to trace again if it restarts and loses its energy.
+    deposited_on: Vec<Option<Bitset>>,
     /// Fixed-point flux of each owned element, parallel to `Shard::owned`.
     energy: Vec<Fixed>,
 }
@@ -97,8 +101,9 @@ struct Work {
 pub struct Shard {
     header: SceneHeader,
     place: Placement,
-    /// Owned blocks by local index `id / forks`; `None` until supplied.
-    blocks: RwLock<Vec<Option<Box<Block>>>>,
+    /// Owned blocks by local index `id / forks` (2 KB each, as received: served without
+    /// a copy); `None` until supplied.
+    blocks: RwLock<Vec<Option<bytes::Bytes>>>,
     /// Elements whose element block this fork holds, ascending.
     owned: Vec<u32>,
     work: Mutex<Work>,
@@ -137,6 +142,8 @@ impl Shard {
         let owned: Vec<u32> =
             (0..header.counts.elements).filter(|&e| header.layout.element_slot(e).0 % f == index).collect();
         let lights = header.lights.len() as u32;
+        let pair_count = lights as u64 * header.counts.elements as u64;
+        let own_pairs = lights as u64 * owned.len() as u64;
         let lease = if req.lease_ms == 0 { DEFAULT_LEASE } else { Duration::from_millis(req.lease_ms as u64) };
         let work = Work {
             queue: PairQueue::new(lights, owned.len(), header.plan.lrt),
@@ -145,8 +152,9 @@ impl Shard {
             max_gap: Duration::ZERO,
             returned: 0,
             epoch: req.epoch,
-            applied: HashSet::new(),
-            done: HashSet::new(),
+            applied: Bitset::new(pair_count),
+            done: Bitset::new(own_pairs),
+            deposited_on: vec![None; forks],
             energy: vec![[0; 3]; owned.len()],
         };
         let shard = Shard {
@@ -235,7 +243,7 @@ impl Shard {
     pub fn put_blocks(&self, blocks: Vec<v1::Block>) -> Result<u32, ForkError> {
         let mut checked = Vec::with_capacity(blocks.len());
         for b in blocks {
-            let (id, data) = block_from_wire(b).map_err(ForkError::BadBlock)?;
+            let (id, data) = block_bytes_from_wire(b).map_err(ForkError::BadBlock)?;
             self.check_owned_block(id)?;
             checked.push((id, data));
         }
@@ -262,7 +270,7 @@ impl Shard {
         let store = read(&self.blocks);
         ids.iter()
             .map(|&id| match &store[(id / f) as usize] {
-                Some(b) => Ok(block_to_wire(id, b)),
+                Some(b) => Ok(v1::Block { id, data: b.clone() }),
                 None => Err(ForkError::BlockNotLoaded { id, fork: self.place.index }),
             })
             .collect()
@@ -290,7 +298,7 @@ impl Shard {
                 break;
             }
             // A given-back pair may have been completed since by its first (slow) node.
-            pairs.extend(got.into_iter().filter(|p| !work.done.contains(p)));
+            pairs.extend(got.into_iter().filter(|&p| self.local_pair(p).is_ok_and(|k| !work.done.contains(k))));
         }
         for &p in &pairs {
             work.leased.insert(p, (node, now));
@@ -298,21 +306,44 @@ impl Shard {
         (pairs, work.epoch)
     }
 
-    /// Starts replay epoch `epoch` (another fork lost its energy): every pair of this
-    /// fork goes back to the queue; deposits already applied stay (the re-run ones are
-    /// duplicates here). Returns the pairs queued. An epoch not above the current one
-    /// changes nothing (a repeated call).
-    pub fn replay(&self, epoch: u64) -> u64 {
+    /// Starts replay epoch `epoch` because fork `lost` restarted and lost the energy on
+    /// its elements (`None`: unknown, replay everything). Goes back to the queue: every
+    /// pair still out with a node (its completion, from the old epoch, will not count) and
+    /// every complete pair that deposited on `lost`; the others stay done. Deposits already
+    /// applied here stay (the re-run ones are duplicates). Returns the pairs queued again.
+    /// An epoch not above the current one changes nothing (a repeated call).
+    pub fn replay(&self, epoch: u64, lost: Option<u32>) -> u64 {
         let mut work = lock(&self.work);
         if epoch <= work.epoch {
             return 0;
         }
         work.epoch = epoch;
-        work.queue = PairQueue::new(self.header.lights.len() as u32, self.owned.len(), self.header.plan.lrt);
-        work.leased.clear();
-        work.done.clear();
-        tracing::warn!(fork = self.place.index, epoch, pairs = work.queue.total(), "replay: every pair queued again");
-        work.queue.total()
+        let before = work.queue.remaining();
+        let w = &mut *work;
+        let again: Vec<u64> = match lost.and_then(|j| w.deposited_on.get(j as usize)) {
+            Some(Some(on_lost)) => on_lost.iter().collect(),
+            Some(None) => Vec::new(),
+            None => w.done.iter().collect(),
+        };
+        for k in again {
+            w.done.remove(k);
+            w.queue.give_back(self.pair_of_local(k));
+        }
+        for (p, _) in w.leased.drain() {
+            w.queue.give_back(p);
+        }
+        if let Some(Some(on_lost)) = lost.and_then(|j| w.deposited_on.get_mut(j as usize)) {
+            *on_lost = Bitset::new(0);
+        }
+        let queued = work.queue.remaining() - before;
+        tracing::warn!(
+            fork = self.place.index,
+            epoch,
+            ?lost,
+            pairs = queued,
+            "replay: pairs that deposited on the lost fork, or were out with nodes, queued again"
+        );
+        queued
     }
 
     /// Gives back to the queue the pairs of every node silent for longer than the lease
@@ -356,11 +387,29 @@ impl Shard {
 
     /// Refuses a pair id out of range or whose element another fork owns.
     pub fn check_own_pair(&self, pair: u64) -> Result<(), ForkError> {
+        self.local_pair(pair).map(|_| ())
+    }
+
+    /// Index of own pair `pair` in this fork's sequence (`light * owned + position of the
+    /// element among the owned ones`), or why it is not one of this fork's pairs.
+    pub fn local_pair(&self, pair: u64) -> Result<u64, ForkError> {
         let pairs = self.pair_count();
         if pair >= pairs {
             return Err(ForkError::PairOutOfRange { pair, pairs });
         }
-        self.owned_index((pair % self.header.counts.elements as u64) as u32).map(|_| ())
+        let elements = self.header.counts.elements as u64;
+        let at = self.owned_index((pair % elements) as u32)?;
+        Ok(pair / elements * self.owned.len() as u64 + at as u64)
+    }
+
+    /// The pair id of local index `k` (inverse of [`Shard::local_pair`]).
+    fn pair_of_local(&self, k: u64) -> u64 {
+        let per_light = self.owned.len().max(1) as u64;
+        magg_core::lrt::pair_id(
+            (k / per_light) as u32,
+            self.owned[(k % per_light) as usize],
+            self.header.counts.elements,
+        )
     }
 
     /// Position of element `e` in the owned list, or why it is not there.
@@ -386,7 +435,7 @@ impl Shard {
                 max: MAX_DEPOSIT_PAIRS as u64,
             });
         }
-        let deposits: usize = pairs.iter().map(|p| p.deposits.len()).sum();
+        let deposits: usize = pairs.iter().map(|p| p.elements.len()).sum();
         if deposits > MAX_DEPOSITS {
             return Err(ForkError::TooMany {
                 what: "element deposits in a request",
@@ -395,29 +444,44 @@ impl Shard {
             });
         }
         let total_pairs = self.pair_count();
+        let forks = self.place.forks();
         let mut slots = Vec::with_capacity(deposits);
+        let mut local = Vec::with_capacity(pairs.len());
         for p in pairs {
             if p.pair >= total_pairs {
                 return Err(ForkError::PairOutOfRange { pair: p.pair, pairs: total_pairs });
             }
-            if p.complete {
-                self.check_own_pair(p.pair)?;
+            local.push(if p.complete { Some(self.local_pair(p.pair)?) } else { None });
+            if let Some(&j) = p.also_on.iter().find(|&&j| j >= forks || j == self.place.index) {
+                return Err(ForkError::BadRequest(format!(
+                    "pair {} deposited on fork {j}: not another of the {forks} forks",
+                    p.pair
+                )));
             }
-            for d in &p.deposits {
-                slots.push(self.owned_index(d.element)?);
+            if p.energy.len() != 3 * p.elements.len() {
+                return Err(ForkError::BadRequest(format!(
+                    "pair {}: {} energy values for {} elements (3 each)",
+                    p.pair,
+                    p.energy.len(),
+                    p.elements.len()
+                )));
+            }
+            for &e in &p.elements {
+                slots.push(self.owned_index(e)?);
             }
         }
         let (mut applied, mut duplicates) = (0, 0);
         let mut slots = slots.into_iter();
         let mut work = lock(&self.work);
-        for p in pairs {
+        let own_pairs = self.header.lights.len() as u64 * self.owned.len() as u64;
+        for (p, k) in pairs.iter().zip(local) {
             let fresh = work.applied.insert(p.pair);
-            for (d, slot) in p.deposits.iter().zip(slots.by_ref()) {
+            for (d, slot) in p.energy.chunks_exact(3).zip(slots.by_ref()) {
                 if fresh {
                     let e = &mut work.energy[slot];
-                    e[0] = e[0].wrapping_add(d.r);
-                    e[1] = e[1].wrapping_add(d.g);
-                    e[2] = e[2].wrapping_add(d.b);
+                    e[0] = e[0].wrapping_add(d[0]);
+                    e[1] = e[1].wrapping_add(d[1]);
+                    e[2] = e[2].wrapping_add(d[2]);
                 }
             }
             if fresh {
@@ -425,9 +489,12 @@ impl Shard {
             } else {
                 duplicates += 1;
             }
-            if p.complete && p.epoch == work.epoch {
-                work.done.insert(p.pair);
+            if let (Some(k), true) = (k, p.epoch == work.epoch) {
+                work.done.insert(k);
                 work.leased.remove(&p.pair);
+                for &j in &p.also_on {
+                    work.deposited_on[j as usize].get_or_insert_with(|| Bitset::new(own_pairs)).insert(k);
+                }
             }
         }
         Ok((applied, duplicates))

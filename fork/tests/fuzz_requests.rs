@@ -73,12 +73,20 @@ fn arbitrary_requests_on_a_loaded_shard_are_served_or_refused() {
     let pairs = shard.pair_count();
     let blocks = shard.header().layout.total;
     let elements = shard.header().counts.elements;
-    let deposit = (0..pairs + 4, proptest::collection::vec((0..elements + 4, any::<i64>()), 0..8), any::<bool>())
-        .prop_map(|(pair, ds, complete)| v1::PairDeposits {
+    let deposit = (
+        0..pairs + 4,
+        proptest::collection::vec((0..elements + 4, any::<i64>()), 0..8),
+        any::<bool>(),
+        proptest::collection::vec(0u32..4, 0..3),
+    )
+        .prop_map(|(pair, ds, complete, also_on)| v1::PairDeposits {
             pair,
-            deposits: ds.into_iter().map(|(element, v)| v1::Deposit { element, r: v, g: -v, b: v / 3 }).collect(),
+            elements: ds.iter().map(|d| d.0).collect(),
+            // Now and then one value short: a malformed deposit.
+            energy: ds.iter().flat_map(|&(_, v)| [v, -v, v / 3]).skip(usize::from(pair % 7 == 3)).collect(),
             complete,
             epoch: 0,
+            also_on,
         });
     let request = (
         proptest::collection::vec(deposit, 0..6),
@@ -94,7 +102,7 @@ fn arbitrary_requests_on_a_loaded_shard_are_served_or_refused() {
                 prop_assert_eq!(before.energies, shard.energies(false).energies, "a refused deposit changed energy");
             }
             let _ = shard.owned_blocks(&ids);
-            let puts = puts.into_iter().map(|(id, len)| v1::Block { id, data: vec![0; len] }).collect();
+            let puts = puts.into_iter().map(|(id, len)| v1::Block { id, data: vec![0; len].into() }).collect();
             let _ = shard.put_blocks(puts);
             let (got, _) = shard.take_own_pairs(max, node);
             prop_assert!(got.len() <= magg_fork::shard::MAX_PAIRS_PER_REQUEST as usize);

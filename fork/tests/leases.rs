@@ -1,7 +1,7 @@
 //! Pair leases: the pairs of a node that stops asking go back to the queue after the
 //! lease, first in line for the next node; a node whose batches are slow keeps its pairs
-//! (a lease lasts several of its gaps); a replay queues every pair again and ignores
-//! completions from before it.
+//! (a lease lasts several of its gaps); a replay queues again the pairs that deposited on
+//! the lost fork and those out with nodes, and ignores completions from before it.
 
 mod common;
 
@@ -39,13 +39,44 @@ fn a_replay_queues_every_pair_again_and_ignores_older_completions() {
     let s = shard(0);
     let (pairs, epoch) = s.take_own_pairs(4, 1);
     assert_eq!(epoch, 0);
-    assert!(s.replay(1) > 0);
-    let done = |p: u64, epoch: u64| v1::PairDeposits { pair: p, deposits: vec![], complete: true, epoch };
+    assert!(s.replay(1, None) > 0);
+    let done = |p: u64, epoch: u64| v1::PairDeposits { pair: p, complete: true, epoch, ..Default::default() };
     s.deposit(&[done(pairs[0], 0)]).unwrap();
     assert_eq!(s.energies(true).pairs_done, 0, "a completion from before the replay counted");
     let (again, epoch) = s.take_own_pairs(4, 2);
     assert_eq!((again, epoch), (pairs.clone(), 1));
     s.deposit(&[done(pairs[0], 1)]).unwrap();
     assert_eq!(s.energies(true).pairs_done, 1);
-    assert_eq!(s.replay(1), 0, "a repeated replay changes nothing");
+    assert_eq!(s.replay(1, None), 0, "a repeated replay changes nothing");
+}
+
+#[test]
+fn a_replay_for_a_lost_fork_queues_exactly_the_pairs_that_deposited_on_it() {
+    let s = shard(0);
+    let (pairs, _) = s.take_own_pairs(6, 1);
+    assert_eq!(pairs.len(), 6);
+    let done = |p: u64, also_on: Vec<u32>| v1::PairDeposits { pair: p, complete: true, also_on, ..Default::default() };
+    // Pairs 0, 2 and 4 deposited on fork 1 as well; 1 and 3 only here; 5 is still out.
+    let completions: Vec<_> =
+        pairs[..5].iter().enumerate().map(|(i, &p)| done(p, if i % 2 == 0 { vec![1] } else { vec![] })).collect();
+    s.deposit(&completions).unwrap();
+    assert_eq!(s.energies(true).pairs_done, 5);
+    assert_eq!(s.replay(1, Some(1)), 4, "three pairs on the lost fork and one out with a node");
+    assert_eq!(s.energies(true).pairs_done, 2, "the pairs that never touched fork 1 stay done");
+    let (again, epoch) = s.take_own_pairs(64, 2);
+    let mut want = vec![pairs[0], pairs[2], pairs[4], pairs[5]];
+    want.sort_unstable();
+    assert_eq!((again[..4].to_vec(), epoch), (want, 1), "the queued-again pairs come first");
+    assert!(!again.contains(&pairs[1]) && !again.contains(&pairs[3]));
+}
+
+#[test]
+fn a_completion_naming_a_fork_that_is_not_another_one_is_refused() {
+    let s = shard(0);
+    let (pairs, _) = s.take_own_pairs(1, 1);
+    for bad in [0u32, 2, 99] {
+        let d = v1::PairDeposits { pair: pairs[0], complete: true, also_on: vec![bad], ..Default::default() };
+        assert!(s.deposit(&[d]).is_err(), "also_on {bad} accepted");
+    }
+    assert_eq!(s.energies(true).pairs_done, 0, "a refused request changed the state");
 }

@@ -106,6 +106,11 @@ pub struct RenderArgs {
     /// cluster is measured and tested against.
     #[arg(long, conflicts_with_all = ["forks_at", "external_nodes"])]
     pub embedded: bool,
+    /// How the in-process forks, nodes and host call each other: in-process (gRPC
+    /// without sockets, the default) or tcp (every call over 127.0.0.1, as between
+    /// processes). The image is the same; see docs/PERFORMANCE.md.
+    #[arg(long, value_enum, default_value = "in-process", env = "MAGG_TRANSPORT")]
+    pub transport: magg_proto::transport::Mode,
     /// Use these running magg-fork processes (comma-separated HOST:PORT) instead of
     /// starting forks in this process.
     #[arg(long, value_delimiter = ',', env = "MAGG_FORKS_AT")]
@@ -221,6 +226,8 @@ impl ImageFormat {
 /// A validated render command.
 #[derive(Debug)]
 pub struct RenderConfig {
+    /// How in-process forks, nodes and host call each other.
+    pub transport: magg_proto::transport::Mode,
     /// Scene file.
     pub scene: PathBuf,
     /// Main output and its format.
@@ -354,6 +361,7 @@ impl RenderArgs {
             bail!("--scheme {:?}: expected \"magg\" or \"paper\"", self.scheme);
         };
         Ok(RenderConfig {
+            transport: self.transport,
             max_memory_mb: self.faults.max_memory_mb,
             scene: self.scene,
             out: (self.out, out_fmt),

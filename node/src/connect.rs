@@ -1,10 +1,11 @@
 //! Connecting to a peer with exponential backoff and jitter, naming the address on
-//! failure; every call on the channel gets a deadline.
+//! failure; every call on the channel gets a deadline. A peer of this same process is
+//! reached through the in-process transport ([`magg_proto::transport`]).
 
 use crate::retry::jitter;
 use crate::NodeError;
+use magg_proto::transport::{self, Transport};
 use std::time::Duration;
-use tonic::transport::Channel;
 
 /// Retry policy of connections and of calls that failed for a transient reason, and the
 /// deadline of every call.
@@ -38,7 +39,7 @@ impl Default for Backoff {
 
 /// Connects to `addr`, retrying with exponential backoff and jitter until
 /// `backoff.deadline`; logs each failed attempt with the address.
-pub async fn connect_with_backoff(addr: &str, backoff: Backoff) -> Result<Channel, NodeError> {
+pub async fn connect_with_backoff(addr: &str, backoff: Backoff) -> Result<Transport, NodeError> {
     let endpoint = magg_proto::tls::endpoint(addr)
         .map_err(|e| NodeError::Connect { addr: addr.to_string(), reason: e.to_string() })?
         .connect_timeout(Duration::from_secs(2))
@@ -52,7 +53,7 @@ pub async fn connect_with_backoff(addr: &str, backoff: Backoff) -> Result<Channe
     let mut delay = backoff.initial;
     let mut attempt = 0u64;
     loop {
-        match endpoint.connect().await {
+        match transport::connect(endpoint.clone(), Some(backoff.call_timeout)).await {
             Ok(ch) => return Ok(ch),
             Err(e) => {
                 attempt += 1;

@@ -136,6 +136,7 @@ pub fn run_with_runtime(rt: Handle, cfg: &NodeConfig) -> Result<NodeSummary, Nod
     let per_worker = cache_blocks.map(|c| (c as usize / threads).max(1));
     let totals = Arc::new(Totals::new(threads).paced(pace.clone()));
     tracing::info!(node = reg.node, home, threads, ?cache_blocks, "registered with {}", cfg.host);
+    let overlap = crate::work::overlap_pays(pace.is_some(), &reg.fork_addrs);
 
     let handles: Vec<_> = (0..threads)
         .map(|index| {
@@ -167,6 +168,7 @@ pub fn run_with_runtime(rt: Handle, cfg: &NodeConfig) -> Result<NodeSummary, Nod
                 scheme,
                 pair_delay: cfg.pair_delay,
                 backoff: cfg.backoff,
+                overlap,
             };
             std::thread::Builder::new()
                 .name(format!("magg-node-{}-{index}", reg.node))

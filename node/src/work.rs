@@ -6,7 +6,6 @@ use crate::report::{Totals, WorkerTotals};
 use crate::retry::retry;
 use crate::NodeError;
 use magg_core::camera::CameraRig;
-use magg_core::energy::Fixed;
 use magg_core::lrt::trace_pair;
 use magg_core::trace::TraceScratch;
 use magg_core::view::SceneView;
@@ -15,9 +14,7 @@ use magg_proto::auth::Authed;
 use magg_proto::v1::fork_client::ForkClient;
 use magg_proto::v1::host_client::HostClient;
 use magg_proto::v1::next_work_reply::Kind;
-use magg_proto::v1::{
-    self, Deposit, DepositRequest, NextWorkRequest, PairDeposits, Row, SubmitRowsRequest, TakePairsRequest,
-};
+use magg_proto::v1::{self, DepositRequest, NextWorkRequest, PairDeposits, Row, SubmitRowsRequest, TakePairsRequest};
 use magg_throttle::Scheme;
 use prost::Message;
 use std::collections::{BTreeMap, VecDeque};
@@ -26,8 +23,9 @@ use std::time::{Duration, Instant};
 use tokio::runtime::Handle;
 use tokio::task::JoinHandle;
 
-/// Longest pause between work requests of an idle node.
-pub const MAX_WAIT: Duration = Duration::from_millis(50);
+/// Longest pause between work requests of an idle node (the host's `wait_ms` is capped
+/// to it).
+pub const MAX_WAIT_MS: u32 = 1000;
 
 /// Longest time a node keeps finished rows before sending them to the host.
 pub const ROW_REPORT: Duration = Duration::from_millis(5);
@@ -72,6 +70,18 @@ pub struct Worker {
     pub pair_delay: Duration,
     /// Retries of calls that failed for a transient reason.
     pub backoff: Backoff,
+    /// Overlap communication with tracing (next pairs requested, deposits sent in the
+    /// background). Pointless when every fork is in this process and no link is
+    /// emulated: a call is then only CPU work, and a background task only adds a hop to
+    /// another thread; see [`overlap_pays`].
+    pub overlap: bool,
+}
+
+/// Whether a node gains by overlapping communication with tracing: when a link is
+/// emulated (its transfer time is slept, not computed) or some fork is reached over a
+/// socket (a round trip waits on the network).
+pub fn overlap_pays(paced: bool, fork_addrs: &[String]) -> bool {
+    paced || fork_addrs.iter().any(|a| magg_proto::transport::in_process(a).is_none())
 }
 
 impl Worker {
@@ -99,9 +109,6 @@ impl Worker {
     /// Asks the host for work until it says done.
     pub fn run(mut self) -> Result<(), NodeError> {
         let mut handed: Option<v1::NextWorkReply> = None;
-        // Consecutive WAITs: the pause doubles each time (up to MAX_WAIT), so that many
-        // idle nodes do not flood the host while a phase ends.
-        let mut waits = 0u32;
         loop {
             self.publish();
             let reply = match handed.take() {
@@ -121,14 +128,11 @@ impl Worker {
                 }
             };
             let kind = Kind::try_from(reply.kind).unwrap_or(Kind::Wait);
-            if kind != Kind::Wait {
-                waits = 0;
-            }
             match kind {
                 Kind::Wait => {
-                    let base = Duration::from_millis(reply.wait_ms.clamp(1, 1000) as u64);
-                    std::thread::sleep((base * 2u32.saturating_pow(waits.min(16))).min(MAX_WAIT.max(base)));
-                    waits += 1;
+                    // The host held the call while there was nothing to do (and answers
+                    // at once when the phase changes): pause as it says, then ask again.
+                    std::thread::sleep(Duration::from_millis(reply.wait_ms.clamp(1, MAX_WAIT_MS) as u64));
                     continue;
                 }
                 Kind::Pairs => self.pairs()?,
@@ -186,22 +190,25 @@ impl Worker {
             }
         };
         let mut in_flight: VecDeque<JoinHandle<Result<(), NodeError>>> = VecDeque::new();
-        let mut next = self.rt.spawn(take(self.forks[self.home].clone(), self.node));
+        // The next batch's request: already on its way when overlapping, else made when
+        // this batch is done.
+        let ask = |w: &Self| w.overlap.then(|| w.rt.spawn(take(w.forks[w.home].clone(), w.node)));
+        let mut next = ask(self);
         loop {
-            let got = self
-                .rt
-                .block_on(next)
-                .map_err(|e| NodeError::Worker(e.to_string()))?
-                .map_err(NodeError::rpc("TakePairs"))?;
+            let got = match next.take() {
+                Some(t) => self.rt.block_on(t).map_err(|e| NodeError::Worker(e.to_string()))?,
+                None => self.rt.block_on(take(self.forks[self.home].clone(), self.node)),
+            }
+            .map_err(NodeError::rpc("TakePairs"))?;
             if got.pairs.is_empty() {
                 if got.exhausted {
                     break;
                 }
                 std::thread::sleep(Duration::from_millis(2));
-                next = self.rt.spawn(take(self.forks[self.home].clone(), self.node));
+                next = ask(self);
                 continue;
             }
-            next = self.rt.spawn(take(self.forks[self.home].clone(), self.node));
+            next = ask(self);
             tracing::debug!(node = self.node, pairs = got.pairs.len(), "tracing a batch of pairs");
             // Per fork: round 1 carries deposits on forks other than the pair's owner;
             // round 2 carries the owner's deposits and marks the pair complete, so that a
@@ -221,30 +228,37 @@ impl Worker {
                 self.mine.pairs += 1;
                 self.mine.tally = self.mine.tally.add(r.tally);
                 let owner = self.owner_of(element);
-                let mut split: BTreeMap<usize, Vec<Deposit>> = BTreeMap::new();
+                let mut split: BTreeMap<usize, PairDeposits> = BTreeMap::new();
                 for (e, f) in r.deposits {
-                    split.entry(self.owner_of(e)).or_default().push(deposit(e, f));
+                    let d = split.entry(self.owner_of(e)).or_insert_with(|| PairDeposits {
+                        pair,
+                        epoch: got.epoch,
+                        ..Default::default()
+                    });
+                    d.elements.push(e);
+                    d.energy.extend_from_slice(&f);
                 }
-                let own = split.remove(&owner).unwrap_or_default();
-                for (fork, deposits) in split {
-                    let d = PairDeposits { pair, deposits, complete: false, epoch: got.epoch };
+                let mut own =
+                    split.remove(&owner).unwrap_or(PairDeposits { pair, epoch: got.epoch, ..Default::default() });
+                own.complete = true;
+                own.also_on = split.keys().map(|&f| f as u32).collect();
+                for (fork, d) in split {
                     round1.entry(fork).or_default().push(d);
                 }
-                let d = PairDeposits { pair, deposits: own, complete: true, epoch: got.epoch };
-                round2.entry(owner).or_default().push(d);
+                round2.entry(owner).or_default().push(own);
+            }
+            let send = send_deposits(self.forks.clone(), self.pace.clone(), round1, round2, self.backoff);
+            if !self.overlap {
+                self.rt.block_on(send)?;
+                self.publish();
+                continue;
             }
             while in_flight.len() >= DEPOSITS_IN_FLIGHT {
                 if let Some(t) = in_flight.pop_front() {
                     self.rt.block_on(t).map_err(|e| NodeError::Worker(e.to_string()))??;
                 }
             }
-            in_flight.push_back(self.rt.spawn(send_deposits(
-                self.forks.clone(),
-                self.pace.clone(),
-                round1,
-                round2,
-                self.backoff,
-            )));
+            in_flight.push_back(self.rt.spawn(send));
             self.publish();
         }
         for t in in_flight {
@@ -356,8 +370,4 @@ async fn send_deposits(
         }
     }
     Ok(())
-}
-
-fn deposit(element: u32, f: Fixed) -> Deposit {
-    Deposit { element, r: f[0], g: f[1], b: f[2] }
 }

@@ -21,7 +21,6 @@ use std::net::SocketAddr;
 use std::sync::Arc;
 use tonic::metadata::MetadataValue;
 use tonic::service::interceptor::InterceptedService;
-use tonic::transport::Channel;
 use tonic::{Request, Status};
 
 /// The metadata key carrying the token.
@@ -101,8 +100,9 @@ impl tonic::service::Interceptor for AddToken {
     }
 }
 
-/// A channel that adds the cluster token to every call.
-pub type Authed = InterceptedService<Channel, AddToken>;
+/// A connection (socket or in-process, see [`crate::transport`]) that adds the cluster
+/// token to every call.
+pub type Authed = InterceptedService<crate::transport::Transport, AddToken>;
 
 /// Server side: refuses calls without the right token.
 #[derive(Clone, Debug, Default)]

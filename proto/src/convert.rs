@@ -538,17 +538,24 @@ impl TryFrom<v1::SceneHeader> for SceneHeader {
 /// A block from the wire: its id and its 2 KB payload (refused unless exactly
 /// [`BLOCK_SIZE`] bytes). The id is not range-checked here: the receiver knows the layout.
 pub fn block_from_wire(b: v1::Block) -> Result<(u32, Box<Block>), ConvertError> {
-    let data: Box<Block> = b
-        .data
-        .into_boxed_slice()
-        .try_into()
-        .map_err(|d: Box<[u8]>| ConvertError::BlockSize { id: b.id, len: d.len() })?;
-    Ok((b.id, data))
+    let (id, data) = block_bytes_from_wire(b)?;
+    let mut block = Box::new([0u8; BLOCK_SIZE]);
+    block.copy_from_slice(&data);
+    Ok((id, block))
+}
+
+/// A block from the wire as the received bytes themselves (no copy), refused unless
+/// exactly [`BLOCK_SIZE`] bytes.
+pub fn block_bytes_from_wire(b: v1::Block) -> Result<(u32, bytes::Bytes), ConvertError> {
+    if b.data.len() != BLOCK_SIZE {
+        return Err(ConvertError::BlockSize { id: b.id, len: b.data.len() });
+    }
+    Ok((b.id, b.data))
 }
 
 /// A block for the wire.
 pub fn block_to_wire(id: u32, block: &Block) -> v1::Block {
-    v1::Block { id, data: block.to_vec() }
+    v1::Block { id, data: bytes::Bytes::copy_from_slice(block) }
 }
 
 #[cfg(test)]
@@ -725,7 +732,7 @@ mod tests {
         let (id, back) = block_from_wire(block_to_wire(42, &b)).unwrap();
         assert_eq!((id, back), (42, b));
         for len in [0, BLOCK_SIZE - 1, BLOCK_SIZE + 1] {
-            let e = block_from_wire(v1::Block { id: 7, data: vec![0; len] }).unwrap_err();
+            let e = block_from_wire(v1::Block { id: 7, data: vec![0; len].into() }).unwrap_err();
             assert_eq!(e, ConvertError::BlockSize { id: 7, len });
         }
     }

@@ -17,6 +17,7 @@ pub mod auth;
 pub mod convert;
 pub mod lifecycle;
 pub mod tls;
+pub mod transport;
 
 /// Generated code of package `magg.v1`.
 #[allow(missing_docs, clippy::all)]
@@ -25,4 +26,4 @@ pub mod v1 {
 }
 
 /// Version of the protocol; processes with another version are refused at registration.
-pub const PROTOCOL_VERSION: u32 = 1;
+pub const PROTOCOL_VERSION: u32 = 2;

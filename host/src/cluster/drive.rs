@@ -5,7 +5,7 @@ use super::events::EventSender;
 use super::forks::ForkSet;
 use super::schedule::Scheduler;
 use super::service::{HostService, HostState, Phase};
-use anyhow::bail;
+use anyhow::{bail, Context};
 use magg_core::energy::{interpolate, vertex_energy_blocks, Fixed};
 use magg_core::lrt::LrtTally;
 use magg_core::math::Rgb;
@@ -67,13 +67,24 @@ fn nodelay_incoming(listener: TcpListener) -> impl tokio_stream::Stream<Item = s
     })
 }
 
+/// Progress checks of the viewing pass (the end of the pass wakes the driver at once).
+const VRT_POLL: Duration = Duration::from_millis(20);
+
+/// Sleeps for `d`, or less when the service signals the driver.
+async fn wait_for(service: &HostService, d: Duration) {
+    tokio::select! {
+        _ = tokio::time::sleep(d) => {}
+        _ = service.changed.notified() => {}
+    }
+}
+
 /// Sets the phase to [`Phase::Done`] when dropped: a render that fails still lets the
 /// nodes go.
 struct DoneOnDrop(HostService);
 
 impl Drop for DoneOnDrop {
     fn drop(&mut self) {
-        self.0.lock().phase = Phase::Done;
+        self.0.set_phase(Phase::Done);
     }
 }
 
@@ -108,9 +119,7 @@ pub async fn drive(
     tokio::time::sleep(opts.profile.dilate(preprocess_model)).await;
     let mut forks =
         ForkSet::connect(prepared, &opts.forks, &opts.faults).await?.for_render(wire_profile.clone(), opts.nodes);
-    for i in 0..f {
-        forks.load(i).await?;
-    }
+    forks.load_all().await?;
     let wire_header = v1::SceneHeader::from(&*h);
 
     // Serve the host service.
@@ -136,15 +145,19 @@ pub async fn drive(
     let (stop_tx, stop_rx) = tokio::sync::oneshot::channel::<()>();
     let (health, health_service) = magg_proto::lifecycle::health_service();
     health.set_serving::<HostServer<HostService>>().await;
+    let host_server = InterceptedService::new(
+        HostServer::new(service.clone()).max_decoding_message_size(16 << 20),
+        CheckToken { token: opts.faults.token.clone(), server: "host" },
+    );
+    // Nodes of this process reach the host without a socket (see magg_proto::transport).
+    let host_addr = listener.local_addr().context("the host listener's address")?;
+    let _in_process = magg_proto::transport::register(&host_addr.to_string(), host_server.clone());
     let server = magg_proto::tls::server_builder()
         .map_err(|e| anyhow::anyhow!("host server TLS: {e}"))?
         .initial_stream_window_size(Some(4 << 20))
         .initial_connection_window_size(Some(16 << 20))
         .add_service(health_service)
-        .add_service(InterceptedService::new(
-            HostServer::new(service.clone()).max_decoding_message_size(16 << 20),
-            CheckToken { token: opts.faults.token.clone(), server: "host" },
-        ))
+        .add_service(host_server.clone())
         .serve_with_incoming_shutdown(nodelay_incoming(listener), async {
             let _ = stop_rx.await;
         });
@@ -167,11 +180,11 @@ pub async fn drive(
             );
             break;
         }
-        tokio::time::sleep(Duration::from_millis(2)).await;
+        wait_for(&service, Duration::from_millis(2)).await;
     }
     let gather_s = t_gather.elapsed().as_secs_f64();
     // With loaded energies the nodes never trace pairs: they wait for subscreens.
-    service.lock().phase = if loaded.is_some() { Phase::Interp } else { Phase::Lrt };
+    service.set_phase(if loaded.is_some() { Phase::Interp } else { Phase::Lrt });
     let poll = if throttled { LRT_POLL_THROTTLED } else { LRT_POLL };
 
     // --- LRT: wait for every fork's pairs.
@@ -189,7 +202,7 @@ pub async fn drive(
     let mut busy = EmulatedBusy { preprocess_s: preprocess_model.as_secs_f64(), ..Default::default() };
     let (lrt_s, t_interp, element_flux, vertex_irradiance) = match &loaded {
         Some(e) => {
-            service.lock().phase = Phase::Interp;
+            service.set_phase(Phase::Interp);
             (0.0, Instant::now(), e.element_flux.clone(), e.vertex_irradiance.clone())
         }
         None => {
@@ -213,9 +226,12 @@ pub async fn drive(
                         last = (done, Instant::now()); // the count starts again: not a stall
                     }
                     (returned_seen, epoch_seen) = (returned, forks.epoch);
-                    let mut st = service.lock();
-                    st.pairs_epoch += 1;
-                    st.phase = Phase::Lrt;
+                    {
+                        let mut st = service.lock();
+                        st.pairs_epoch += 1;
+                        st.phase = Phase::Lrt;
+                    }
+                    service.bump();
                 }
                 if done > last.0 {
                     progress.advance(done - last.0);
@@ -224,7 +240,7 @@ pub async fn drive(
                 if done >= total_pairs {
                     let lrt_s = t_lrt.elapsed().as_secs_f64();
                     // --- Interpolation.
-                    service.lock().phase = Phase::Interp;
+                    service.set_phase(Phase::Interp);
                     let t_interp = Instant::now();
                     for i in 0..f {
                         let r = forks.poll_until_up(i, false, true).await?;
@@ -246,7 +262,9 @@ pub async fn drive(
                         opts.stall_timeout
                     );
                 }
-                tokio::time::sleep(poll).await; // one RPC per fork per poll: keep it gentle
+                // One RPC per fork per poll: keep it gentle, but look at once when a node
+                // runs out of pairs (the pass may be over).
+                wait_for(&service, poll).await;
             };
             progress.end();
             let v = interpolate(&prepared.elements, &element_flux, h.counts.vertices as usize, h.energy_quantum);
@@ -282,6 +300,7 @@ pub async fn drive(
             st.frame_camera = (*camera != h.camera).then(|| v1::Camera::from(camera));
             st.phase = Phase::Vrt;
         }
+        service.bump();
         progress.begin("viewing ray tracing", s.width as u64 * s.height as u64);
         let mut last_rows = (0u64, Instant::now());
         let mut last_check = Instant::now();
@@ -318,7 +337,7 @@ pub async fn drive(
             if last_rows.1.elapsed() > opts.stall_timeout {
                 bail!("viewing ray tracing stalled at {px} pixels for {:?}", opts.stall_timeout);
             }
-            tokio::time::sleep(Duration::from_millis(5)).await;
+            wait_for(&service, VRT_POLL).await;
         }
         progress.end();
         let frame_s = t_vrt.elapsed().as_secs_f64();
@@ -333,17 +352,15 @@ pub async fn drive(
         sink(index, &frame, frame_s).map_err(|e| anyhow::anyhow!(e))?;
     }
 
-    // --- Done: let every node hear it (bounded wait), then stop serving.
-    service.lock().phase = Phase::Done;
+    // --- Done: every node hears it and sends its final report (bounded wait).
+    service.set_phase(Phase::Done);
     let deadline = Instant::now() + Duration::from_secs(5);
     while Instant::now() < deadline {
-        if service.lock().nodes.iter().all(|n| n.finished_or_gone(Duration::from_secs(2))) {
+        if service.lock().nodes.iter().all(|n| n.reported_or_gone(Duration::from_secs(2))) {
             break;
         }
-        tokio::time::sleep(Duration::from_millis(5)).await;
+        wait_for(&service, Duration::from_millis(5)).await;
     }
-    // Give the final reports a moment to land.
-    tokio::time::sleep(Duration::from_millis(20)).await;
     for i in 0..f {
         let r = forks.poll_until_up(i, true, false).await?;
         dma_bytes += r.dma_bytes;

@@ -9,12 +9,14 @@
 //!
 //! A fork that restarts during light ray tracing has lost the energy deposited on its
 //! elements. The host then starts a replay epoch: the fork is loaded in the new epoch
-//! (all of its pairs queued), and every other fork queues all of its pairs again
-//! (`Replay`). Re-run pairs deposit the same values (seeded by pair), the forks that kept
-//! their energy drop them as duplicates (keyed by pair), and the restarted fork gets
-//! every deposit once: the result is bitwise that of a run without the failure.
-//! Completions from before the epoch are not counted, so no pair whose deposit the
-//! restarted fork lost is taken for done.
+//! (all of its own pairs queued, since the record of which were complete was on it too),
+//! and every other fork queues again exactly its pairs that deposited on the lost fork
+//! (each completion names the other forks the pair deposited on) and those still out
+//! with nodes (`Replay` with `lost_fork`). Re-run pairs deposit the same values (seeded by
+//! pair), the forks that kept their energy drop them as duplicates (keyed by pair), and
+//! the restarted fork gets every deposit once: the result is bitwise that of a run
+//! without the failure. Completions from before the epoch are not counted, so no pair
+//! whose deposit the restarted fork lost is taken for done.
 
 use crate::faults::FaultPolicy;
 use anyhow::{bail, Context};
@@ -56,6 +58,27 @@ async fn connect(addr: &str, token: &Token) -> anyhow::Result<ForkClient<Authed>
     Ok(ForkClient::with_interceptor(ch, AddToken(token.clone()))
         .max_decoding_message_size(512 << 20)
         .max_encoding_message_size(512 << 20))
+}
+
+/// Sends `req` to the fork `name` behind `client`, retrying while it is unavailable
+/// (until `timeout`): a load replaces the last.
+async fn load_shard(
+    client: ForkClient<Authed>,
+    name: String,
+    timeout: Duration,
+    req: LoadShardRequest,
+) -> anyhow::Result<()> {
+    let backoff = magg_node::Backoff { deadline: timeout, ..Default::default() };
+    magg_node::retry("LoadShard", backoff, || {
+        let (mut c, req) = (client.clone(), req.clone());
+        async move { c.load_shard(req).await }
+    })
+    .await
+    .map_err(|e| {
+        let hint = magg_proto::tls::mismatch_hint(&e.to_string());
+        anyhow::Error::new(e).context(format!("loading the shard of {name}{hint}"))
+    })?;
+    Ok(())
 }
 
 impl<'a> ForkSet<'a> {
@@ -111,6 +134,26 @@ impl<'a> ForkSet<'a> {
     /// energies in the same request if they exist already (so no node can read a block
     /// between the two). Retried while the fork is unavailable: a load replaces the last.
     pub async fn load(&mut self, i: usize) -> anyhow::Result<()> {
+        let req = self.shard_request(i);
+        load_shard(self.clients[i].clone(), self.name(i), self.timeout, req).await
+    }
+
+    /// Loads every fork's shard, all at once (the forks decode and check their shards in
+    /// parallel).
+    pub async fn load_all(&mut self) -> anyhow::Result<()> {
+        let mut loads = tokio::task::JoinSet::new();
+        for i in 0..self.len() {
+            let req = self.shard_request(i);
+            loads.spawn(load_shard(self.clients[i].clone(), self.name(i), self.timeout, req));
+        }
+        while let Some(r) = loads.join_next().await {
+            r.context("a shard upload task failed")??;
+        }
+        Ok(())
+    }
+
+    /// Fork `i`'s `LoadShard` request.
+    fn shard_request(&self, i: usize) -> LoadShardRequest {
         let f = self.len();
         let mut blocks: Vec<v1::Block> = (self.prepared.blocks.iter().enumerate())
             .filter(|(b, _)| b % f == i)
@@ -118,7 +161,7 @@ impl<'a> ForkSet<'a> {
             .collect();
         // Later blocks of a request replace earlier ones with the same id.
         blocks.extend(self.vertex_blocks.as_ref().map(|v| v[i].clone()).unwrap_or_default());
-        let req = LoadShardRequest {
+        LoadShardRequest {
             protocol_version: PROTOCOL_VERSION,
             fork_index: i as u32,
             fork_addrs: self.addrs.clone(),
@@ -128,19 +171,7 @@ impl<'a> ForkSet<'a> {
             epoch: self.epoch,
             profile: self.profile.clone(),
             nodes: self.nodes,
-        };
-        let name = self.name(i);
-        let backoff = magg_node::Backoff { deadline: self.timeout, ..Default::default() };
-        magg_node::retry("LoadShard", backoff, || {
-            let (mut c, req) = (self.clients[i].clone(), req.clone());
-            async move { c.load_shard(req).await }
-        })
-        .await
-        .map_err(|e| {
-            let hint = magg_proto::tls::mismatch_hint(&e.to_string());
-            anyhow::Error::new(e).context(format!("loading the shard of {name}{hint}"))
-        })?;
-        Ok(())
+        }
     }
 
     /// Stores the vertex-energy blocks on their forks (and keeps them, to reload a fork).
@@ -183,7 +214,10 @@ impl<'a> ForkSet<'a> {
             tracing::warn!("{} restarted: loading its shard again", self.name(i));
             if lrt_pending {
                 self.epoch += 1;
-                tracing::warn!("its energy is lost: replay epoch {}, every pair traced again", self.epoch);
+                tracing::warn!(
+                    "its energy is lost: replay epoch {}, the pairs that deposited on it are traced again",
+                    self.epoch
+                );
             }
             self.load(i).await?;
             if lrt_pending {
@@ -205,7 +239,7 @@ impl<'a> ForkSet<'a> {
     async fn replay_others(&mut self, i: usize) -> anyhow::Result<()> {
         for j in (0..self.len()).filter(|&j| j != i) {
             let name = self.name(j);
-            let req = v1::ReplayRequest { epoch: self.epoch };
+            let req = v1::ReplayRequest { epoch: self.epoch, lost_fork: Some(i as u32) };
             magg_node::retry("Replay", magg_node::Backoff { deadline: self.timeout, ..Default::default() }, || {
                 let (mut c, req) = (self.clients[j].clone(), req.clone());
                 async move { c.replay(req).await }

@@ -54,6 +54,7 @@ pub fn render_in_process(
     // Forks.
     let mut fork_addrs = opts.forks_at.clone();
     let mut fork_tasks = Vec::new();
+    let mut registrations = Vec::new();
     if fork_addrs.is_empty() {
         // The forks of this process share one G-bus, as the paper's shared one.
         let gbus = std::sync::Arc::new(magg_throttle::Resource::new());
@@ -61,8 +62,15 @@ pub fn render_in_process(
             let listener = rt.block_on(TcpListener::bind("127.0.0.1:0")).context("binding a fork port on 127.0.0.1")?;
             fork_addrs.push(listener.local_addr()?.to_string());
             let mut stop = stop_tx.subscribe();
-            let service = magg_fork::ForkService::with_token(opts.faults.token.clone())
-                .on_hardware(magg_fork::ForkHardware::new(gbus.clone(), true));
+            let service = std::sync::Arc::new(
+                magg_fork::ForkService::with_token(opts.faults.token.clone())
+                    .on_hardware(magg_fork::ForkHardware::new(gbus.clone(), true)),
+            );
+            // Calls from this process skip the socket (see magg_proto::transport).
+            registrations.push(magg_proto::transport::register(
+                fork_addrs.last().expect("just pushed"),
+                magg_fork::fork_server(service.clone(), opts.faults.token.clone()),
+            ));
             fork_tasks.push(rt.spawn(magg_fork::serve_service(
                 service,
                 opts.faults.token.clone(),
@@ -99,9 +107,12 @@ pub fn render_in_process(
                 token: opts.faults.token.clone(),
             };
             let handle = rt.handle().clone();
-            std::thread::Builder::new()
-                .name(format!("magg-node-{i}"))
-                .spawn(move || magg_node::run_with_runtime(handle, &cfg))
+            std::thread::Builder::new().name(format!("magg-node-{i}")).spawn(move || {
+                // The host service registers for in-process calls when `drive` starts
+                // serving: connect after that, not over the socket before it.
+                magg_proto::transport::wait_registered(&cfg.host, Duration::from_secs(10));
+                magg_node::run_with_runtime(handle, &cfg)
+            })
         })
         .collect::<Result<_, _>>()
         .context("starting node threads")?;

@@ -10,7 +10,7 @@ use magg_proto::v1::{
 use magg_proto::PROTOCOL_VERSION;
 use std::sync::{Arc, Mutex, MutexGuard};
 use std::time::{Duration, Instant};
-use tokio::sync::Notify;
+use tokio::sync::{watch, Notify};
 use tonic::{Request, Response, Status};
 
 /// Render phase, as the host drives it.
@@ -56,9 +56,24 @@ impl NodeEntry {
         self.told_done >= self.threads.max(1)
     }
 
+    /// Every worker has heard "done" and sent its final report (a worker that hears
+    /// "done" asks once more, carrying its last counters, and hears "done" again).
+    pub fn reported_final(&self) -> bool {
+        self.told_done >= 2 * self.threads.max(1)
+    }
+
     /// Finished, or silent for longer than `grace` (a node that died: nobody waits for it).
     pub fn finished_or_gone(&self, grace: Duration) -> bool {
-        self.finished() || self.last_seen.is_none_or(|t| t.elapsed() > grace)
+        self.finished() || self.gone(grace)
+    }
+
+    /// Final report in, or silent for longer than `grace`.
+    pub fn reported_or_gone(&self, grace: Duration) -> bool {
+        self.reported_final() || self.gone(grace)
+    }
+
+    fn gone(&self, grace: Duration) -> bool {
+        self.last_seen.is_none_or(|t| t.elapsed() > grace)
     }
 }
 
@@ -94,6 +109,19 @@ pub struct HostState {
 }
 
 impl HostState {
+    /// Counts a request of `len` encoded bytes from `node` (an RPC on the link path);
+    /// returns the node's entry, or refuses a node that never registered.
+    fn count_request(&mut self, node: u32, len: usize) -> Result<&mut NodeEntry, Status> {
+        self.rpcs += 1;
+        self.link_bytes += len as u64;
+        let entry = self
+            .nodes
+            .get_mut(node as usize)
+            .ok_or_else(|| Status::invalid_argument(format!("node {node} is not registered")))?;
+        entry.link_bytes += len as u64;
+        Ok(entry)
+    }
+
     /// Sends `e` to the watcher, if there is one.
     fn emit(&self, e: impl FnOnce() -> ClusterEvent) {
         if let Some(tx) = &self.events {
@@ -103,17 +131,44 @@ impl HostState {
 }
 
 /// The tonic service over [`HostState`].
+///
+/// Two signals keep phase changes quick without polling: a node that would be told to
+/// wait is held (up to [`LONG_POLL`]) until [`HostService::bump`] says that something it
+/// may be waiting for changed (phase, pairs epoch, subscreens); and the driver, which waits
+/// on [`HostService::changed`], hears when a node ran out of pairs, when the last pixels
+/// are in and when a node heard "done".
 #[derive(Clone)]
 pub struct HostService {
     state: Arc<Mutex<HostState>>,
-    /// Signalled when all pixels are in, and when a node is told done.
+    /// Signalled (one stored permit) for the driver: see the type's doc.
     pub changed: Arc<Notify>,
+    /// Bumped when nodes told to wait may have work or news.
+    version: Arc<watch::Sender<u64>>,
 }
+
+/// Longest time a NextWork call is held while there is nothing for the node: it returns
+/// at once when the phase changes, and otherwise tells the node to ask again.
+pub const LONG_POLL: Duration = Duration::from_millis(250);
 
 impl HostService {
     /// A service over `state`.
     pub fn new(state: HostState) -> Self {
-        HostService { state: Arc::new(Mutex::new(state)), changed: Arc::new(Notify::new()) }
+        HostService {
+            state: Arc::new(Mutex::new(state)),
+            changed: Arc::new(Notify::new()),
+            version: Arc::new(watch::Sender::new(0)),
+        }
+    }
+
+    /// Wakes the nodes held waiting, to ask for their work again.
+    pub fn bump(&self) {
+        self.version.send_modify(|v| *v += 1);
+    }
+
+    /// Enters `phase` and wakes the waiting nodes.
+    pub fn set_phase(&self, phase: Phase) {
+        self.lock().phase = phase;
+        self.bump();
     }
     /// Locks the state (a poisoned lock is recovered: the state stays consistent because
     /// every update is a single assignment or a checked scheduler call).
@@ -122,7 +177,8 @@ impl HostService {
     }
 }
 
-const WAIT_MS: u32 = 5;
+/// Pause a node makes after a WAIT that the host already held for [`LONG_POLL`].
+const WAIT_MS: u32 = 1;
 
 impl HostService {
     /// The next work of `node` in `phase` (shared by NextWork and the reply to the rows
@@ -152,7 +208,7 @@ impl HostService {
                 }
                 Some(Next::Wait) | None => wait,
                 Some(Next::Done) => {
-                    self.changed.notify_waiters();
+                    self.changed.notify_one();
                     wait
                 }
             },
@@ -160,7 +216,7 @@ impl HostService {
                 if let Some(e) = s.nodes.get_mut(node as usize) {
                     e.told_done += 1;
                 }
-                self.changed.notify_waiters();
+                self.changed.notify_one();
                 NextWorkReply { kind: Kind::Done as i32, subscreen: None, wait_ms: 0 }
             }
         }
@@ -196,6 +252,7 @@ impl Host for HostService {
         });
         s.rpcs += 1;
         s.emit(|| ClusterEvent::Registered { node, name: r.name.clone() });
+        self.changed.notify_one();
         let forks = s.fork_addrs.len().max(1) as u32;
         tracing::info!(node, name = %r.name, "node registered");
         Ok(Response::new(RegisterReply {
@@ -211,21 +268,40 @@ impl Host for HostService {
 
     async fn next_work(&self, req: Request<NextWorkRequest>) -> Result<Response<NextWorkReply>, Status> {
         let r = req.into_inner();
-        let mut s = self.lock();
-        s.rpcs += 1;
-        let request_len = prost::Message::encoded_len(&r) as u64;
-        s.link_bytes += request_len;
-        let phase = s.phase;
-        let Some(entry) = s.nodes.get_mut(r.node as usize) else {
-            return Err(Status::invalid_argument(format!("node {} is not registered", r.node)));
-        };
-        entry.link_bytes += request_len;
-        let reported = r.report.is_some();
-        if let Some(rep) = r.report {
-            entry.report = rep;
+        let mut version = self.version.subscribe();
+        let deadline = Instant::now() + LONG_POLL;
+        {
+            let mut s = self.lock();
+            let entry = s.count_request(r.node, prost::Message::encoded_len(&r))?;
+            if let Some(rep) = &r.report {
+                entry.report = rep.clone();
+            }
         }
-        entry.last_seen = Some(Instant::now());
-        let reply = self.assign(&mut s, r.node, phase);
+        let reported = r.report.is_some();
+        // Held while there is nothing to do, until something changes or LONG_POLL ends.
+        let reply = loop {
+            version.borrow_and_update();
+            let (reply, phase) = {
+                let mut s = self.lock();
+                let phase = s.phase;
+                if let Some(entry) = s.nodes.get_mut(r.node as usize) {
+                    entry.last_seen = Some(Instant::now());
+                }
+                (self.assign(&mut s, r.node, phase), phase)
+            };
+            if reply.kind != Kind::Wait as i32 {
+                break reply;
+            }
+            if phase == Phase::Lrt {
+                // The node is out of pairs: the driver checks the forks now.
+                self.changed.notify_one();
+            }
+            let left = deadline.saturating_duration_since(Instant::now());
+            if left.is_zero() || !matches!(tokio::time::timeout(left, version.changed()).await, Ok(Ok(()))) {
+                break reply;
+            }
+        };
+        let mut s = self.lock();
         let reply_len = prost::Message::encoded_len(&reply) as u64;
         s.link_bytes += reply_len;
         if let Some(entry) = s.nodes.get_mut(r.node as usize) {
@@ -241,21 +317,14 @@ impl Host for HostService {
     async fn submit_rows(&self, req: Request<SubmitRowsRequest>) -> Result<Response<SubmitRowsReply>, Status> {
         let r = req.into_inner();
         let mut s = self.lock();
-        s.rpcs += 1;
-        let request_len = prost::Message::encoded_len(&r) as u64;
-        s.link_bytes += request_len;
-        let Some(entry) = s.nodes.get_mut(r.node as usize) else {
-            return Err(Status::invalid_argument(format!("node {} is not registered", r.node)));
-        };
-        entry.link_bytes += request_len;
-        entry.last_seen = Some(Instant::now());
+        s.count_request(r.node, prost::Message::encoded_len(&r))?.last_seen = Some(Instant::now());
         let Some(schedule) = s.schedule.as_mut() else {
             return Err(Status::failed_precondition("no viewing ray tracing in progress"));
         };
         let rows: Vec<(u32, &[f32])> = r.rows.iter().map(|row| (row.y, row.rgb.as_slice())).collect();
         let give_back = schedule.submit(r.subscreen, &rows).map_err(|e| Status::invalid_argument(e.to_string()))?;
         if schedule.is_done() {
-            self.changed.notify_waiters();
+            self.changed.notify_one();
         }
         s.emit(|| ClusterEvent::Rows { node: r.node, id: r.subscreen, rows: r.rows.clone() });
         if let Some(at) = give_back {

@@ -1,0 +1,207 @@
+//! What a client's calls travel over: a TCP (or TLS) channel to another process, or the
+//! in-process transport to a server of this same process.
+//!
+//! The single-process harness behind `magg-host render` runs forks, nodes and the host in
+//! one process. Their calls need not cross the kernel's loopback: a server of this
+//! process [`register`]s its tonic service under the address it listens on, and a client
+//! that [`connect`]s to that address gets the service itself instead of a socket. The
+//! call is still gRPC: the client encodes the request with prost, the server's
+//! interceptors (cluster token) and codec (message size limits) run, the reply is decoded
+//! and statuses are the same; only HTTP/2 framing, TCP and the hop between threads are
+//! skipped. This is grpc-java's `InProcessChannel`, for tonic. With
+//! `MAGG_TRANSPORT=tcp` (or [`set_mode`]) every call goes over a socket again.
+//!
+//! ```no_run
+//! # async fn f() -> Result<(), Box<dyn std::error::Error>> {
+//! use magg_proto::transport;
+//! let (_reporter, health) = tonic_health::server::health_reporter();
+//! let _registered = transport::register("127.0.0.1:7100", health); // until dropped
+//! let endpoint = magg_proto::tls::endpoint("127.0.0.1:7100")?;
+//! let channel = transport::connect(endpoint, None).await?; // no socket
+//! # Ok(()) }
+//! ```
+
+use std::collections::HashMap;
+use std::convert::Infallible;
+use std::sync::atomic::{AtomicU8, Ordering};
+use std::sync::{Mutex, OnceLock};
+use std::task::{Context, Poll};
+use std::time::Duration;
+use tonic::body::Body;
+use tonic::codegen::http::{Request, Response};
+use tonic::transport::Endpoint;
+use tower::util::BoxCloneSyncService;
+use tower::{Service, ServiceExt};
+
+/// A client's connection: boxed, so a `ForkClient<Transport>` is one type whatever it
+/// runs over.
+pub type Transport = BoxCloneSyncService<Request<Body>, Response<Body>, TransportError>;
+
+/// Why a call failed below gRPC (a socket error, or an in-process deadline). A concrete
+/// type rather than a bare box: tonic's client bounds then hold in every async context.
+/// tonic turns it into a `Status` by looking through [`std::error::Error::source`]
+/// (an expired deadline becomes `CANCELLED` "Timeout expired", as on a channel).
+#[derive(Debug)]
+pub struct TransportError(tower::BoxError);
+
+impl std::fmt::Display for TransportError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        self.0.fmt(f)
+    }
+}
+
+impl std::error::Error for TransportError {
+    fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
+        Some(&*self.0)
+    }
+}
+
+/// How this process's clients reach servers of the same process.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum Mode {
+    /// Through the in-process transport when the address is registered (the default).
+    InProcess,
+    /// Always over a socket, as between processes.
+    Tcp,
+}
+
+/// Environment variable selecting the mode (`in-process` or `tcp`).
+pub const MODE_ENV: &str = "MAGG_TRANSPORT";
+
+const UNSET: u8 = 0;
+const IN_PROCESS: u8 = 1;
+const TCP: u8 = 2;
+static MODE: AtomicU8 = AtomicU8::new(UNSET);
+
+/// Sets the mode for the rest of the process's life (overrides [`MODE_ENV`]).
+pub fn set_mode(mode: Mode) {
+    MODE.store(if mode == Mode::Tcp { TCP } else { IN_PROCESS }, Ordering::Relaxed);
+}
+
+/// The mode in force: [`set_mode`]'s, else [`MODE_ENV`]'s, else in-process.
+pub fn mode() -> Mode {
+    match MODE.load(Ordering::Relaxed) {
+        TCP => Mode::Tcp,
+        IN_PROCESS => Mode::InProcess,
+        _ => match std::env::var(MODE_ENV).as_deref() {
+            Ok("tcp") => Mode::Tcp,
+            _ => Mode::InProcess,
+        },
+    }
+}
+
+/// The servers of this process, by address (`HOST:PORT`, no scheme).
+fn registry() -> &'static Mutex<HashMap<String, Transport>> {
+    static REGISTRY: OnceLock<Mutex<HashMap<String, Transport>>> = OnceLock::new();
+    REGISTRY.get_or_init(Default::default)
+}
+
+/// `HOST:PORT` of an address given with or without a scheme.
+fn key(addr: &str) -> String {
+    let a = addr.trim();
+    let a = a.strip_prefix("http://").or_else(|| a.strip_prefix("https://")).unwrap_or(a);
+    a.trim_end_matches('/').to_string()
+}
+
+/// Keeps a service registered; dropping it unregisters the address (a client that
+/// connects later gets a socket, as to any other process).
+#[must_use = "the service is unregistered when this is dropped"]
+#[derive(Debug)]
+pub struct Registration(String);
+
+impl Drop for Registration {
+    fn drop(&mut self) {
+        if let Ok(mut r) = registry().lock() {
+            r.remove(&self.0);
+        }
+    }
+}
+
+/// Makes `service` (a tonic server with its interceptors, e.g. what `fork_server` builds)
+/// reachable in-process at `addr`, the address it also listens on.
+pub fn register<S, B>(addr: &str, service: S) -> Registration
+where
+    S: Service<Request<Body>, Response = Response<B>, Error = Infallible> + Clone + Send + Sync + 'static,
+    S::Future: Send + 'static,
+    B: http_body::Body<Data = tonic::codegen::Bytes> + Send + 'static,
+    B::Error: Into<tower::BoxError>,
+{
+    let k = key(addr);
+    let boxed = BoxCloneSyncService::new(
+        service
+            .map_response(|r: Response<B>| r.map(Body::new))
+            .map_err(|e: Infallible| -> TransportError { match e {} }),
+    );
+    if let Ok(mut r) = registry().lock() {
+        r.insert(k.clone(), boxed);
+    }
+    Registration(k)
+}
+
+/// The registered service at `addr`, when the mode allows it.
+pub fn in_process(addr: &str) -> Option<Transport> {
+    if mode() == Mode::Tcp {
+        return None;
+    }
+    registry().lock().ok()?.get(&key(addr)).cloned()
+}
+
+/// Waits up to `timeout` for a server of this process to register `addr` (a client
+/// started with its server should not race it onto a socket). False when the time ran
+/// out or the mode is [`Mode::Tcp`].
+pub fn wait_registered(addr: &str, timeout: Duration) -> bool {
+    let start = std::time::Instant::now();
+    loop {
+        if in_process(addr).is_some() {
+            return true;
+        }
+        if mode() == Mode::Tcp || start.elapsed() >= timeout {
+            return false;
+        }
+        std::thread::sleep(Duration::from_millis(1));
+    }
+}
+
+/// Opens `endpoint`: the in-process service when its address is registered here, with
+/// `call_timeout` as the deadline of each call (what `Endpoint::timeout` does for a
+/// socket); otherwise a connection (TCP, or TLS when installed), as [`Endpoint::connect`].
+pub async fn connect(endpoint: Endpoint, call_timeout: Option<Duration>) -> Result<Transport, tonic::transport::Error> {
+    let authority = endpoint.uri().authority().map(|a| a.to_string()).unwrap_or_default();
+    if let Some(service) = in_process(&authority) {
+        return Ok(match call_timeout {
+            Some(timeout) => BoxCloneSyncService::new(Deadline { inner: service, timeout }),
+            None => service,
+        });
+    }
+    let channel = endpoint.connect().await?;
+    Ok(BoxCloneSyncService::new(channel.map_err(|e| TransportError(e.into()))))
+}
+
+/// A deadline on every call of an in-process service: a call still running after
+/// `timeout` fails as a socket call would (tonic's `TimeoutExpired`).
+#[derive(Clone)]
+struct Deadline {
+    inner: Transport,
+    timeout: Duration,
+}
+
+impl Service<Request<Body>> for Deadline {
+    type Response = Response<Body>;
+    type Error = TransportError;
+    type Future = std::pin::Pin<Box<dyn std::future::Future<Output = Result<Response<Body>, TransportError>> + Send>>;
+
+    fn poll_ready(&mut self, cx: &mut Context<'_>) -> Poll<Result<(), Self::Error>> {
+        self.inner.poll_ready(cx)
+    }
+
+    fn call(&mut self, req: Request<Body>) -> Self::Future {
+        let call = self.inner.call(req);
+        let timeout = self.timeout;
+        Box::pin(async move {
+            match tokio::time::timeout(timeout, call).await {
+                Ok(r) => r,
+                Err(_) => Err(TransportError(Box::new(tonic::TimeoutExpired(())))),
+            }
+        })
+    }
+}
