@@ -38,7 +38,7 @@ run() { # run MODE SCENE -> "total lrt vrt" of one render
   echo "$(field "$tmp/s.json" total_s) $(field "$tmp/s.json" lrt_s) $(field "$tmp/s.json" vrt_s)"
 }
 stats() { # stats < "x..." lines -> "best median"
-  sort -g | awk '{v[NR]=$1} END {m = (NR % 2) ? v[(NR+1)/2] : (v[NR/2]+v[NR/2+1])/2; printf "%.3f %.3f", v[1], m}'
+  sort -g | awk '{v[NR]=$1} END {m = (NR % 2) ? v[(NR+1)/2] : (v[NR/2]+v[NR/2+1])/2; printf "%.3f %.3f\n", v[1], m}'
 }
 
 echo "machine: $(lscpu 2>/dev/null | sed -n 's/^Model name: *//p' | head -n 1), $(nproc) cores; load $(cut -d' ' -f1-3 /proc/loadavg)"
@@ -59,7 +59,7 @@ for s in "${scenes[@]}"; do
     if [ $mode = core ]; then
       over="-"
     else
-      over=$(paste -d' ' "$tmp/$mode" "$tmp/core" | awk '{print $1 / $4}' | stats | awk '{printf "%+.1f%%", 100 * ($2 - 1)}')
+      over=$(paste -d' ' "$tmp/$mode" "$tmp/core" | awk '{print $1 / $4}' | stats | awk '{printf "%+.1f%%\n", 100 * ($2 - 1)}')
     fi
     echo "| $name | $mode | $tb / $tm | $lb / $lm | $vb / $vm | $over |"
   done

@@ -118,6 +118,11 @@ fn a_plaintext_client_of_a_tls_fork_is_refused_with_one_clear_line() {
         .output()
         .unwrap();
     assert!(probe.status.success(), "{}", String::from_utf8_lossy(&probe.stderr));
+    // magg-host's probe (the host image's health check) takes the CA as a flag too.
+    let probe = clean(magg_host()).args(["probe", "--tls-ca"]).arg(&pki.ca).arg(&fork_addr).output().unwrap();
+    assert!(probe.status.success(), "{}", String::from_utf8_lossy(&probe.stderr));
+    let probe = clean(magg_host()).args(["probe", &fork_addr]).output().unwrap();
+    assert!(!probe.status.success(), "magg-host probed a TLS fork in plaintext");
 
     // A host without TLS flags stops with one line naming the fork.
     let o = clean(magg_host())

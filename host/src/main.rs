@@ -12,7 +12,7 @@ use std::process::ExitCode;
 fn main() -> ExitCode {
     let cli = magg_host::cli::Cli::parse();
     if let magg_host::cli::Command::Probe(p) = &cli.command {
-        return magg_proto::lifecycle::probe_command("magg-host", &p.addr);
+        return magg_proto::lifecycle::probe_command("magg-host", p);
     }
     magg_host::logging::init(cli.verbose);
     // In a container the host is PID 1, which has no default action for SIGTERM.

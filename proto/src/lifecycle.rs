@@ -125,6 +125,10 @@ pub struct ProbeArgs {
     /// Address to probe (HOST:PORT): a magg-fork, a magg-node with --health-listen, or a
     /// magg-host while it renders.
     pub addr: String,
+    /// PEM CA to verify a TLS server against (the cluster's --tls-ca): the probe then
+    /// speaks TLS.
+    #[arg(long = "tls-ca", env = "MAGG_TLS_CA", value_name = "FILE")]
+    pub tls_ca: Option<std::path::PathBuf>,
 }
 
 /// The subcommands of a binary whose only one is `probe` (magg-fork, magg-node).
@@ -176,7 +180,7 @@ pub fn start(program: &str, cluster: &ClusterArgs, command: &Option<ProbeCommand
         return Some(ExitCode::FAILURE);
     }
     match command {
-        Some(ProbeCommand::Probe(p)) => Some(probe_command(program, &p.addr)),
+        Some(ProbeCommand::Probe(p)) => Some(probe_command(program, p)),
         None => None,
     }
 }
@@ -184,7 +188,16 @@ pub fn start(program: &str, cluster: &ClusterArgs, command: &Option<ProbeCommand
 /// The `probe ADDR` subcommand of every binary: prints `ADDR: SERVING` and exits 0 when
 /// the process at `addr` reports SERVING within 3 seconds; prints why not and exits 1
 /// otherwise.
-pub fn probe_command(program: &str, addr: &str) -> ExitCode {
+pub fn probe_command(program: &str, args: &ProbeArgs) -> ExitCode {
+    let addr = &args.addr;
+    if args.tls_ca.is_some() {
+        // A process that installed its TLS files already keeps them (same CA flag).
+        let files = crate::tls::TlsFiles { ca: args.tls_ca.clone(), ..Default::default() };
+        if let Err(e) = crate::tls::install_files(&files) {
+            eprintln!("{program}: error: {e}");
+            return ExitCode::FAILURE;
+        }
+    }
     match probe_blocking(addr) {
         Ok(()) => {
             println!("{addr}: SERVING");

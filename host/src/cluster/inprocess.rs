@@ -1,6 +1,8 @@
-//! The single-process harness: F forks, N nodes and the host in this process, talking
-//! real gRPC over 127.0.0.1 ports, so that `magg-host render` needs no set-up and
-//! exercises exactly the services of a multi-process run.
+//! The single-process harness: F forks, N nodes and the host in this process, so that
+//! `magg-host render` needs no set-up and exercises exactly the services of a
+//! multi-process run. Each server listens on a 127.0.0.1 port and registers for the
+//! in-process transport ([`magg_proto::transport`]): calls between them are gRPC
+//! (encoded, intercepted, size-checked) without sockets, unless `--transport tcp`.
 
 use super::drive::{drive, DriveOptions};
 use anyhow::Context;
