@@ -34,22 +34,10 @@ pub async fn connect(addr: &str, token: &Token) -> Result<ForkClient<Authed>, Fo
         .initial_connection_window_size(Some(16 << 20));
     let channel = magg_proto::transport::connect(endpoint, Some(PEER_CALL_TIMEOUT))
         .await
-        .map_err(|e| unavailable(error_chain(&e)))?;
+        .map_err(|e| unavailable(magg_proto::error_chain(&e)))?;
     Ok(ForkClient::with_interceptor(channel, AddToken(token.clone()))
         .max_decoding_message_size(MAX_MESSAGE_BYTES)
         .max_encoding_message_size(MAX_MESSAGE_BYTES))
-}
-
-/// An error and its sources on one line.
-fn error_chain(e: &dyn std::error::Error) -> String {
-    let mut s = e.to_string();
-    let mut src = e.source();
-    while let Some(c) = src {
-        s.push_str(": ");
-        s.push_str(&c.to_string());
-        src = c.source();
-    }
-    s
 }
 
 /// Cached clients to the other forks of one render.

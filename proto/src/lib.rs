@@ -25,5 +25,18 @@ pub mod v1 {
     tonic::include_proto!("magg.v1");
 }
 
+/// `e` and its sources on one line, `: `-separated (a transport error says little by
+/// itself: the reason, e.g. "connection refused", is in its sources).
+pub fn error_chain(e: &dyn std::error::Error) -> String {
+    let mut text = e.to_string();
+    let mut source = e.source();
+    while let Some(s) = source {
+        text.push_str(": ");
+        text.push_str(&s.to_string());
+        source = s.source();
+    }
+    text
+}
+
 /// Version of the protocol; processes with another version are refused at registration.
 pub const PROTOCOL_VERSION: u32 = 2;

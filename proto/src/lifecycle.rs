@@ -94,7 +94,7 @@ pub async fn probe(addr: &str, timeout: Duration) -> Result<ServingStatus, Probe
     let channel = endpoint
         .connect()
         .await
-        .map_err(|e| ProbeError::Connect { addr: addr.to_string(), reason: with_sources(&e) })?;
+        .map_err(|e| ProbeError::Connect { addr: addr.to_string(), reason: crate::error_chain(&e) })?;
     let reply = HealthClient::new(channel)
         .check(HealthCheckRequest { service: String::new() })
         .await
@@ -105,18 +105,6 @@ pub async fn probe(addr: &str, timeout: Duration) -> Result<ServingStatus, Probe
         Ok(WireStatus::NotServing) => ServingStatus::NotServing,
         _ => ServingStatus::Unknown,
     })
-}
-
-/// `e` and its sources, `: `-separated (a transport error says little by itself).
-fn with_sources(e: &dyn std::error::Error) -> String {
-    let mut text = e.to_string();
-    let mut source = e.source();
-    while let Some(s) = source {
-        text.push_str(": ");
-        text.push_str(&s.to_string());
-        source = s.source();
-    }
-    text
 }
 
 /// Arguments of the `probe` subcommand of every binary.
