@@ -46,10 +46,11 @@ pub fn shade_pixel(
     x: u32,
     y: u32,
 ) -> Result<Rgb, BlockError> {
-    let header = view.header.clone();
-    let n = header.plan.pixel_samples.max(1);
+    // Only copies out of the header: a clone of the shared `Arc` per pixel or ray would
+    // bounce its reference count between the cores of every node thread.
+    let (n, seed) = (view.header.plan.pixel_samples.max(1), view.header.settings.seed);
     let (sx, sy) = if n > 1 {
-        let mut rng = Rng::from_words(&[header.settings.seed, 0x565254, x as u64, y as u64]);
+        let mut rng = Rng::from_words(&[seed, 0x565254, x as u64, y as u64]);
         (rng.next_f64(), rng.next_f64())
     } else {
         (0.0, 0.0)
@@ -72,13 +73,12 @@ fn radiance(
     exclude: u32,
 ) -> Result<Rgb, BlockError> {
     view.counters.view_rays += 1;
-    let header = view.header.clone();
     let tmin = if exclude == NO_PATCH { 0.0 } else { offset_scale(ray.origin) };
     let Some(hit) = cast(view, scratch, ray, tmin, f64::INFINITY, exclude, false)? else {
-        return Ok(header.settings.background);
+        return Ok(view.header.settings.background);
     };
     let prec = view.patch(hit.patch)?;
-    let Some(m) = header.materials.get(prec.material as usize) else {
+    let Some(m) = Surface::of(view, prec.material) else {
         return Ok(Rgb::BLACK);
     };
     let mut l = Rgb::BLACK;
@@ -91,11 +91,11 @@ fn radiance(
             irr = irr.add(view.vertex_energy(e.vertices[k])?.scale(w[k]));
         }
         l = l.add(m.diffuse.mul(irr).scale(1.0 / PI));
-        if header.plan.ambient {
-            l = l.add(m.diffuse.mul(header.settings.ambient));
+        if let Some(ambient) = m.ambient {
+            l = l.add(m.diffuse.mul(ambient));
         }
     }
-    if depth >= header.plan.vrt_depth || (!m.is_specular()) {
+    if depth >= m.vrt_depth || (!m.is_specular()) {
         return Ok(l);
     }
     let p = ray.at(hit.t);
@@ -114,7 +114,7 @@ fn radiance(
     if m.is_transmissive() {
         let eta = if front { 1.0 / m.ior } else { m.ior };
         let f = fresnel_dielectric(-d.dot(nf), eta);
-        let refracted = if header.plan.refraction { refract(d, nf, eta) } else { None };
+        let refracted = if m.refraction { refract(d, nf, eta) } else { None };
         let reflected = radiance(view, scratch, &spawn(reflect(d, nf)), depth + 1, hit.patch)?;
         match refracted {
             Some(t) if f < 1.0 => {
@@ -125,4 +125,43 @@ fn radiance(
         }
     }
     Ok(l)
+}
+
+/// What shading needs of a hit's material and of the plan, copied out of the header so
+/// that the recursion holds no borrow of (or reference count on) it.
+struct Surface {
+    diffuse: Rgb,
+    mirror: Rgb,
+    transmit: Rgb,
+    ior: f64,
+    /// The ambient radiance, when the plan keeps the ambient term.
+    ambient: Option<Rgb>,
+    vrt_depth: u32,
+    refraction: bool,
+}
+
+impl Surface {
+    /// Material `id` under the view's plan; `None` for an id the header lacks.
+    fn of(view: &SceneView, id: u32) -> Option<Surface> {
+        let h = &view.header;
+        let m = h.materials.get(id as usize)?;
+        Some(Surface {
+            diffuse: m.diffuse,
+            mirror: m.mirror,
+            transmit: m.transmit,
+            ior: m.ior,
+            ambient: h.plan.ambient.then_some(h.settings.ambient),
+            vrt_depth: h.plan.vrt_depth,
+            refraction: h.plan.refraction,
+        })
+    }
+    fn is_mirror(&self) -> bool {
+        !self.mirror.is_black()
+    }
+    fn is_transmissive(&self) -> bool {
+        !self.transmit.is_black()
+    }
+    fn is_specular(&self) -> bool {
+        self.is_mirror() || self.is_transmissive()
+    }
 }
