@@ -42,7 +42,7 @@ fn wrong_protocol_version_and_bad_requests_are_refused_and_the_render_goes_on() 
             .submit_rows(SubmitRowsRequest {
                 node: 0,
                 subscreen: 7,
-                rows: vec![Row { y: 0, rgb: vec![0.0; 3] }],
+                rows: vec![Row { y: 0, rgb: vec![0u8; 12].into() }],
                 last: false,
             })
             .await

@@ -49,7 +49,7 @@ fn any_sequence_of_node_calls_keeps_the_frame_consistent() {
                             Some((i, t)) if len % 2 == 0 => (*i, 3 * t.w as usize),
                             _ => (id, len),
                         };
-                        let _ = s.submit(id, &[(y, &vec![v; len])]);
+                        let _ = s.submit(id, &[(y, &magg_proto::convert::pixels_to_wire(vec![v; len]))]);
                     }
                     Call::Expire => {
                         s.expire(Duration::ZERO);
@@ -62,7 +62,7 @@ fn any_sequence_of_node_calls_keeps_the_frame_consistent() {
                 match s.next(99) {
                     Next::Trace(id, t) => {
                         for y in t.y..t.y + t.h {
-                            prop_assert!(s.submit(id, &[(y, &vec![1.0; 3 * t.w as usize])]).is_ok());
+                            prop_assert!(s.submit(id, &[(y, &magg_proto::convert::pixels_to_wire(vec![1.0; 3 * t.w as usize]))]).is_ok());
                         }
                     }
                     Next::Wait => prop_assert!(false, "work left that nobody can get"),

@@ -294,16 +294,16 @@ impl Worker {
         let mut rows = Vec::new();
         let mut since = Instant::now();
         while y < end {
-            let mut rgb = Vec::with_capacity(3 * s.w as usize);
+            let mut rgb = Vec::with_capacity(12 * s.w as usize);
             for x in s.x..s.x + s.w {
                 let c = shade_pixel(&mut self.view, &mut scratch, &rig, x, y)?;
-                rgb.extend([c.0[0] as f32, c.0[1] as f32, c.0[2] as f32]);
+                rgb.extend(c.0.iter().flat_map(|&v| (v as f32).to_le_bytes()));
             }
             self.compute();
             if !self.row_delay.is_zero() {
                 std::thread::sleep(self.row_delay);
             }
-            rows.push(Row { y, rgb });
+            rows.push(Row { y, rgb: rgb.into() });
             y += 1;
             if y < end && since.elapsed() < ROW_REPORT {
                 continue;

@@ -558,6 +558,20 @@ pub fn block_to_wire(id: u32, block: &Block) -> v1::Block {
     v1::Block { id, data: bytes::Bytes::copy_from_slice(block) }
 }
 
+// ------------------------------------------------------------------ pixel rows
+
+/// Pixels for a [`v1::Row`]: r, g, b of each pixel as little-endian f32 (the bytes of a
+/// packed `repeated float`).
+pub fn pixels_to_wire(px: impl IntoIterator<Item = f32>) -> bytes::Bytes {
+    px.into_iter().flat_map(f32::to_le_bytes).collect::<Vec<u8>>().into()
+}
+
+/// The floats of a [`v1::Row`]'s pixels; trailing bytes short of a float are ignored
+/// (the receiver checks the length: 12 bytes a pixel).
+pub fn pixels_from_wire(b: &[u8]) -> impl ExactSizeIterator<Item = f32> + '_ {
+    b.chunks_exact(4).map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]]))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -735,5 +749,19 @@ mod tests {
             let e = block_from_wire(v1::Block { id: 7, data: vec![0; len].into() }).unwrap_err();
             assert_eq!(e, ConvertError::BlockSize { id: 7, len });
         }
+    }
+
+    #[test]
+    fn pixel_rows_are_the_bytes_of_a_packed_repeated_float() {
+        let px = [0.25f32, -1.5, 3.0e-7, f32::MAX, 0.0, 1.0];
+        // A row as `message Row { uint32 y = 1; repeated float rgb = 2; }` encodes it.
+        let mut old = Vec::new();
+        prost::encoding::uint32::encode(1, &7, &mut old);
+        prost::encoding::float::encode_packed(2, &px, &mut old);
+        let row = v1::Row::decode(old.as_slice()).unwrap();
+        assert_eq!(row.y, 7);
+        assert_eq!(pixels_from_wire(&row.rgb).collect::<Vec<_>>(), px);
+        let new = v1::Row { y: 7, rgb: pixels_to_wire(px) };
+        assert_eq!(new.encode_to_vec(), old);
     }
 }

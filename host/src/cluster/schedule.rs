@@ -41,14 +41,14 @@ pub enum RowError {
         /// Row expected.
         expected: u32,
     },
-    /// Wrong number of values.
-    #[error("row {y} has {got} values, expected {expected}")]
+    /// Wrong number of bytes.
+    #[error("row {y} has {got} bytes of pixels, expected {expected} (12 a pixel)")]
     BadLength {
         /// Row.
         y: u32,
-        /// Values sent.
+        /// Bytes sent.
         got: usize,
-        /// Values expected (3 per pixel).
+        /// Bytes expected (three little-endian f32 per pixel).
         expected: usize,
     },
 }
@@ -142,7 +142,7 @@ impl Scheduler {
     /// Stores rows of subscreen `id` (in order, starting at its next row); returns the
     /// row from which the node must stop (its unstarted rows were redivided), if any. A
     /// revoked subscreen's rows are dropped and the answer is row 0: stop now.
-    pub fn submit(&mut self, id: u64, rows: &[(u32, &[f32])]) -> Result<Option<u32>, RowError> {
+    pub fn submit(&mut self, id: u64, rows: &[(u32, &[u8])]) -> Result<Option<u32>, RowError> {
         if self.revoked.contains(&id) {
             return Ok(Some(0));
         }
@@ -155,7 +155,9 @@ impl Scheduler {
         Ok(self.split_if_wanted(id))
     }
 
-    fn store_row(&mut self, id: u64, y: u32, rgb: &[f32]) -> Result<(), RowError> {
+    /// Stores row `y` of subscreen `id`; `rgb` holds its pixels as on the wire (see
+    /// [`magg_proto::convert::pixels_to_wire`]).
+    fn store_row(&mut self, id: u64, y: u32, rgb: &[u8]) -> Result<(), RowError> {
         let a = self.active.get_mut(&id).ok_or(RowError::UnknownSubscreen(id))?;
         if y < a.next_row && y >= a.rect.y {
             return Ok(()); // a repeated row: already stored
@@ -163,12 +165,14 @@ impl Scheduler {
         if y != a.next_row || y >= a.end {
             return Err(RowError::BadRow { id, y, expected: a.next_row });
         }
-        let expected = 3 * a.rect.w as usize;
+        let expected = 12 * a.rect.w as usize;
         if rgb.len() != expected {
             return Err(RowError::BadLength { y, got: rgb.len(), expected });
         }
-        for (i, px) in rgb.chunks_exact(3).enumerate() {
-            self.frame.set(a.rect.x + i as u32, y, Rgb::new(px[0] as f64, px[1] as f64, px[2] as f64));
+        let mut f = magg_proto::convert::pixels_from_wire(rgb);
+        for x in a.rect.x..a.rect.x + a.rect.w {
+            let mut c = || f.next().unwrap_or(0.0) as f64;
+            self.frame.set(x, y, Rgb::new(c(), c(), c()));
         }
         self.pixels_done += a.rect.w as u64;
         a.next_row = y + 1;
@@ -229,8 +233,8 @@ impl Scheduler {
 mod tests {
     use super::*;
 
-    fn row(w: u32, v: f32) -> Vec<f32> {
-        vec![v; 3 * w as usize]
+    fn row(w: u32, v: f32) -> Vec<u8> {
+        magg_proto::convert::pixels_to_wire(vec![v; 3 * w as usize]).to_vec()
     }
 
     #[test]

@@ -321,7 +321,7 @@ impl Host for HostService {
         let Some(schedule) = s.schedule.as_mut() else {
             return Err(Status::failed_precondition("no viewing ray tracing in progress"));
         };
-        let rows: Vec<(u32, &[f32])> = r.rows.iter().map(|row| (row.y, row.rgb.as_slice())).collect();
+        let rows: Vec<(u32, &[u8])> = r.rows.iter().map(|row| (row.y, &row.rgb[..])).collect();
         let give_back = schedule.submit(r.subscreen, &rows).map_err(|e| Status::invalid_argument(e.to_string()))?;
         if schedule.is_done() {
             self.changed.notify_one();
