@@ -47,6 +47,11 @@ impl OpCounters {
 }
 
 /// The scene as one node sees it.
+///
+/// Aligned to 128 bytes (two cache lines, the prefetch pair of x86): each node thread
+/// updates its view's counters and cache statistics on every ray, and views side by side
+/// in one `Vec` would otherwise share a line between threads (false sharing).
+#[repr(align(128))]
 pub struct SceneView {
     /// Resident data.
     pub header: Arc<SceneHeader>,
