@@ -11,11 +11,6 @@ use clap::Parser;
 use std::net::SocketAddr;
 use std::process::ExitCode;
 
-/// mimalloc: the many small, short-lived buffers of gRPC calls cost glibc's allocator
-/// several percent of a render (measured in docs/PERFORMANCE.md).
-#[global_allocator]
-static ALLOCATOR: mimalloc::MiMalloc = mimalloc::MiMalloc;
-
 /// A fork of a magg cluster: holds a shard of the scene's 2 KB blocks, serves them to
 /// nodes (DMA path) and other forks (G-bus path), hands out (light, element) pairs and
 /// accumulates the energy deposited on its elements. The host loads the shard

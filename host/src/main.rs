@@ -9,11 +9,6 @@
 use clap::Parser;
 use std::process::ExitCode;
 
-/// mimalloc: the many small, short-lived buffers of gRPC calls cost glibc's allocator
-/// several percent of a render (measured in docs/PERFORMANCE.md).
-#[global_allocator]
-static ALLOCATOR: mimalloc::MiMalloc = mimalloc::MiMalloc;
-
 fn main() -> ExitCode {
     let cli = magg_host::cli::Cli::parse();
     if let magg_host::cli::Command::Probe(p) = &cli.command {

@@ -12,11 +12,6 @@ use std::net::SocketAddr;
 use std::process::ExitCode;
 use std::time::Duration;
 
-/// mimalloc: the many small, short-lived buffers of gRPC calls cost glibc's allocator
-/// several percent of a render (measured in docs/PERFORMANCE.md).
-#[global_allocator]
-static ALLOCATOR: mimalloc::MiMalloc = mimalloc::MiMalloc;
-
 /// A magg node processor: pulls (light, element) pairs and subscreens and traces them.
 /// Every flag can also be set by the environment variable named in its help.
 #[derive(Debug, Parser)]

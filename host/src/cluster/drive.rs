@@ -54,6 +54,9 @@ pub struct DriveOptions {
     pub events: Option<EventSender>,
     /// Node leases, fork timeout, cluster token.
     pub faults: crate::faults::FaultPolicy,
+    /// When the render began (before this process started its forks and nodes): the
+    /// stats' total counts from here, so that it holds every cost of the cluster.
+    pub started: Instant,
 }
 
 /// Accepted connections with Nagle's algorithm off: the protocol is many small
@@ -103,8 +106,11 @@ pub async fn drive(
     progress: &dyn Progress,
     sink: &mut FrameSink<'_>,
 ) -> anyhow::Result<RenderOutput> {
-    let t_start = Instant::now();
+    let t_start = opts.started;
     let cpu0 = process_cpu_s();
+    // The render's timeline at debug level (RUST_LOG=magg_host=debug): where the
+    // cluster's fixed costs go.
+    let mark = |what: &str| tracing::debug!(ms = format!("{:.2}", 1e3 * t_start.elapsed().as_secs_f64()), "timeline: {what}");
     let h = prepared.header.clone();
     let f = opts.forks.len();
     if f == 0 {
@@ -120,6 +126,7 @@ pub async fn drive(
     let mut forks =
         ForkSet::connect(prepared, &opts.forks, &opts.faults).await?.for_render(wire_profile.clone(), opts.nodes);
     forks.load_all().await?;
+    mark("shards loaded");
     let wire_header = v1::SceneHeader::from(&*h);
 
     // Serve the host service.
@@ -183,6 +190,7 @@ pub async fn drive(
         wait_for(&service, Duration::from_millis(2)).await;
     }
     let gather_s = t_gather.elapsed().as_secs_f64();
+    mark("nodes registered");
     // With loaded energies the nodes never trace pairs: they wait for subscreens.
     service.set_phase(if loaded.is_some() { Phase::Interp } else { Phase::Lrt });
     let poll = if throttled { LRT_POLL_THROTTLED } else { LRT_POLL };
@@ -233,6 +241,7 @@ pub async fn drive(
                     }
                     service.bump();
                 }
+                tracing::debug!(done, total_pairs, "light pass: pairs done");
                 if done > last.0 {
                     progress.advance(done - last.0);
                     last = (done, Instant::now());
@@ -276,8 +285,10 @@ pub async fn drive(
     for (id, block) in vertex_energy_blocks(&vertex_irradiance, &h.layout) {
         per_fork[id as usize % f].push(block_to_wire(id, &block));
     }
+    mark("light pass done, energies gathered and interpolated");
     forks.put_vertex_blocks(per_fork).await?;
     let interp_s = t_interp.elapsed().as_secs_f64();
+    mark("vertex energies on the forks");
 
     // --- VRT, one pass per camera; a camera path sends each frame's camera along with
     // its subscreens, and the nodes keep their caches from frame to frame.
@@ -340,6 +351,7 @@ pub async fn drive(
             wait_for(&service, VRT_POLL).await;
         }
         progress.end();
+        mark("viewing pass done");
         let frame_s = t_vrt.elapsed().as_secs_f64();
         vrt_s += frame_s;
         {
@@ -350,6 +362,7 @@ pub async fn drive(
             }
         }
         sink(index, &frame, frame_s).map_err(|e| anyhow::anyhow!(e))?;
+        mark("frame written");
     }
 
     // --- Done: every node hears it and sends its final report (bounded wait).
@@ -361,6 +374,7 @@ pub async fn drive(
         }
         wait_for(&service, Duration::from_millis(5)).await;
     }
+    mark("nodes done");
     for i in 0..f {
         let r = forks.poll_until_up(i, true, false).await?;
         dma_bytes += r.dma_bytes;
@@ -372,6 +386,7 @@ pub async fn drive(
         busy.gbus_s += r.gbus_busy_s;
     }
     let wall_s = t_start.elapsed().as_secs_f64();
+    mark("fork figures collected");
     let cpu1 = process_cpu_s();
     // Graceful shutdown waits for clients to hang up; a client that never does (a stuck
     // or hostile peer) must not keep the host alive: give them a moment, then stop.

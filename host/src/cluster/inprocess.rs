@@ -50,6 +50,7 @@ pub fn render_in_process(
     progress: &dyn Progress,
     sink: &mut magg_core::render::FrameSink<'_>,
 ) -> anyhow::Result<RenderOutput> {
+    let started = std::time::Instant::now();
     let rt = tokio::runtime::Builder::new_multi_thread().enable_all().build().context("starting the async runtime")?;
     let (stop_tx, _) = tokio::sync::broadcast::channel::<()>(1);
 
@@ -130,6 +131,7 @@ pub fn render_in_process(
         sequence: opts.sequence.clone(),
         events: opts.events.clone(),
         faults: opts.faults.clone(),
+        started,
     };
     let result = rt.block_on(drive(prepared, &drive_opts, listener, progress, sink));
     if result.is_err() {
