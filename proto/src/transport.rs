@@ -24,7 +24,7 @@
 use std::collections::HashMap;
 use std::convert::Infallible;
 use std::sync::atomic::{AtomicU8, Ordering};
-use std::sync::{Mutex, OnceLock};
+use std::sync::{Condvar, Mutex, OnceLock};
 use std::task::{Context, Poll};
 use std::time::Duration;
 use tonic::body::Body;
@@ -96,6 +96,12 @@ fn registry() -> &'static Mutex<HashMap<String, Transport>> {
     REGISTRY.get_or_init(Default::default)
 }
 
+/// Signalled whenever a service registers (for [`wait_registered`]).
+fn registered() -> &'static Condvar {
+    static REGISTERED: Condvar = Condvar::new();
+    &REGISTERED
+}
+
 /// `HOST:PORT` of an address given with or without a scheme.
 fn key(addr: &str) -> String {
     let a = addr.trim();
@@ -135,6 +141,7 @@ where
     if let Ok(mut r) = registry().lock() {
         r.insert(k.clone(), boxed);
     }
+    registered().notify_all();
     Registration(k)
 }
 
@@ -150,15 +157,23 @@ pub fn in_process(addr: &str) -> Option<Transport> {
 /// started with its server should not race it onto a socket). False when the time ran
 /// out or the mode is [`Mode::Tcp`].
 pub fn wait_registered(addr: &str, timeout: Duration) -> bool {
-    let start = std::time::Instant::now();
+    if mode() == Mode::Tcp {
+        return false;
+    }
+    let (k, deadline) = (key(addr), std::time::Instant::now() + timeout);
+    let Ok(mut r) = registry().lock() else { return false };
     loop {
-        if in_process(addr).is_some() {
+        if r.contains_key(&k) {
             return true;
         }
-        if mode() == Mode::Tcp || start.elapsed() >= timeout {
+        let left = deadline.saturating_duration_since(std::time::Instant::now());
+        if left.is_zero() {
             return false;
         }
-        std::thread::sleep(Duration::from_millis(1));
+        r = match registered().wait_timeout(r, left) {
+            Ok((r, _)) => r,
+            Err(_) => return false,
+        };
     }
 }
 

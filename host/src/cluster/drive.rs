@@ -122,11 +122,10 @@ pub async fn drive(
     // `prepared.preprocess_s`, a thousandth of that or less).
     let preprocess_model =
         if throttled { preprocess_time(&opts.profile, opts.scheme, prepared, f as u32) } else { Duration::ZERO };
-    tokio::time::sleep(opts.profile.dilate(preprocess_model)).await;
+    // Not even a zero sleep natively: the timer would round it up to its next tick (1 ms).
+    magg_throttle::wait(Instant::now() + opts.profile.dilate(preprocess_model)).await;
     let mut forks =
         ForkSet::connect(prepared, &opts.forks, &opts.faults).await?.for_render(wire_profile.clone(), opts.nodes);
-    forks.load_all().await?;
-    mark("shards loaded");
     let wire_header = v1::SceneHeader::from(&*h);
 
     // Serve the host service.
@@ -172,6 +171,9 @@ pub async fn drive(
     // However the render ends, nodes asking for work hear "done" and exit.
     let _done_on_exit = DoneOnDrop(service.clone());
 
+    // The shards load while the nodes register (they wait for the light pass).
+    forks.load_all().await?;
+    mark("shards loaded");
     // Preprocessing ends when every shard is loaded.
     let preprocess_wall = t_start.elapsed().as_secs_f64();
     // The expected nodes register (connecting 80 nodes to 6 servers takes this machine a
