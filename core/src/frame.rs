@@ -27,6 +27,15 @@ impl Frame {
         }
     }
 
+    /// Pixels x..x + w of row y, when they are all inside the frame.
+    pub fn row_mut(&mut self, x: u32, y: u32, w: u32) -> Option<&mut [[f32; 3]]> {
+        if y >= self.height || x.checked_add(w)? > self.width {
+            return None;
+        }
+        let start = (y * self.width + x) as usize;
+        self.pixels.get_mut(start..start + w as usize)
+    }
+
     /// Pixel (x, y).
     pub fn get(&self, x: u32, y: u32) -> [f32; 3] {
         self.pixels[(y * self.width + x) as usize]

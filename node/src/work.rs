@@ -297,7 +297,9 @@ impl Worker {
             let mut rgb = Vec::with_capacity(12 * s.w as usize);
             for x in s.x..s.x + s.w {
                 let c = shade_pixel(&mut self.view, &mut scratch, &rig, x, y)?;
-                rgb.extend(c.0.iter().flat_map(|&v| (v as f32).to_le_bytes()));
+                for v in c.0 {
+                    rgb.extend_from_slice(&(v as f32).to_le_bytes());
+                }
             }
             self.compute();
             if !self.row_delay.is_zero() {

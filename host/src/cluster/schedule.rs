@@ -9,7 +9,6 @@
 //! of a revoked subscreen are dropped, and the node sending them is told to stop.
 
 use magg_core::frame::Frame;
-use magg_core::math::Rgb;
 use magg_core::vrt::Subscreen;
 use std::collections::{BTreeMap, BTreeSet, VecDeque};
 use std::time::{Duration, Instant};
@@ -169,10 +168,12 @@ impl Scheduler {
         if rgb.len() != expected {
             return Err(RowError::BadLength { y, got: rgb.len(), expected });
         }
-        let mut f = magg_proto::convert::pixels_from_wire(rgb);
-        for x in a.rect.x..a.rect.x + a.rect.w {
-            let mut c = || f.next().unwrap_or(0.0) as f64;
-            self.frame.set(x, y, Rgb::new(c(), c(), c()));
+        // The frame holds f32 pixels, as the wire does: the row is copied as it came.
+        if let Some(row) = self.frame.row_mut(a.rect.x, y, a.rect.w) {
+            let mut f = magg_proto::convert::pixels_from_wire(rgb);
+            for px in row {
+                *px = [0; 3].map(|_| f.next().unwrap_or(0.0));
+            }
         }
         self.pixels_done += a.rect.w as u64;
         a.next_row = y + 1;
