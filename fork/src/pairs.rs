@@ -67,21 +67,35 @@ impl PairQueue {
 }
 
 /// Pairs to hand out for a request of `max` (guided self-scheduling, Polychronopoulos
-/// and Kuck 1987): a quarter of each node's share of the remaining pairs, so that batches
-/// are large while there is much left and shrink to single pairs at the end (pairs of
+/// and Kuck 1987, in the "factoring" form of Hummel et al. 1992): half of each node's
+/// share of the pairs left in the whole cluster (`left`, this fork's estimate), so that
+/// batches are large while there is much left and shrink towards the end (pairs of
 /// neighbouring elements cost alike, so a late large batch would leave its node working
-/// alone), and every one of `nodes` nodes gets work even when there are few pairs.
-/// `nodes == 0` (unknown) hands out `max`.
-pub fn guided_batch(max: u32, remaining: u64, forks: u32, nodes: u32) -> u32 {
+/// alone). They shrink to [`MIN_BATCH`] pairs, not to one: a batch costs a request and a
+/// deposit per fork, as much as several pairs of tracing, so single-pair batches at the
+/// end cost more than the imbalance they avoid. Fewer pairs than that per node are
+/// shared out evenly, so that every one of `nodes` nodes gets work. `nodes == 0`
+/// (unknown) hands out `max`.
+///
+/// The estimate must be the cluster's, not this fork's queue times the number of forks:
+/// forks without a node of their own are emptied one after another by stealing, and
+/// each would otherwise shrink its last batches to single pairs while others still hold
+/// hundreds (46 batches instead of 26 for magg-paper on 2 nodes).
+pub fn guided_batch(max: u32, left: u64, nodes: u32) -> u32 {
     if nodes == 0 {
         return max;
     }
-    let share = (remaining * forks.max(1) as u64).div_ceil(GUIDED_PARTS * nodes as u64);
-    (max as u64).min(share.max(1)) as u32
+    let share = left.div_ceil(GUIDED_PARTS * nodes as u64);
+    let floor = MIN_BATCH.min(left.div_ceil(nodes as u64));
+    (max as u64).min(share.max(floor).max(1)) as u32
 }
 
 /// Parts of a node's share of the remaining pairs handed out at once.
-const GUIDED_PARTS: u64 = 4;
+const GUIDED_PARTS: u64 = 2;
+
+/// Smallest batch while each node has at least this many pairs left to share (the
+/// embedded renderer's batch).
+pub const MIN_BATCH: u64 = 8;
 
 #[cfg(test)]
 mod tests {
@@ -89,13 +103,17 @@ mod tests {
 
     #[test]
     fn guided_batches_shrink_and_spread_over_nodes() {
-        // 1664 pairs on 5 forks (333 here) and 80 nodes: batches of 6, not 128, so that
-        // the 16 nodes of this fork all get work.
-        assert_eq!(guided_batch(128, 333, 5, 80), 6);
-        assert_eq!(guided_batch(128, 100_000, 5, 80), 128);
-        assert_eq!(guided_batch(128, 1, 5, 80), 1);
-        assert_eq!(guided_batch(128, 0, 5, 80), 1);
-        assert_eq!(guided_batch(7, 5000, 1, 0), 7);
+        // 1664 pairs left and 80 nodes: batches of 11 (half of a node's share), not 128.
+        assert_eq!(guided_batch(128, 1664, 80), 11);
+        assert_eq!(guided_batch(128, 500_000, 80), 128);
+        // Down to 8 pairs, while every node can still have 8.
+        assert_eq!(guided_batch(128, 40, 2), 10);
+        assert_eq!(guided_batch(128, 20, 2), 8);
+        // Fewer: shared out, so that all nodes get some.
+        assert_eq!(guided_batch(128, 300, 80), 4);
+        assert_eq!(guided_batch(128, 1, 80), 1);
+        assert_eq!(guided_batch(128, 0, 80), 1);
+        assert_eq!(guided_batch(7, 5000, 0), 7);
     }
 
     #[test]

@@ -117,8 +117,8 @@ impl Peers {
     }
 
     /// Up to `max` unassigned pairs of fork `fork`, taken on behalf of `node`, with the
-    /// replay epoch they were handed out in.
-    pub async fn steal(&self, fork: u32, max: u32, node: u32) -> Result<(Vec<u64>, u64), ForkError> {
+    /// replay epoch they were handed out in and the pairs the fork has left.
+    pub async fn steal(&self, fork: u32, max: u32, node: u32) -> Result<v1::TakePairsReply, ForkError> {
         let mut client = self.client(fork).await?;
         let reply = client
             .steal_pairs(v1::TakePairsRequest { max, node })
@@ -129,6 +129,6 @@ impl Peers {
             let detail = format!("{} pairs where at most {max} were asked for", reply.pairs.len());
             return Err(ForkError::PeerReply { fork, addr: self.addr(fork).to_string(), detail });
         }
-        Ok((reply.pairs, reply.epoch))
+        Ok(reply)
     }
 }

@@ -111,6 +111,10 @@ pub struct Shard {
     peers: Peers,
     /// Nodes the host expects (sizes guided pair batches; 0 = unknown).
     nodes: u32,
+    /// Estimated unassigned pairs of every fork (this one's entry unused): each fork's
+    /// pair count at first, then what its answers to this fork's steals said. A queue
+    /// only shrinks (save for replays and expired leases), so a stale estimate is high.
+    left_elsewhere: Mutex<Vec<u64>>,
     /// How long a node may stay silent before its pairs go back to the queue.
     lease: Duration,
 }
@@ -145,6 +149,12 @@ impl Shard {
         let pair_count = lights as u64 * header.counts.elements as u64;
         let own_pairs = lights as u64 * owned.len() as u64;
         let lease = if req.lease_ms == 0 { DEFAULT_LEASE } else { Duration::from_millis(req.lease_ms as u64) };
+        let mut left_elsewhere = vec![0u64; forks];
+        if header.plan.lrt {
+            for e in 0..header.counts.elements {
+                left_elsewhere[(header.layout.element_slot(e).0 % f) as usize] += lights as u64;
+            }
+        }
         let work = Work {
             queue: PairQueue::new(lights, owned.len(), header.plan.lrt),
             leased: HashMap::new(),
@@ -166,6 +176,7 @@ impl Shard {
             peers: Peers::new(place.addrs.clone(), token),
             place,
             nodes: req.nodes,
+            left_elsewhere: Mutex::new(left_elsewhere),
             lease,
         };
         shard.put_blocks(req.blocks)?;
@@ -276,6 +287,41 @@ impl Shard {
             .collect()
     }
 
+    /// Unassigned pairs of this fork's own queue.
+    pub fn pairs_left(&self) -> u64 {
+        lock(&self.work).queue.remaining()
+    }
+
+    /// Estimated unassigned pairs of the other forks together.
+    fn left_at_peers(&self) -> u64 {
+        let me = self.place.index as usize;
+        lock(&self.left_elsewhere).iter().enumerate().filter(|&(j, _)| j != me).map(|(_, &n)| n).sum()
+    }
+
+    /// Fork `fork` said it has `left` unassigned pairs.
+    pub fn heard_pairs_left(&self, fork: u32, left: u64) {
+        if let Some(n) = lock(&self.left_elsewhere).get_mut(fork as usize) {
+            *n = left;
+        }
+    }
+
+    /// The other forks in the order to ask them for pairs: most pairs left (as far as
+    /// this fork knows) first, then nearest after this one (index + 1, + 2, ...).
+    pub fn steal_order(&self) -> Vec<u32> {
+        let (me, forks) = (self.place.index, self.place.forks());
+        let left = lock(&self.left_elsewhere).clone();
+        let mut order: Vec<u32> = (1..forks).map(|k| (me + k) % forks).collect();
+        order.sort_by_key(|&j| std::cmp::Reverse(left.get(j as usize).copied().unwrap_or(0)));
+        order
+    }
+
+    /// How many pairs to ask a peer for on behalf of a node that asked for `max`: the
+    /// guided batch of the pairs left in the cluster, as this fork knows them.
+    pub fn steal_batch(&self, max: u32) -> u32 {
+        let max = max.clamp(1, MAX_PAIRS_PER_REQUEST);
+        crate::pairs::guided_batch(max, self.pairs_left() + self.left_at_peers(), self.nodes)
+    }
+
     /// Takes up to `max` unassigned pairs of this fork's own queue for `node` (first
     /// giving back the pairs of nodes whose lease expired), and renews `node`'s leases.
     /// Returns the pairs and the replay epoch they are handed out in.
@@ -290,7 +336,8 @@ impl Shard {
             }
         }
         self.reclaim_expired(&mut work, now);
-        let max = crate::pairs::guided_batch(max, work.queue.remaining(), self.place.forks(), self.nodes) as usize;
+        let left = work.queue.remaining() + self.left_at_peers();
+        let max = crate::pairs::guided_batch(max, left, self.nodes) as usize;
         let mut pairs = Vec::new();
         while pairs.len() < max {
             let got = work.queue.pop(max - pairs.len(), &self.owned, self.header.counts.elements);

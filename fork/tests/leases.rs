@@ -80,3 +80,29 @@ fn a_completion_naming_a_fork_that_is_not_another_one_is_refused() {
     }
     assert_eq!(s.energies(true).pairs_done, 0, "a refused request changed the state");
 }
+
+/// Batches are sized by the pairs left in the whole cluster, as this fork has heard of
+/// them: large while the other fork still holds its pairs, small once it said it has none.
+#[test]
+fn batches_shrink_with_the_pairs_left_in_the_cluster_not_only_here() {
+    let s = Shard::load(v1::LoadShardRequest { nodes: 2, ..load_request() }, Default::default()).unwrap();
+    let own = s.pairs_left();
+    assert_eq!(own, 832, "magg-paper's 1664 pairs, half of them here");
+    // Take all but 40 of this fork's pairs.
+    while s.pairs_left() > 40 {
+        s.take_own_pairs(8, 1);
+    }
+    // The other fork is thought to hold its 832: batches stay at the node's 64.
+    assert_eq!(s.steal_batch(64), 64);
+    let (pairs, _) = s.take_own_pairs(64, 1);
+    assert_eq!(pairs.len(), 40);
+    // It says it has 40 left: 40 in all, half of a node's share is 10.
+    s.heard_pairs_left(1, 40);
+    assert_eq!(s.steal_batch(64), 10);
+    // Then 10: shared out at no fewer than 8 pairs while each node can have that many.
+    s.heard_pairs_left(1, 10);
+    assert_eq!(s.steal_batch(64), 5);
+    s.heard_pairs_left(1, 20);
+    assert_eq!(s.steal_batch(64), 8);
+    assert_eq!(s.steal_order(), vec![1]);
+}

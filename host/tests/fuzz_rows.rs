@@ -34,7 +34,11 @@ fn any_sequence_of_node_calls_keeps_the_frame_consistent() {
     runner
         .run(&proptest::collection::vec(call(), 0..80), |calls| {
             let tiles = magg_core::render::subscreens(w, h, 8);
+            // Half the cases let requests take runs of adjacent subscreens.
             let mut s = Scheduler::new(w, h, tiles);
+            if calls.len() % 2 == 0 {
+                s = s.merging(2);
+            }
             let mut handed: Vec<(u64, Subscreen)> = Vec::new();
             for c in calls {
                 match c {

@@ -308,7 +308,9 @@ pub async fn drive(
         let t_vrt = Instant::now();
         {
             let mut st = service.lock();
-            st.schedule = Some(Scheduler::new(s.width, s.height, tiles.clone()));
+            let schedule = Scheduler::new(s.width, s.height, tiles.clone());
+            let nodes = st.nodes.len() as u32;
+            st.schedule = Some(if opts.scheme == Scheme::Magg { schedule.merging(nodes) } else { schedule });
             // Nodes hold the header's camera; another one rides on the subscreens.
             st.frame_camera = (*camera != h.camera).then(|| v1::Camera::from(camera));
             st.phase = Phase::Vrt;
