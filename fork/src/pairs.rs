@@ -67,8 +67,7 @@ impl PairQueue {
 }
 
 /// Pairs to hand out for a request of `max` (guided self-scheduling, Polychronopoulos
-/// and Kuck 1987, in the "factoring" form of Hummel et al. 1992): half of each node's
-/// share of the pairs left in the whole cluster (`left`, this fork's estimate), so that
+/// and Kuck 1987): a quarter of each node's share of the pairs left in the whole cluster (`left`, this fork's estimate), so that
 /// batches are large while there is much left and shrink towards the end (pairs of
 /// neighbouring elements cost alike, so a late large batch would leave its node working
 /// alone). They shrink to [`MIN_BATCH`] pairs, not to one: a batch costs a request and a
@@ -91,7 +90,7 @@ pub fn guided_batch(max: u32, left: u64, nodes: u32) -> u32 {
 }
 
 /// Parts of a node's share of the remaining pairs handed out at once.
-const GUIDED_PARTS: u64 = 2;
+const GUIDED_PARTS: u64 = 4;
 
 /// Smallest batch while each node has at least this many pairs left to share (the
 /// embedded renderer's batch).
@@ -103,11 +102,12 @@ mod tests {
 
     #[test]
     fn guided_batches_shrink_and_spread_over_nodes() {
-        // 1664 pairs left and 80 nodes: batches of 11 (half of a node's share), not 128.
-        assert_eq!(guided_batch(128, 1664, 80), 11);
+        // 1664 pairs left and 80 nodes: a quarter of a node's share is 6, raised to 8.
+        assert_eq!(guided_batch(128, 1664, 80), 8);
+        assert_eq!(guided_batch(128, 3200, 80), 10);
         assert_eq!(guided_batch(128, 500_000, 80), 128);
         // Down to 8 pairs, while every node can still have 8.
-        assert_eq!(guided_batch(128, 40, 2), 10);
+        assert_eq!(guided_batch(128, 80, 2), 10);
         assert_eq!(guided_batch(128, 20, 2), 8);
         // Fewer: shared out, so that all nodes get some.
         assert_eq!(guided_batch(128, 300, 80), 4);

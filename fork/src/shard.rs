@@ -298,6 +298,15 @@ impl Shard {
         lock(&self.left_elsewhere).iter().enumerate().filter(|&(j, _)| j != me).map(|(_, &n)| n).sum()
     }
 
+    /// Estimated unassigned pairs of the whole cluster, this fork holding `own`: the
+    /// smaller of two estimates that both err high: `own` plus what the other forks last
+    /// said they had (stale for a fork this one has not asked lately), and `own` times
+    /// the number of forks (high while forks without a node of their own still hold all
+    /// their pairs, right when every fork is drained by its own nodes).
+    fn left_in_cluster(&self, own: u64) -> u64 {
+        (own + self.left_at_peers()).min(own * self.place.forks() as u64)
+    }
+
     /// Fork `fork` said it has `left` unassigned pairs.
     pub fn heard_pairs_left(&self, fork: u32, left: u64) {
         if let Some(n) = lock(&self.left_elsewhere).get_mut(fork as usize) {
@@ -319,6 +328,7 @@ impl Shard {
     /// guided batch of the pairs left in the cluster, as this fork knows them.
     pub fn steal_batch(&self, max: u32) -> u32 {
         let max = max.clamp(1, MAX_PAIRS_PER_REQUEST);
+        // This fork's queue is empty when it steals: what the others said is all it has.
         crate::pairs::guided_batch(max, self.pairs_left() + self.left_at_peers(), self.nodes)
     }
 
@@ -336,8 +346,7 @@ impl Shard {
             }
         }
         self.reclaim_expired(&mut work, now);
-        let left = work.queue.remaining() + self.left_at_peers();
-        let max = crate::pairs::guided_batch(max, left, self.nodes) as usize;
+        let max = crate::pairs::guided_batch(max, self.left_in_cluster(work.queue.remaining()), self.nodes) as usize;
         let mut pairs = Vec::new();
         while pairs.len() < max {
             let got = work.queue.pop(max - pairs.len(), &self.owned, self.header.counts.elements);

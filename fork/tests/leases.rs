@@ -92,17 +92,22 @@ fn batches_shrink_with_the_pairs_left_in_the_cluster_not_only_here() {
     while s.pairs_left() > 40 {
         s.take_own_pairs(8, 1);
     }
-    // The other fork is thought to hold its 832: batches stay at the node's 64.
+    // The other fork is thought to hold its 832: stealing, this one would ask for 64.
     assert_eq!(s.steal_batch(64), 64);
+    // Its own 40 count twice (it cannot know the other was not drained as fast): 80 in
+    // all, a quarter of a node's share is 10.
     let (pairs, _) = s.take_own_pairs(64, 1);
-    assert_eq!(pairs.len(), 40);
-    // It says it has 40 left: 40 in all, half of a node's share is 10.
-    s.heard_pairs_left(1, 40);
-    assert_eq!(s.steal_batch(64), 10);
-    // Then 10: shared out at no fewer than 8 pairs while each node can have that many.
-    s.heard_pairs_left(1, 10);
-    assert_eq!(s.steal_batch(64), 5);
+    assert_eq!(pairs.len(), 10);
+    while s.pairs_left() > 0 {
+        s.take_own_pairs(8, 1);
+    }
+    // The other says it has 160 left: 160 in all, a quarter of a node's share is 20.
+    s.heard_pairs_left(1, 160);
+    assert_eq!(s.steal_batch(64), 20);
+    // Then 20: shared out at no fewer than 8 pairs while each node can have that many.
     s.heard_pairs_left(1, 20);
     assert_eq!(s.steal_batch(64), 8);
+    s.heard_pairs_left(1, 10);
+    assert_eq!(s.steal_batch(64), 5);
     assert_eq!(s.steal_order(), vec![1]);
 }
