@@ -66,7 +66,9 @@ fn any_sequence_of_node_calls_keeps_the_frame_consistent() {
                 match s.next(99) {
                     Next::Trace(id, t) => {
                         for y in t.y..t.y + t.h {
-                            prop_assert!(s.submit(id, &[(y, &magg_proto::convert::pixels_to_wire(vec![1.0; 3 * t.w as usize]))]).is_ok());
+                            prop_assert!(s
+                                .submit(id, &[(y, &magg_proto::convert::pixels_to_wire(vec![1.0; 3 * t.w as usize]))])
+                                .is_ok());
                         }
                     }
                     Next::Wait => prop_assert!(false, "work left that nobody can get"),

@@ -110,7 +110,8 @@ pub async fn drive(
     let cpu0 = process_cpu_s();
     // The render's timeline at debug level (RUST_LOG=magg_host=debug): where the
     // cluster's fixed costs go.
-    let mark = |what: &str| tracing::debug!(ms = format!("{:.2}", 1e3 * t_start.elapsed().as_secs_f64()), "timeline: {what}");
+    let mark =
+        |what: &str| tracing::debug!(ms = format!("{:.2}", 1e3 * t_start.elapsed().as_secs_f64()), "timeline: {what}");
     let h = prepared.header.clone();
     let f = opts.forks.len();
     if f == 0 {

@@ -126,7 +126,8 @@ impl Inner {
             ClusterEvent::Rows { node, id, rows } => {
                 let (Some(r), Some(first)) = (self.rects.get(&id).copied(), rows.first()) else { return };
                 let y = first.y;
-                let px = rows.iter().flat_map(|row| magg_proto::convert::pixels_from_wire(&row.rgb)).collect::<Vec<_>>();
+                let px =
+                    rows.iter().flat_map(|row| magg_proto::convert::pixels_from_wire(&row.rgb)).collect::<Vec<_>>();
                 self.rows(node, r.x, y, r.w, px.into_iter());
             }
             ClusterEvent::Redivided { id, at } => {
