@@ -252,23 +252,27 @@ fn view_pass(
     let s = &header.settings;
     let rig = CameraRig::new(camera, s.width, s.height);
     let queue = Mutex::new(tiles.iter().copied().rev().collect::<Vec<_>>());
+    // Each worker copies a finished subscreen into the frame at once: the frame is
+    // assembled while the others trace, not after the last of them.
+    let frame = Mutex::new(Frame::new(s.width, s.height));
     progress.begin("viewing ray tracing", s.width as u64 * s.height as u64);
-    let vrt_results: Vec<Result<Vec<(Subscreen, Vec<Rgb>)>, RenderError>> = std::thread::scope(|sc| {
+    let vrt_results: Vec<Result<u64, RenderError>> = std::thread::scope(|sc| {
         let handles: Vec<_> = views
             .iter_mut()
             .enumerate()
             .map(|(node, view)| {
-                let (queue, rig) = (&queue, &rig);
-                sc.spawn(move || -> Result<Vec<(Subscreen, Vec<Rgb>)>, BlockError> {
+                let (queue, rig, frame) = (&queue, &rig, &frame);
+                sc.spawn(move || -> Result<u64, BlockError> {
                     let mut scratch = TraceScratch::default();
-                    let mut done = Vec::new();
+                    let mut done = 0;
+                    let mut px = Vec::new();
                     loop {
                         let tile = match queue.lock() {
                             Ok(mut q) => q.pop(),
                             Err(_) => None,
                         };
                         let Some(t) = tile else { break };
-                        let mut px = Vec::with_capacity(t.pixels() as usize);
+                        px.clear();
                         for y in t.y..t.y + t.h {
                             for x in t.x..t.x + t.w {
                                 px.push(shade_pixel(view, &mut scratch, rig, x, y)?);
@@ -276,7 +280,16 @@ fn view_pass(
                         }
                         progress.subscreen_done(node as u32, t, &px);
                         progress.advance(t.pixels());
-                        done.push((t, px));
+                        let mut f = frame.lock().unwrap_or_else(|p| p.into_inner());
+                        let mut it = px.iter();
+                        for y in t.y..t.y + t.h {
+                            for x in t.x..t.x + t.w {
+                                if let Some(v) = it.next() {
+                                    f.set(x, y, *v);
+                                }
+                            }
+                        }
+                        done += 1;
                     }
                     Ok(done)
                 })
@@ -285,22 +298,8 @@ fn view_pass(
         handles.into_iter().map(join_worker).collect()
     });
     progress.end();
-    let mut frame = Frame::new(s.width, s.height);
-    let mut node_tiles = Vec::with_capacity(views.len());
-    for r in vrt_results {
-        let done = r?;
-        node_tiles.push(done.len() as u64);
-        for (t, px) in &done {
-            let mut it = px.iter();
-            for y in t.y..t.y + t.h {
-                for x in t.x..t.x + t.w {
-                    if let Some(v) = it.next() {
-                        frame.set(x, y, *v);
-                    }
-                }
-            }
-        }
-    }
+    let node_tiles = vrt_results.into_iter().collect::<Result<Vec<u64>, RenderError>>()?;
+    let frame = frame.into_inner().unwrap_or_else(|p| p.into_inner());
     Ok((frame, node_tiles))
 }
 

@@ -360,11 +360,16 @@ pub async fn drive(
         let frame_s = t_vrt.elapsed().as_secs_f64();
         vrt_s += frame_s;
         {
-            let st = service.lock();
-            if let Some(sc) = st.schedule.as_ref() {
-                frame = sc.frame().clone();
+            let mut st = service.lock();
+            if let Some(sc) = st.schedule.as_mut() {
+                frame = sc.take_frame();
                 redivisions += sc.redivisions;
             }
+        }
+        if index + 1 == cameras.len() {
+            // The last frame is in: the nodes hear "done" and send their final reports
+            // while the image is written.
+            service.set_phase(Phase::Done);
         }
         sink(index, &frame, frame_s).map_err(|e| anyhow::anyhow!(e))?;
         mark("frame written");

@@ -198,10 +198,7 @@ impl Scheduler {
         }
         // The frame holds f32 pixels, as the wire does: the row is copied as it came.
         if let Some(row) = self.frame.row_mut(a.rect.x, y, a.rect.w) {
-            let mut f = magg_proto::convert::pixels_from_wire(rgb);
-            for px in row {
-                *px = [0; 3].map(|_| f.next().unwrap_or(0.0));
-            }
+            magg_proto::convert::pixels_into(rgb, row);
         }
         self.pixels_done += a.rect.w as u64;
         a.next_row = y + 1;
@@ -255,6 +252,13 @@ impl Scheduler {
     /// The assembled frame.
     pub fn frame(&self) -> &Frame {
         &self.frame
+    }
+
+    /// Takes the assembled frame out (no copy of its pixels). The schedule keeps
+    /// answering as before, but stores no more pixels: for when the frame is done.
+    pub fn take_frame(&mut self) -> Frame {
+        let empty = Frame { width: self.frame.width, height: self.frame.height, pixels: Vec::new() };
+        std::mem::replace(&mut self.frame, empty)
     }
 }
 
