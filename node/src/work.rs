@@ -17,7 +17,7 @@ use magg_proto::v1::next_work_reply::Kind;
 use magg_proto::v1::{self, DepositRequest, NextWorkRequest, PairDeposits, Row, SubmitRowsRequest, TakePairsRequest};
 use magg_throttle::Scheme;
 use prost::Message;
-use std::collections::{BTreeMap, VecDeque};
+use std::collections::VecDeque;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 use tokio::runtime::Handle;
@@ -212,9 +212,11 @@ impl Worker {
             tracing::debug!(node = self.node, pairs = got.pairs.len(), "tracing a batch of pairs");
             // Per fork: round 1 carries deposits on forks other than the pair's owner;
             // round 2 carries the owner's deposits and marks the pair complete, so that a
-            // pair counted as done has all its energy in place.
-            let mut round1: BTreeMap<usize, Vec<PairDeposits>> = BTreeMap::new();
-            let mut round2: BTreeMap<usize, Vec<PairDeposits>> = BTreeMap::new();
+            // pair counted as done has all its energy in place. Indexed by fork.
+            let forks = self.forks.len().max(1);
+            let mut round1: Vec<Vec<PairDeposits>> = vec![Vec::new(); forks];
+            let mut round2: Vec<Vec<PairDeposits>> = vec![Vec::new(); forks];
+            let mut split: Vec<Option<PairDeposits>> = vec![None; forks];
             for &pair in &got.pairs {
                 if pair >= total || elements == 0 {
                     return Err(NodeError::Convert(format!("pair {pair} out of range ({total} pairs)")));
@@ -228,24 +230,21 @@ impl Worker {
                 self.mine.pairs += 1;
                 self.mine.tally = self.mine.tally.add(r.tally);
                 let owner = self.owner_of(element);
-                let mut split: BTreeMap<usize, PairDeposits> = BTreeMap::new();
+                let fresh = || PairDeposits { pair, epoch: got.epoch, ..Default::default() };
                 for (e, f) in r.deposits {
-                    let d = split.entry(self.owner_of(e)).or_insert_with(|| PairDeposits {
-                        pair,
-                        epoch: got.epoch,
-                        ..Default::default()
-                    });
+                    let d = split[self.owner_of(e)].get_or_insert_with(fresh);
                     d.elements.push(e);
                     d.energy.extend_from_slice(&f);
                 }
-                let mut own =
-                    split.remove(&owner).unwrap_or(PairDeposits { pair, epoch: got.epoch, ..Default::default() });
+                let mut own = split[owner].take().unwrap_or_else(fresh);
                 own.complete = true;
-                own.also_on = split.keys().map(|&f| f as u32).collect();
-                for (fork, d) in split {
-                    round1.entry(fork).or_default().push(d);
+                for (fork, d) in split.iter_mut().enumerate() {
+                    if let Some(d) = d.take() {
+                        own.also_on.push(fork as u32);
+                        round1[fork].push(d);
+                    }
                 }
-                round2.entry(owner).or_default().push(own);
+                round2[owner].push(own);
             }
             let send = send_deposits(self.forks.clone(), self.pace.clone(), round1, round2, self.backoff);
             if !self.overlap {
@@ -346,12 +345,15 @@ impl Worker {
 async fn send_deposits(
     forks: Vec<ForkClient<Authed>>,
     pace: Option<Arc<NodePace>>,
-    round1: BTreeMap<usize, Vec<PairDeposits>>,
-    round2: BTreeMap<usize, Vec<PairDeposits>>,
+    round1: Vec<Vec<PairDeposits>>,
+    round2: Vec<Vec<PairDeposits>>,
     backoff: Backoff,
 ) -> Result<(), NodeError> {
     for round in [round1, round2] {
-        for (fork, pairs) in round {
+        for (fork, pairs) in round.into_iter().enumerate() {
+            if pairs.is_empty() {
+                continue;
+            }
             let Some(client) = forks.get(fork) else {
                 return Err(NodeError::Convert(format!("fork {fork} of {}", forks.len())));
             };
