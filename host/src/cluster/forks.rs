@@ -141,14 +141,11 @@ impl<'a> ForkSet<'a> {
     /// Loads every fork's shard, all at once (the forks decode and check their shards in
     /// parallel).
     pub async fn load_all(&mut self) -> anyhow::Result<()> {
-        let mut loads = tokio::task::JoinSet::new();
-        for i in 0..self.len() {
-            let req = self.shard_request(i);
-            loads.spawn(load_shard(self.clients[i].clone(), self.name(i), self.timeout, req));
-        }
-        while let Some(r) = loads.join_next().await {
-            r.context("a shard upload task failed")??;
-        }
+        // Polled together in this task, not spawned: a fork of this process answers
+        // within the poll (no hop to a runtime thread), one over a socket concurrently.
+        let loads = (0..self.len())
+            .map(|i| load_shard(self.clients[i].clone(), self.name(i), self.timeout, self.shard_request(i)));
+        futures_util::future::try_join_all(loads).await?;
         Ok(())
     }
 
