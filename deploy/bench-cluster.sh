@@ -6,7 +6,8 @@
 #
 #   deploy/bench-cluster.sh [REPEATS] [SCENE...]
 #
-# Default: 7 repeats of scenes/magg-paper.toml and scenes/large.toml, 2 nodes (NODES=n).
+# Default: 7 repeats of scenes/magg-paper.toml and scenes/large.toml, 2 nodes (NODES=n);
+# MODES="core cluster" leaves the socket runs out.
 #
 # The three modes run interleaved (core, cluster, tcp, core, ...), so that a slow spell
 # of a shared machine hits all of them alike; the overhead is the median over repeats of
@@ -23,6 +24,7 @@ shift || true
 scenes=("$@")
 [ ${#scenes[@]} -gt 0 ] || scenes=(scenes/magg-paper.toml scenes/large.toml)
 nodes=${NODES:-2}
+read -r -a modes <<<"${MODES:-core cluster tcp}"
 cargo build --release -q -p magg-host
 bin=target/release/magg-host
 tmp=$(mktemp -d)
@@ -54,10 +56,10 @@ echo "|---|---|---:|---:|---:|---:|---:|---:|"
 for s in "${scenes[@]}"; do
   : >"$tmp/core" ; : >"$tmp/cluster" ; : >"$tmp/tcp"
   for ((i = 0; i < repeats; i++)); do
-    for mode in core cluster tcp; do run $mode "$s" >>"$tmp/$mode"; done
+    for mode in "${modes[@]}"; do run $mode "$s" >>"$tmp/$mode"; done
   done
   name=$(basename "$s" .toml)
-  for mode in core cluster tcp; do
+  for mode in "${modes[@]}"; do
     read -r tb tm < <(cut -d' ' -f1 "$tmp/$mode" | stats)
     read -r lb lm < <(cut -d' ' -f2 "$tmp/$mode" | stats)
     read -r vb vm < <(cut -d' ' -f3 "$tmp/$mode" | stats)

@@ -111,6 +111,9 @@ impl Worker {
         let mut handed: Option<v1::NextWorkReply> = None;
         loop {
             self.publish();
+            // Work handed with the reply to the last rows was not held by the host: a
+            // WAIT there is followed at once by a NextWork, which the host holds.
+            let from_rows = handed.is_some();
             let reply = match handed.take() {
                 Some(r) => r,
                 None => {
@@ -130,6 +133,9 @@ impl Worker {
             let kind = Kind::try_from(reply.kind).unwrap_or(Kind::Wait);
             match kind {
                 Kind::Wait => {
+                    if from_rows {
+                        continue;
+                    }
                     // The host held the call while there was nothing to do (and answers
                     // at once when the phase changes): pause as it says, then ask again.
                     std::thread::sleep(Duration::from_millis(reply.wait_ms.clamp(1, MAX_WAIT_MS) as u64));
