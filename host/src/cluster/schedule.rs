@@ -326,6 +326,20 @@ mod tests {
     }
 
     #[test]
+    fn a_taken_frame_keeps_its_pixels_and_the_schedule_still_answers() {
+        let mut s = Scheduler::new(4, 2, vec![Subscreen { x: 0, y: 0, w: 4, h: 2 }]);
+        let Next::Trace(id, _) = s.next(0) else { panic!("expected work") };
+        s.submit(id, &[(0, &row(4, 1.0)), (1, &row(4, 3.0))]).unwrap();
+        assert!(s.is_done());
+        let f = s.take_frame();
+        assert_eq!((f.width, f.height, f.pixels.len()), (4, 2, 8));
+        assert_eq!((f.get(3, 0), f.get(0, 1)), ([1.0; 3], [3.0; 3]));
+        // A repeated row after the frame was taken is acknowledged, not stored.
+        assert_eq!(s.submit(id, &[(1, &row(4, 3.0))]).unwrap(), None);
+        assert_eq!(s.next(1), Next::Done);
+    }
+
+    #[test]
     fn a_silent_node_loses_its_unsent_rows_and_its_late_rows_are_dropped() {
         let mut s = Scheduler::new(4, 4, vec![Subscreen { x: 0, y: 0, w: 4, h: 4 }]);
         let Next::Trace(id, _) = s.next(0) else { panic!() };
