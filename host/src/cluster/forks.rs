@@ -138,8 +138,8 @@ impl<'a> ForkSet<'a> {
         load_shard(self.clients[i].clone(), self.name(i), self.timeout, req).await
     }
 
-    /// Loads every fork's shard, all at once (the forks decode and check their shards in
-    /// parallel).
+    /// Loads every fork's shard, all at once: forks across sockets decode and check
+    /// their shards in parallel; a fork of this process does it within the poll.
     pub async fn load_all(&mut self) -> anyhow::Result<()> {
         // Polled together in this task, not spawned: a fork of this process answers
         // within the poll (no hop to a runtime thread), one over a socket concurrently.

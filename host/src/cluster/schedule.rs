@@ -334,9 +334,12 @@ mod tests {
         let f = s.take_frame();
         assert_eq!((f.width, f.height, f.pixels.len()), (4, 2, 8));
         assert_eq!((f.get(3, 0), f.get(0, 1)), ([1.0; 3], [3.0; 3]));
-        // A repeated row after the frame was taken is acknowledged, not stored.
-        assert_eq!(s.submit(id, &[(1, &row(4, 3.0))]).unwrap(), None);
+        // The schedule answers as before the take: done, and a row of a retired
+        // subscreen is refused the same way.
+        assert!(s.is_done());
+        assert_eq!(s.pixels_done(), 8);
         assert_eq!(s.next(1), Next::Done);
+        assert!(matches!(s.submit(id, &[(1, &row(4, 3.0))]), Err(RowError::UnknownSubscreen(_))));
     }
 
     #[test]
