@@ -10,11 +10,12 @@
 //! Rules the callers follow:
 //! - element `e` belongs to the fork holding its element block,
 //!   `layout.element_slot(e).0 % F`; its deposits go there;
-//! - a node sends all of one pair's deposits for one fork in a single `PairDeposits`
-//!   (a repeated pair id is acknowledged and ignored), and sets `complete` on the one it
-//!   sends to the owner of the pair's element (`pair % elements`), with the `epoch` of
-//!   the `TakePairs` reply that handed the pair out (a completion from before a
-//!   `Replay` is not counted);
+//! - a node sends all of one pair's deposits for one fork in one `Deposit` request (a
+//!   batch's pairs as packed arrays, [`magg_proto::deposits`]; a repeated pair id is
+//!   acknowledged and ignored), and sets `complete` on the one it sends to the owner of
+//!   the pairs' elements (`pair % elements`), with the `epoch` of the `TakePairs` reply
+//!   that handed them out (a completion from before a `Replay` is not counted); that
+//!   request may carry the node's next `TakePairs`, answered once the deposits are in;
 //! - pairs are leased: a node that has not asked a fork for pairs for the lease
 //!   (`LoadShard.lease_ms`) loses its pairs there to the queue;
 //! - every call carries the cluster token when one is set ([`magg_proto::auth`]);

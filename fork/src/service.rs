@@ -247,9 +247,17 @@ impl Fork for ForkService {
     async fn deposit(&self, req: Request<v1::DepositRequest>) -> Result<Response<v1::DepositReply>, Status> {
         let shard = self.shard()?;
         let r = req.into_inner();
-        self.hw.serve(r.pairs.iter().map(|p| p.elements.len()).sum()).await;
-        let (applied, duplicates) = shard.deposit(&r.pairs)?;
-        let reply = v1::DepositReply { applied, duplicates };
+        self.hw.serve(r.elements.len()).await;
+        let (applied, duplicates) = shard.deposit(&r)?;
+        // The node's next batch, asked for in the same call.
+        let taken = match &r.take {
+            Some(t) => {
+                self.hw.serve(0).await;
+                Some(take_pairs(shard.clone(), &self.hw, t.max, t.node).await?)
+            }
+            None => None,
+        };
+        let reply = v1::DepositReply { applied, duplicates, taken };
         shard.count_link(prost::Message::encoded_len(&r) + prost::Message::encoded_len(&reply));
         Ok(Response::new(reply))
     }

@@ -481,48 +481,43 @@ impl Shard {
         })
     }
 
-    /// Applies deposits exactly once per pair id; returns (applied, duplicates). The
-    /// whole request is checked before anything is applied.
-    pub fn deposit(&self, pairs: &[v1::PairDeposits]) -> Result<(u32, u32), ForkError> {
-        if pairs.len() > MAX_DEPOSIT_PAIRS {
+    /// Applies a batch's deposits (see [`magg_proto::deposits`]) exactly once per pair
+    /// id; returns (applied, duplicates). The whole request is checked before anything
+    /// is applied.
+    pub fn deposit(&self, req: &v1::DepositRequest) -> Result<(u32, u32), ForkError> {
+        if req.pairs.len() > MAX_DEPOSIT_PAIRS {
             return Err(ForkError::TooMany {
                 what: "pairs in a deposit",
-                got: pairs.len() as u64,
+                got: req.pairs.len() as u64,
                 max: MAX_DEPOSIT_PAIRS as u64,
             });
         }
-        let deposits: usize = pairs.iter().map(|p| p.elements.len()).sum();
-        if deposits > MAX_DEPOSITS {
+        if req.elements.len() > MAX_DEPOSITS {
             return Err(ForkError::TooMany {
                 what: "element deposits in a request",
-                got: deposits as u64,
+                got: req.elements.len() as u64,
                 max: MAX_DEPOSITS as u64,
             });
         }
+        let pairs = magg_proto::deposits::read(req).map_err(|e| ForkError::BadRequest(e.to_string()))?;
         let total_pairs = self.pair_count();
         let forks = self.place.forks();
-        let mut slots = Vec::with_capacity(deposits);
-        let mut local = Vec::with_capacity(pairs.len());
-        for p in pairs {
+        let mut slots = Vec::with_capacity(req.elements.len());
+        let mut local = Vec::with_capacity(if req.complete { req.pairs.len() } else { 0 });
+        for p in pairs.clone() {
             if p.pair >= total_pairs {
                 return Err(ForkError::PairOutOfRange { pair: p.pair, pairs: total_pairs });
             }
-            local.push(if p.complete { Some(self.local_pair(p.pair)?) } else { None });
+            if req.complete {
+                local.push(self.local_pair(p.pair)?);
+            }
             if let Some(&j) = p.also_on.iter().find(|&&j| j >= forks || j == self.place.index) {
                 return Err(ForkError::BadRequest(format!(
                     "pair {} deposited on fork {j}: not another of the {forks} forks",
                     p.pair
                 )));
             }
-            if p.energy.len() != 3 * p.elements.len() {
-                return Err(ForkError::BadRequest(format!(
-                    "pair {}: {} energy values for {} elements (3 each)",
-                    p.pair,
-                    p.energy.len(),
-                    p.elements.len()
-                )));
-            }
-            for &e in &p.elements {
+            for &e in p.elements {
                 slots.push(self.owned_index(e)?);
             }
         }
@@ -530,7 +525,8 @@ impl Shard {
         let mut slots = slots.into_iter();
         let mut work = lock(&self.work);
         let own_pairs = self.header.lights.len() as u64 * self.owned.len() as u64;
-        for (p, k) in pairs.iter().zip(local) {
+        let counts_done = req.complete && req.epoch == work.epoch;
+        for (k, p) in pairs.enumerate() {
             let fresh = work.applied.insert(p.pair);
             for (d, slot) in p.energy.chunks_exact(3).zip(slots.by_ref()) {
                 if fresh {
@@ -545,10 +541,10 @@ impl Shard {
             } else {
                 duplicates += 1;
             }
-            if let (Some(k), true) = (k, p.epoch == work.epoch) {
+            if let (Some(&k), true) = (local.get(k), counts_done) {
                 work.done.insert(k);
                 work.leased.remove(&p.pair);
-                for &j in &p.also_on {
+                for &j in p.also_on {
                     work.deposited_on[j as usize].get_or_insert_with(|| Bitset::new(own_pairs)).insert(k);
                 }
             }

@@ -6,6 +6,7 @@ use magg_core::lrt::pair_id;
 use magg_core::preprocess::{prepare, PreparedScene};
 use magg_core::scene::parse_scene_str;
 use magg_proto::auth::Authed;
+use magg_proto::deposits::DepositWriter;
 use magg_proto::v1;
 use magg_proto::v1::fork_client::ForkClient;
 use std::collections::BTreeSet;
@@ -109,8 +110,14 @@ impl Cluster {
     }
 }
 
-fn deposit(pair: u64, element: u32, rgb: [i64; 3], complete: bool) -> v1::PairDeposits {
-    v1::PairDeposits { pair, elements: vec![element], energy: rgb.to_vec(), complete, epoch: 0, also_on: vec![] }
+/// A request of pairs (pair, element, r g b) with one deposit each, in epoch 0.
+fn deposits(complete: bool, pairs: &[(u64, u32, [i64; 3])]) -> v1::DepositRequest {
+    let mut w = DepositWriter::new(complete, 0);
+    for &(pair, element, rgb) in pairs {
+        w.pair(pair);
+        w.deposit(element, rgb);
+    }
+    w.finish()
 }
 
 fn code<T: std::fmt::Debug>(r: Result<tonic::Response<T>, tonic::Status>) -> (Code, String) {
@@ -187,6 +194,39 @@ async fn own_pairs_come_first_in_ascending_order() {
     c.stop().await;
 }
 
+/// The completion of a batch may ask for the next one: the deposits are applied, then
+/// the pairs taken, as a separate TakePairs would take them; a refused deposit takes
+/// nothing.
+#[tokio::test]
+async fn a_completion_can_carry_the_next_take() {
+    let mut c = Cluster::start().await;
+    c.load_all().await;
+    let take = v1::TakePairsRequest { max: 4, node: 3 };
+    let first = c.clients[2].take_pairs(take).await.unwrap().into_inner();
+    assert_eq!(first.pairs.len(), 4);
+    let mut w = DepositWriter::new(true, first.epoch);
+    for &p in &first.pairs {
+        w.pair(p);
+        w.deposit((p % c.elements() as u64) as u32, [1, 2, 3]);
+    }
+    let mut req = w.finish();
+    req.take = Some(take);
+    let mut torn = req.clone();
+    torn.counts.pop();
+    assert_eq!(code(c.clients[2].deposit(torn).await).0, Code::InvalidArgument);
+    let r = c.clients[2].deposit(req).await.unwrap().into_inner();
+    assert_eq!((r.applied, r.duplicates), (4, 0));
+    let next = r.taken.expect("no pairs came back with the completion");
+    // The refused request took nothing: the next four follow the first four.
+    let own: Vec<u64> = (0..c.pairs()).filter(|p| c.element_owner((p % c.elements() as u64) as u32) == 2).collect();
+    assert_eq!([first.pairs, next.pairs].concat(), own[..8].to_vec());
+    assert_eq!(c.energies(2).await.pairs_done, 4);
+    // Without a take, no pairs come back.
+    let plain = deposits(false, &[]);
+    assert!(c.clients[2].deposit(plain).await.unwrap().into_inner().taken.is_none());
+    c.stop().await;
+}
+
 #[tokio::test]
 async fn deposits_apply_exactly_once_and_energies_sum() {
     let mut c = Cluster::start().await;
@@ -197,25 +237,21 @@ async fn deposits_apply_exactly_once_and_energies_sum() {
     let (a, b) = (own1[0], own1[own1.len() - 1]);
     // Pair (light 1, a): complete on fork 1, which owns a.
     let p = pair_id(1, a, e);
-    let req = v1::DepositRequest {
-        pairs: vec![v1::PairDeposits {
-            pair: p,
-            elements: vec![a, b, a],
-            energy: vec![5, 6, 7, 1, 1, 1, 10, 0, 0],
-            complete: true,
-            epoch: 0,
-            also_on: vec![],
-        }],
-    };
+    let mut w = DepositWriter::new(true, 0);
+    w.pair(p);
+    w.deposit(a, [5, 6, 7]);
+    w.deposit(b, [1, 1, 1]);
+    w.deposit(a, [10, 0, 0]);
+    let req = w.finish();
     let r1 = c.clients[1].deposit(req.clone()).await.unwrap().into_inner();
     assert_eq!((r1.applied, r1.duplicates), (1, 0));
     let r2 = c.clients[1].deposit(req).await.unwrap().into_inner();
     assert_eq!((r2.applied, r2.duplicates), (0, 1));
     // A pair of fork 0's element whose secondary rays reached fork 1's element b.
     let q = pair_id(0, own0[3], e);
-    let r3 = c.clients[1].deposit(v1::DepositRequest { pairs: vec![deposit(q, b, [2, 3, 4], false)] }).await.unwrap();
+    let r3 = c.clients[1].deposit(deposits(false, &[(q, b, [2, 3, 4])])).await.unwrap();
     assert_eq!(r3.into_inner().applied, 1);
-    let r4 = c.clients[0].deposit(v1::DepositRequest { pairs: vec![deposit(q, own0[3], [100, 0, 0], true)] }).await;
+    let r4 = c.clients[0].deposit(deposits(true, &[(q, own0[3], [100, 0, 0])])).await;
     assert_eq!(r4.unwrap().into_inner().applied, 1);
 
     let e1 = c.energies(1).await;
@@ -283,22 +319,28 @@ async fn bad_requests_get_the_right_codes_and_the_server_keeps_serving() {
     let own = |f: u32| (0..e).find(|&x| c.element_owner(x) == f).unwrap();
     let (a0, a1) = (own(0), own(1));
     let bad = [
-        deposit(pair_id(0, a0, e), a1, [1, 1, 1], false),
-        deposit(pair_id(0, a0, e), e, [1, 1, 1], false),
-        deposit(c.pairs(), a0, [1, 1, 1], false),
-        deposit(pair_id(0, a1, e), a0, [1, 1, 1], true),
+        ((pair_id(0, a0, e), a1, [1, 1, 1]), false),
+        ((pair_id(0, a0, e), e, [1, 1, 1]), false),
+        ((c.pairs(), a0, [1, 1, 1]), false),
+        ((pair_id(0, a1, e), a0, [1, 1, 1]), true),
     ];
-    for (i, d) in bad.into_iter().enumerate() {
+    for (i, (d, complete)) in bad.into_iter().enumerate() {
         // The good pair first: a refused request must apply nothing.
-        let good = deposit(pair_id(1, a0, e), a0, [9, 9, 9], true);
-        let (k, m) = code(c.clients[0].deposit(v1::DepositRequest { pairs: vec![good, d] }).await);
+        let good = (pair_id(1, a0, e), a0, [9, 9, 9]);
+        let (k, m) = code(c.clients[0].deposit(deposits(complete, &[good, d])).await);
         assert_eq!(k, Code::InvalidArgument, "case {i}: {m}");
     }
+    // Arrays that do not fit together.
+    let mut torn = deposits(true, &[(pair_id(1, a0, e), a0, [9, 9, 9])]);
+    torn.energy.pop();
+    let (k, m) = code(c.clients[0].deposit(torn).await);
+    assert_eq!(k, Code::InvalidArgument, "{m}");
+    assert!(m.contains("energy values"), "{m}");
     let e0 = c.energies(0).await;
     assert!(e0.energies.iter().all(|x| [x.r, x.g, x.b] == [0, 0, 0]), "a refused deposit changed energies");
     assert_eq!(e0.pairs_done, 0);
-    let good = deposit(pair_id(1, a0, e), a0, [9, 9, 9], true);
-    let r = c.clients[0].deposit(v1::DepositRequest { pairs: vec![good] }).await.unwrap().into_inner();
+    let good = deposits(true, &[(pair_id(1, a0, e), a0, [9, 9, 9])]);
+    let r = c.clients[0].deposit(good).await.unwrap().into_inner();
     assert_eq!((r.applied, r.duplicates), (1, 0), "the pair was not marked applied by the refused requests");
 
     // Bad shards: a block of another fork, a short block, a bad index, a bad header.

@@ -8,6 +8,7 @@ mod common;
 
 use common::load_request;
 use magg_fork::Shard;
+use magg_proto::deposits::DepositWriter;
 use magg_proto::v1;
 use proptest::prelude::*;
 use proptest::test_runner::{Config, RngAlgorithm, TestRng, TestRunner};
@@ -73,23 +74,39 @@ fn arbitrary_requests_on_a_loaded_shard_are_served_or_refused() {
     let pairs = shard.pair_count();
     let blocks = shard.header().layout.total;
     let elements = shard.header().counts.elements;
-    let deposit = (
+    // A batch of pairs, written as a node writes it, then now and then one array cut or
+    // stretched by one entry: a malformed request.
+    let pair = (
         0..pairs + 4,
         proptest::collection::vec((0..elements + 4, any::<i64>()), 0..8),
-        any::<bool>(),
         proptest::collection::vec(0u32..4, 0..3),
-    )
-        .prop_map(|(pair, ds, complete, also_on)| v1::PairDeposits {
-            pair,
-            elements: ds.iter().map(|d| d.0).collect(),
-            // Now and then one value short: a malformed deposit.
-            energy: ds.iter().flat_map(|&(_, v)| [v, -v, v / 3]).skip(usize::from(pair % 7 == 3)).collect(),
-            complete,
-            epoch: 0,
-            also_on,
-        });
+    );
+    let deposit = (proptest::collection::vec(pair, 0..6), any::<bool>(), 0u8..12).prop_map(|(ps, complete, cut)| {
+        let mut w = DepositWriter::new(complete, 0);
+        for (pair, ds, also_on) in ps {
+            w.pair(pair);
+            for (e, v) in ds {
+                w.deposit(e, [v, -v, v / 3]);
+            }
+            if complete {
+                for f in also_on {
+                    w.also_on(f);
+                }
+            }
+        }
+        let mut r = w.finish();
+        match cut {
+            0 => drop(r.energy.pop()),
+            1 => r.counts.push(1),
+            2 => drop(r.elements.pop()),
+            3 => r.also_on.push(1),
+            4 => r.also_on_counts.push(0),
+            _ => {}
+        }
+        r
+    });
     let request = (
-        proptest::collection::vec(deposit, 0..6),
+        deposit,
         proptest::collection::vec(0..blocks + 4, 0..8),
         proptest::collection::vec((0..blocks + 4, 0..2100usize), 0..3),
         any::<u32>(),

@@ -7,8 +7,22 @@ mod common;
 
 use common::load_request;
 use magg_fork::Shard;
+use magg_proto::deposits::DepositWriter;
 use magg_proto::v1;
 use std::time::Duration;
+
+/// A completion (round 2) of `pairs`, handed out in `epoch`, each also deposited on the
+/// forks listed beside it.
+fn completions(pairs: &[(u64, Vec<u32>)], epoch: u64) -> v1::DepositRequest {
+    let mut w = DepositWriter::new(true, epoch);
+    for (p, also_on) in pairs {
+        w.pair(*p);
+        for &f in also_on {
+            w.also_on(f);
+        }
+    }
+    w.finish()
+}
 
 fn shard(lease_ms: u32) -> Shard {
     Shard::load(v1::LoadShardRequest { lease_ms, ..load_request() }, Default::default()).unwrap()
@@ -40,12 +54,12 @@ fn a_replay_queues_every_pair_again_and_ignores_older_completions() {
     let (pairs, epoch) = s.take_own_pairs(4, 1);
     assert_eq!(epoch, 0);
     assert!(s.replay(1, None) > 0);
-    let done = |p: u64, epoch: u64| v1::PairDeposits { pair: p, complete: true, epoch, ..Default::default() };
-    s.deposit(&[done(pairs[0], 0)]).unwrap();
+    let done = |p: u64, epoch: u64| completions(&[(p, vec![])], epoch);
+    s.deposit(&done(pairs[0], 0)).unwrap();
     assert_eq!(s.energies(true).pairs_done, 0, "a completion from before the replay counted");
     let (again, epoch) = s.take_own_pairs(4, 2);
     assert_eq!((again, epoch), (pairs.clone(), 1));
-    s.deposit(&[done(pairs[0], 1)]).unwrap();
+    s.deposit(&done(pairs[0], 1)).unwrap();
     assert_eq!(s.energies(true).pairs_done, 1);
     assert_eq!(s.replay(1, None), 0, "a repeated replay changes nothing");
 }
@@ -55,11 +69,10 @@ fn a_replay_for_a_lost_fork_queues_exactly_the_pairs_that_deposited_on_it() {
     let s = shard(0);
     let (pairs, _) = s.take_own_pairs(6, 1);
     assert_eq!(pairs.len(), 6);
-    let done = |p: u64, also_on: Vec<u32>| v1::PairDeposits { pair: p, complete: true, also_on, ..Default::default() };
     // Pairs 0, 2 and 4 deposited on fork 1 as well; 1 and 3 only here; 5 is still out.
-    let completions: Vec<_> =
-        pairs[..5].iter().enumerate().map(|(i, &p)| done(p, if i % 2 == 0 { vec![1] } else { vec![] })).collect();
-    s.deposit(&completions).unwrap();
+    let done: Vec<_> =
+        pairs[..5].iter().enumerate().map(|(i, &p)| (p, if i % 2 == 0 { vec![1] } else { vec![] })).collect();
+    s.deposit(&completions(&done, 0)).unwrap();
     assert_eq!(s.energies(true).pairs_done, 5);
     assert_eq!(s.replay(1, Some(1)), 4, "three pairs on the lost fork and one out with a node");
     assert_eq!(s.energies(true).pairs_done, 2, "the pairs that never touched fork 1 stay done");
@@ -75,8 +88,8 @@ fn a_completion_naming_a_fork_that_is_not_another_one_is_refused() {
     let s = shard(0);
     let (pairs, _) = s.take_own_pairs(1, 1);
     for bad in [0u32, 2, 99] {
-        let d = v1::PairDeposits { pair: pairs[0], complete: true, also_on: vec![bad], ..Default::default() };
-        assert!(s.deposit(&[d]).is_err(), "also_on {bad} accepted");
+        let d = completions(&[(pairs[0], vec![bad])], 0);
+        assert!(s.deposit(&d).is_err(), "also_on {bad} accepted");
     }
     assert_eq!(s.energies(true).pairs_done, 0, "a refused request changed the state");
 }

@@ -34,8 +34,31 @@ pub enum NodeError {
 }
 
 impl NodeError {
+    /// The host refused the registration because the render had ended: the node came too
+    /// late to take part (its share was traced by the others).
+    pub fn came_after_the_render(&self) -> bool {
+        matches!(self, NodeError::Rpc { what: "Register", status }
+            if status.code() == tonic::Code::Unavailable && status.message() == magg_proto::RENDER_OVER)
+    }
+}
+
+impl NodeError {
     /// Wraps a status of call `what`.
     pub fn rpc(what: &'static str) -> impl FnOnce(tonic::Status) -> NodeError {
         move |status| NodeError::Rpc { what, status }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn only_the_hosts_render_over_answer_to_a_registration_counts_as_late() {
+        let rpc = |what, status| NodeError::Rpc { what, status };
+        assert!(rpc("Register", tonic::Status::unavailable(magg_proto::RENDER_OVER)).came_after_the_render());
+        assert!(!rpc("NextWork", tonic::Status::unavailable(magg_proto::RENDER_OVER)).came_after_the_render());
+        assert!(!rpc("Register", tonic::Status::unavailable("connection refused")).came_after_the_render());
+        assert!(!rpc("Register", tonic::Status::failed_precondition(magg_proto::RENDER_OVER)).came_after_the_render());
     }
 }

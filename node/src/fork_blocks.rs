@@ -8,6 +8,7 @@ use magg_proto::auth::Authed;
 use magg_proto::v1::fork_client::ForkClient;
 use magg_proto::v1::{GetBlocksReply, GetBlocksRequest};
 use prost::Message;
+use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Arc;
 use tokio::runtime::Handle;
 
@@ -20,13 +21,21 @@ pub struct ForkBlocks {
     rt: Handle,
     backoff: Backoff,
     pace: Option<Arc<NodePace>>,
+    /// Nanoseconds spent in fetches so far (for the worker's pass timing).
+    fetching: Arc<AtomicU64>,
 }
 
 impl ForkBlocks {
     /// A source reading through `client` on runtime `rt`, retrying an unreachable fork
     /// per `backoff`.
     pub fn new(client: ForkClient<Authed>, rt: Handle, backoff: Backoff) -> Self {
-        ForkBlocks { client, rt, backoff, pace: None }
+        ForkBlocks { client, rt, backoff, pace: None, fetching: Arc::default() }
+    }
+
+    /// Time spent fetching so far is added to `counter` (in nanoseconds).
+    pub fn timed(mut self, counter: Arc<AtomicU64>) -> Self {
+        self.fetching = counter;
+        self
     }
 
     /// The same, paying the link of `pace` for each request.
@@ -41,10 +50,13 @@ impl ForkBlocks {
         if let Some(p) = &self.pace {
             p.send_blocking(req.encoded_len());
         }
-        self.rt.block_on(retry("GetBlocks", self.backoff, || {
+        let t = std::time::Instant::now();
+        let reply = self.rt.block_on(retry("GetBlocks", self.backoff, || {
             let (mut client, req) = (self.client.clone(), req.clone());
             async move { client.get_blocks(req).await.map(|r| r.into_inner()) }
-        }))
+        }));
+        self.fetching.fetch_add(t.elapsed().as_nanos() as u64, Ordering::Relaxed);
+        reply
     }
 }
 

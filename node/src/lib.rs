@@ -23,6 +23,8 @@ mod node;
 mod pace;
 mod report;
 mod retry;
+mod spin;
+mod timing;
 mod work;
 
 pub use connect::{connect_with_backoff, Backoff, CALL_TIMEOUT};
@@ -31,3 +33,4 @@ pub use fork_blocks::ForkBlocks;
 pub use node::{run, run_with_runtime, NodeConfig, NodeSummary};
 pub use pace::{NodePace, Processor};
 pub use retry::{jitter, retry, transient};
+pub use spin::{allowed_cores, pin_current, spin_then_park};

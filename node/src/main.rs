@@ -109,6 +109,10 @@ fn run(args: Args) -> anyhow::Result<()> {
         },
         pair_delay: Duration::from_millis(args.slow_pair_ms),
         token,
+        // A node process of its own parks when it waits and runs where the kernel puts
+        // it: its machine may run other nodes and other work.
+        spin_wait: Duration::ZERO,
+        cores: Vec::new(),
     };
     // A node keeps no state of its own: on Ctrl-C or SIGTERM it just exits (cleanly: in
     // a container it is PID 1, which has no default action for SIGTERM).

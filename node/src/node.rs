@@ -47,6 +47,13 @@ pub struct NodeConfig {
     pub pair_delay: std::time::Duration,
     /// Cluster token presented on every call (none: the cluster checks none).
     pub token: Token,
+    /// How long a worker told to wait keeps its core (polling after each yield) before
+    /// it parks: for nodes that share the host's cores, see [`crate::spin`]. Zero (the
+    /// default): park at once.
+    pub spin_wait: std::time::Duration,
+    /// Cores to pin the workers to (worker j on `cores[j % len]`, see [`crate::spin`]);
+    /// empty (the default): the kernel places them.
+    pub cores: Vec<usize>,
 }
 
 impl Default for NodeConfig {
@@ -61,6 +68,8 @@ impl Default for NodeConfig {
             profile: None,
             pair_delay: std::time::Duration::ZERO,
             token: Token::default(),
+            spin_wait: std::time::Duration::ZERO,
+            cores: Vec::new(),
         }
     }
 }
@@ -140,8 +149,12 @@ pub fn run_with_runtime(rt: Handle, cfg: &NodeConfig) -> Result<NodeSummary, Nod
 
     let handles: Vec<_> = (0..threads)
         .map(|index| {
-            let source: Arc<dyn BlockSource> =
-                Arc::new(ForkBlocks::new(forks[home].clone(), rt.clone(), cfg.backoff).paced(pace.clone()));
+            let fetching = Arc::new(std::sync::atomic::AtomicU64::new(0));
+            let source: Arc<dyn BlockSource> = Arc::new(
+                ForkBlocks::new(forks[home].clone(), rt.clone(), cfg.backoff)
+                    .paced(pace.clone())
+                    .timed(fetching.clone()),
+            );
             let l = header.layout;
             let mut cache = BlockCache::new(source, per_worker).with_home(home as u32, forks.len() as u32);
             // The paper's scheme asks for one block per request.
@@ -169,10 +182,21 @@ pub fn run_with_runtime(rt: Handle, cfg: &NodeConfig) -> Result<NodeSummary, Nod
                 pair_delay: cfg.pair_delay,
                 backoff: cfg.backoff,
                 overlap,
+                vrt: Default::default(),
+                fetching,
+                spin_wait: if pace.is_some() { std::time::Duration::ZERO } else { cfg.spin_wait },
             };
+            let core = (!cfg.cores.is_empty()).then(|| cfg.cores[index % cfg.cores.len()]);
             std::thread::Builder::new()
                 .name(format!("magg-node-{}-{index}", reg.node))
-                .spawn(move || worker.run())
+                .spawn(move || {
+                    if let Some(c) = core {
+                        if !crate::spin::pin_current(c) {
+                            tracing::debug!(core = c, "could not pin the worker: the kernel places it");
+                        }
+                    }
+                    worker.run()
+                })
                 .map_err(|e| NodeError::Worker(e.to_string()))
         })
         .collect::<Result<_, _>>()?;

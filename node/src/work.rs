@@ -4,6 +4,7 @@ use crate::connect::Backoff;
 use crate::pace::{NodePace, Processor};
 use crate::report::{Totals, WorkerTotals};
 use crate::retry::retry;
+use crate::timing::PassTimes;
 use crate::NodeError;
 use magg_core::camera::CameraRig;
 use magg_core::lrt::trace_pair;
@@ -11,10 +12,11 @@ use magg_core::trace::TraceScratch;
 use magg_core::view::SceneView;
 use magg_core::vrt::shade_pixel;
 use magg_proto::auth::Authed;
+use magg_proto::deposits::DepositWriter;
 use magg_proto::v1::fork_client::ForkClient;
 use magg_proto::v1::host_client::HostClient;
 use magg_proto::v1::next_work_reply::Kind;
-use magg_proto::v1::{self, DepositRequest, NextWorkRequest, PairDeposits, Row, SubmitRowsRequest, TakePairsRequest};
+use magg_proto::v1::{self, NextWorkRequest, Row, SubmitRowsRequest, TakePairsRequest};
 use magg_throttle::Scheme;
 use prost::Message;
 use std::collections::VecDeque;
@@ -75,6 +77,13 @@ pub struct Worker {
     /// emulated: a call is then only CPU work, and a background task only adds a hop to
     /// another thread; see [`overlap_pays`].
     pub overlap: bool,
+    /// How long a wait for work keeps the core before the thread parks (see
+    /// [`crate::spin`]); zero under a throttled profile, whose waits are modelled time.
+    pub spin_wait: Duration,
+    /// Where this worker's time went in the viewing pass so far.
+    pub vrt: PassTimes,
+    /// Nanoseconds its block cache has spent fetching blocks so far.
+    pub fetching: Arc<std::sync::atomic::AtomicU64>,
 }
 
 /// Whether a node gains by overlapping communication with tracing: when a link is
@@ -114,6 +123,7 @@ impl Worker {
             // Work handed with the reply to the last rows was not held by the host: a
             // WAIT there is followed at once by a NextWork, which the host holds.
             let from_rows = handed.is_some();
+            let asked = Instant::now();
             let reply = match handed.take() {
                 Some(r) => r,
                 None => {
@@ -122,9 +132,11 @@ impl Worker {
                     // A lost answer is harmless: a subscreen handed out and never traced
                     // goes back to the queue when its lease expires.
                     let call = retry("NextWork", self.backoff, || {
-                        let (mut host, req) = (self.host.clone(), req.clone());
+                        let mut host = self.host.clone();
                         async move { host.next_work(req).await.map(|r| r.into_inner()) }
                     });
+                    // The host holds the call while there is nothing to do.
+                    let call = crate::spin::spin_then_park(self.spin_wait, call);
                     let reply = self.rt.block_on(call).map_err(NodeError::rpc("NextWork"))?;
                     self.link_blocking(sent, reply.encoded_len());
                     reply
@@ -143,10 +155,15 @@ impl Worker {
                 }
                 Kind::Pairs => self.pairs()?,
                 Kind::Subscreen => match reply.subscreen {
-                    Some(s) => handed = self.subscreen(s)?,
+                    Some(s) => {
+                        PassTimes::lap(&mut self.vrt.asking, asked);
+                        self.vrt.unit(asked);
+                        handed = self.subscreen(s)?
+                    }
                     None => return Err(NodeError::Convert("SUBSCREEN work without a subscreen".into())),
                 },
                 Kind::Done => {
+                    self.vrt.log(self.node, "viewing pass", &self.fetching);
                     self.publish();
                     let mut host = self.host.clone();
                     // Final report, so the host's stats include everything.
@@ -185,7 +202,7 @@ impl Worker {
                     p.send(req.encoded_len()).await;
                 }
                 let reply = retry("TakePairs", backoff, move || {
-                    let (mut home, req) = (home.clone(), req.clone());
+                    let mut home = home.clone();
                     async move { home.take_pairs(req).await.map(|r| r.into_inner()) }
                 })
                 .await;
@@ -200,12 +217,24 @@ impl Worker {
         // this batch is done.
         let ask = |w: &Self| w.overlap.then(|| w.rt.spawn(take(w.forks[w.home].clone(), w.node)));
         let mut next = ask(self);
+        let mut times = PassTimes::default();
+        // Without overlap, the next batch is asked for in the call that completes this
+        // one on the home fork, and arrives with its reply.
+        let mut piggybacked: Option<v1::TakePairsReply> = None;
         loop {
-            let got = match next.take() {
-                Some(t) => self.rt.block_on(t).map_err(|e| NodeError::Worker(e.to_string()))?,
-                None => self.rt.block_on(take(self.forks[self.home].clone(), self.node)),
-            }
-            .map_err(NodeError::rpc("TakePairs"))?;
+            let t = Instant::now();
+            let got = match (piggybacked.take(), next.take()) {
+                (Some(r), _) => r,
+                (None, Some(t)) => self
+                    .rt
+                    .block_on(t)
+                    .map_err(|e| NodeError::Worker(e.to_string()))?
+                    .map_err(NodeError::rpc("TakePairs"))?,
+                (None, None) => self
+                    .rt
+                    .block_on(take(self.forks[self.home].clone(), self.node))
+                    .map_err(NodeError::rpc("TakePairs"))?,
+            };
             if got.pairs.is_empty() {
                 if got.exhausted {
                     break;
@@ -215,14 +244,15 @@ impl Worker {
                 continue;
             }
             next = ask(self);
+            times.unit(t);
+            let t = PassTimes::lap(&mut times.asking, t);
             tracing::debug!(node = self.node, pairs = got.pairs.len(), "tracing a batch of pairs");
             // Per fork: round 1 carries deposits on forks other than the pair's owner;
             // round 2 carries the owner's deposits and marks the pair complete, so that a
             // pair counted as done has all its energy in place. Indexed by fork.
             let forks = self.forks.len().max(1);
-            let mut round1: Vec<Vec<PairDeposits>> = vec![Vec::new(); forks];
-            let mut round2: Vec<Vec<PairDeposits>> = vec![Vec::new(); forks];
-            let mut split: Vec<Option<PairDeposits>> = vec![None; forks];
+            let mut round1: Vec<DepositWriter> = (0..forks).map(|_| DepositWriter::new(false, got.epoch)).collect();
+            let mut round2: Vec<DepositWriter> = (0..forks).map(|_| DepositWriter::new(true, got.epoch)).collect();
             for &pair in &got.pairs {
                 if pair >= total || elements == 0 {
                     return Err(NodeError::Convert(format!("pair {pair} out of range ({total} pairs)")));
@@ -236,25 +266,26 @@ impl Worker {
                 self.mine.pairs += 1;
                 self.mine.tally = self.mine.tally.add(r.tally);
                 let owner = self.owner_of(element);
-                let fresh = || PairDeposits { pair, epoch: got.epoch, ..Default::default() };
+                round2[owner].pair(pair);
                 for (e, f) in r.deposits {
-                    let d = split[self.owner_of(e)].get_or_insert_with(fresh);
-                    d.elements.push(e);
-                    d.energy.extend_from_slice(&f);
-                }
-                let mut own = split[owner].take().unwrap_or_else(fresh);
-                own.complete = true;
-                for (fork, d) in split.iter_mut().enumerate() {
-                    if let Some(d) = d.take() {
-                        own.also_on.push(fork as u32);
-                        round1[fork].push(d);
+                    let fork = self.owner_of(e);
+                    if fork == owner {
+                        round2[owner].deposit(e, f);
+                        continue;
                     }
+                    if !round1[fork].last_pair_is(pair) {
+                        round1[fork].pair(pair);
+                        round2[owner].also_on(fork as u32);
+                    }
+                    round1[fork].deposit(e, f);
                 }
-                round2[owner].push(own);
             }
-            let send = send_deposits(self.forks.clone(), self.pace.clone(), round1, round2, self.backoff);
+            let t = PassTimes::lap(&mut times.tracing, t);
+            let home_take = (!self.overlap).then_some((self.home, TakePairsRequest { max, node: self.node }));
+            let send = send_deposits(self.forks.clone(), self.pace.clone(), round1, round2, self.backoff, home_take);
             if !self.overlap {
-                self.rt.block_on(send)?;
+                piggybacked = self.rt.block_on(send)?;
+                PassTimes::lap(&mut times.sending, t);
                 self.publish();
                 continue;
             }
@@ -263,12 +294,16 @@ impl Worker {
                     self.rt.block_on(t).map_err(|e| NodeError::Worker(e.to_string()))??;
                 }
             }
-            in_flight.push_back(self.rt.spawn(send));
+            in_flight.push_back(self.rt.spawn(async move { send.await.map(|_| ()) }));
+            PassTimes::lap(&mut times.sending, t);
             self.publish();
         }
+        let t = Instant::now();
         for t in in_flight {
             self.rt.block_on(t).map_err(|e| NodeError::Worker(e.to_string()))??;
         }
+        PassTimes::lap(&mut times.sending, t);
+        times.log(self.node, "light pass", &self.fetching);
         Ok(())
     }
 
@@ -286,7 +321,7 @@ impl Worker {
         }
         tracing::debug!(node = self.node, id = s.id, "tracing a subscreen {}x{}+{}+{}", s.w, s.h, s.x, s.y);
         // A camera path sends each frame's camera with its subscreens.
-        let camera = match s.camera.clone() {
+        let camera = match s.camera {
             Some(c) => magg_core::scene::Camera::try_from(c).map_err(|e| NodeError::Convert(e.to_string()))?,
             None => h.camera.clone(),
         };
@@ -298,6 +333,7 @@ impl Worker {
         // host can redivide a long subscreen, and never one RPC per row on fast tiles.
         let mut rows = Vec::new();
         let mut since = Instant::now();
+        let mut t = since;
         while y < end {
             let mut rgb = Vec::with_capacity(12 * s.w as usize);
             for x in s.x..s.x + s.w {
@@ -320,6 +356,7 @@ impl Worker {
                 self.mine.tiles += 1;
                 self.publish();
             }
+            t = PassTimes::lap(&mut self.vrt.tracing, t);
             let req = SubmitRowsRequest { node: self.node, subscreen: s.id, rows: std::mem::take(&mut rows), last };
             let sent = req.encoded_len();
             // Repeated rows are acknowledged and ignored: safe to retry.
@@ -329,7 +366,8 @@ impl Worker {
             });
             let reply = self.rt.block_on(call).map_err(NodeError::rpc("SubmitRows"))?;
             self.link_blocking(sent, reply.encoded_len());
-            since = Instant::now();
+            t = PassTimes::lap(&mut self.vrt.sending, t);
+            since = t;
             // Stop before row `from`: rows not started were redivided; a `from` at or
             // before `y` means the subscreen was revoked (this node was taken for lost).
             if let Some(from) = reply.give_back_from {
@@ -347,14 +385,18 @@ impl Worker {
 }
 
 /// Sends a batch's deposits: every round-1 message, then every round-2 message. Deposits
-/// are keyed by pair: a retried one is applied once.
+/// are keyed by pair: a retried one is applied once. `take` (the home fork's index and a
+/// request) rides on the round-2 message to that fork, if there is one: its answer is
+/// returned (`None`: ask separately).
 async fn send_deposits(
     forks: Vec<ForkClient<Authed>>,
     pace: Option<Arc<NodePace>>,
-    round1: Vec<Vec<PairDeposits>>,
-    round2: Vec<Vec<PairDeposits>>,
+    round1: Vec<DepositWriter>,
+    round2: Vec<DepositWriter>,
     backoff: Backoff,
-) -> Result<(), NodeError> {
+    take: Option<(usize, TakePairsRequest)>,
+) -> Result<Option<v1::TakePairsReply>, NodeError> {
+    let mut taken = None;
     for round in [round1, round2] {
         for (fork, pairs) in round.into_iter().enumerate() {
             if pairs.is_empty() {
@@ -363,7 +405,12 @@ async fn send_deposits(
             let Some(client) = forks.get(fork) else {
                 return Err(NodeError::Convert(format!("fork {fork} of {}", forks.len())));
             };
-            let req = DepositRequest { pairs };
+            let mut req = pairs.finish();
+            if let Some((home, t)) = &take {
+                if req.complete && *home == fork {
+                    req.take = Some(*t);
+                }
+            }
             if let Some(p) = &pace {
                 p.send(req.encoded_len()).await;
             }
@@ -377,7 +424,10 @@ async fn send_deposits(
             if let Some(p) = &pace {
                 p.recv(reply.encoded_len()).await;
             }
+            if req.take.is_some() {
+                taken = reply.taken;
+            }
         }
     }
-    Ok(())
+    Ok(taken)
 }

@@ -558,6 +558,24 @@ pub fn block_to_wire(id: u32, block: &Block) -> v1::Block {
     v1::Block { id, data: bytes::Bytes::copy_from_slice(block) }
 }
 
+/// Block `i` of a prepared scene, as the owner of a [`bytes::Bytes`] payload.
+struct SceneBlock(std::sync::Arc<magg_core::preprocess::PreparedScene>, usize);
+
+impl AsRef<[u8]> for SceneBlock {
+    fn as_ref(&self) -> &[u8] {
+        &self.0.blocks[self.1][..]
+    }
+}
+
+/// Every block of a prepared scene for the wire, by id, without copying: each payload
+/// borrows the scene's own block (and keeps the scene alive). The host uploads the
+/// shards from these; only the encoding copies the bytes.
+pub fn scene_blocks_to_wire(prepared: &std::sync::Arc<magg_core::preprocess::PreparedScene>) -> Vec<v1::Block> {
+    (0..prepared.blocks.len())
+        .map(|i| v1::Block { id: i as u32, data: bytes::Bytes::from_owner(SceneBlock(prepared.clone(), i)) })
+        .collect()
+}
+
 // ------------------------------------------------------------------ pixel rows
 
 /// Pixels for a [`v1::Row`]: r, g, b of each pixel as little-endian f32 (the bytes of a

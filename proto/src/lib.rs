@@ -15,6 +15,7 @@
 
 pub mod auth;
 pub mod convert;
+pub mod deposits;
 pub mod lifecycle;
 pub mod tls;
 pub mod transport;
@@ -38,5 +39,10 @@ pub fn error_chain(e: &dyn std::error::Error) -> String {
     text
 }
 
+/// The host's answer (`UNAVAILABLE`) to a node that registers after the render ended.
+pub const RENDER_OVER: &str = "the render is over: this host takes no more nodes";
+
 /// Version of the protocol; processes with another version are refused at registration.
-pub const PROTOCOL_VERSION: u32 = 2;
+/// 3: a batch's deposits on a fork are packed arrays and may carry the next `TakePairs`
+/// ([`deposits`]); 2: packed deposits per pair, `Replay` names the lost fork.
+pub const PROTOCOL_VERSION: u32 = 3;

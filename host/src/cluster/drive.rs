@@ -18,6 +18,7 @@ use magg_proto::convert::block_to_wire;
 use magg_proto::v1;
 use magg_proto::v1::host_server::HostServer;
 use magg_throttle::{Profile, Scheme};
+use std::sync::Arc;
 use std::time::{Duration, Instant};
 use tokio::net::TcpListener;
 use tonic::service::interceptor::InterceptedService;
@@ -40,8 +41,13 @@ pub struct DriveOptions {
     pub cache_blocks: Option<u64>,
     /// Subscreen edge in pixels.
     pub subscreen: u32,
-    /// Nodes expected (the render starts LRT at once; later nodes join).
+    /// Nodes expected (sizes the forks' pair batches; see `gather`).
     pub nodes: u32,
+    /// Whether the light pass waits for the expected nodes to register. An emulated run
+    /// must (the paper's processors were wired: connecting is not part of its time), and
+    /// so must a render that was told to wait for external nodes; native in-process
+    /// nodes start on pairs as soon as they are in, and later ones join.
+    pub gather: bool,
     /// Give up if a phase makes no progress for this long.
     pub stall_timeout: Duration,
     /// Hardware profile (DESIGN.md §4), sent to every fork and node.
@@ -100,7 +106,7 @@ fn rgb(c: &Option<v1::Rgb>) -> Rgb {
 /// The light pass runs once (not at all when `opts.sequence` brings energies), then one
 /// viewing pass per camera, each frame handed to `sink`; the output's frame is the last.
 pub async fn drive(
-    prepared: &PreparedScene,
+    prepared: &Arc<PreparedScene>,
     opts: &DriveOptions,
     listener: TcpListener,
     progress: &dyn Progress,
@@ -112,6 +118,7 @@ pub async fn drive(
     // cluster's fixed costs go.
     let mark =
         |what: &str| tracing::debug!(ms = format!("{:.2}", 1e3 * t_start.elapsed().as_secs_f64()), "timeline: {what}");
+    mark("driving: forks and nodes started");
     let h = prepared.header.clone();
     let f = opts.forks.len();
     if f == 0 {
@@ -180,7 +187,7 @@ pub async fn drive(
     // The expected nodes register (connecting 80 nodes to 6 servers takes this machine a
     // moment that the emulated one, whose processors were wired, never spent).
     let t_gather = Instant::now();
-    while service.lock().nodes.len() < opts.nodes as usize {
+    while opts.gather && service.lock().nodes.len() < opts.nodes as usize {
         if t_gather.elapsed() > opts.stall_timeout {
             tracing::warn!(
                 "only {} of {} nodes registered within {:?}: starting with them",
@@ -193,7 +200,7 @@ pub async fn drive(
         wait_for(&service, Duration::from_millis(2)).await;
     }
     let gather_s = t_gather.elapsed().as_secs_f64();
-    mark("nodes registered");
+    mark(if opts.gather { "nodes registered" } else { "light pass open (nodes join as they register)" });
     // With loaded energies the nodes never trace pairs: they wait for subscreens.
     service.set_phase(if loaded.is_some() { Phase::Interp } else { Phase::Lrt });
     let poll = if throttled { LRT_POLL_THROTTLED } else { LRT_POLL };

@@ -12,6 +12,11 @@ use magg_core::render::RenderOutput;
 use std::time::Duration;
 use tokio::net::TcpListener;
 
+/// How long an in-process node told to wait keeps its core before it parks: longer than
+/// the phase changes of a render (shard upload, energy gathering), short enough that a
+/// long wait costs the machine little.
+const SPIN_WAIT: Duration = Duration::from_millis(10);
+
 /// Shape of an in-process (or partly external) cluster.
 #[derive(Clone, Debug)]
 pub struct InProcessOptions {
@@ -45,7 +50,7 @@ pub struct InProcessOptions {
 
 /// Runs the cluster and returns the render.
 pub fn render_in_process(
-    prepared: &PreparedScene,
+    prepared: &std::sync::Arc<PreparedScene>,
     opts: &InProcessOptions,
     progress: &dyn Progress,
     sink: &mut magg_core::render::FrameSink<'_>,
@@ -95,7 +100,13 @@ pub fn render_in_process(
     }
     tracing::info!("host serving nodes on {host_addr}, forks at {}", fork_addrs.join(","));
 
-    // Nodes, each on a thread of its own.
+    // Nodes, each on a thread of its own. While there are no more of them than cores,
+    // node i is pinned to core i, and a node told to wait keeps its core for a while
+    // before it parks (see magg_node::spin_then_park): left to the kernel, two nodes
+    // sometimes share a core for milliseconds while another idles.
+    let cores = magg_node::allowed_cores();
+    let own_cores = opts.nodes as usize <= cores.len() && std::env::var("NOPIN").is_err();
+    let spin_wait = if own_cores { SPIN_WAIT } else { Duration::ZERO };
     let node_threads: Vec<_> = (0..opts.nodes)
         .map(|i| {
             let cfg = magg_node::NodeConfig {
@@ -108,6 +119,8 @@ pub fn render_in_process(
                 profile: None,
                 pair_delay: Duration::ZERO,
                 token: opts.faults.token.clone(),
+                spin_wait,
+                cores: if own_cores { vec![cores[i as usize]] } else { Vec::new() },
             };
             let handle = rt.handle().clone();
             std::thread::Builder::new().name(format!("magg-node-{i}")).spawn(move || {
@@ -125,6 +138,10 @@ pub fn render_in_process(
         cache_blocks: opts.cache_blocks,
         subscreen: opts.subscreen,
         nodes: opts.nodes + opts.external_nodes,
+        // With a core each, nodes register within a fraction of a millisecond: the light
+        // pass need not wait for them (one that arrives late joins it). Many nodes on few
+        // cores are all waited for, so that they all take part.
+        gather: !opts.profile.is_native() || opts.external_nodes > 0 || !own_cores,
         stall_timeout: opts.stall_timeout,
         profile: opts.profile.clone(),
         scheme: opts.scheme,
@@ -144,6 +161,8 @@ pub fn render_in_process(
     for t in node_threads {
         match t.join() {
             Ok(Ok(_)) => {}
+            // Nodes join as they register: one that came after the end had nothing to do.
+            Ok(Err(e)) if e.came_after_the_render() => {}
             Ok(Err(e)) => node_err = node_err.or(Some(anyhow::anyhow!(e))),
             Err(_) => node_err = node_err.or(Some(anyhow::anyhow!("a node thread panicked"))),
         }

@@ -238,7 +238,7 @@ impl Host for HostService {
         }
         let mut s = self.lock();
         if s.phase == Phase::Done {
-            return Err(Status::unavailable("the render is over: this host takes no more nodes"));
+            return Err(Status::unavailable(magg_proto::RENDER_OVER));
         }
         if s.nodes.len() >= 65_536 {
             return Err(Status::resource_exhausted("too many nodes registered"));

@@ -27,7 +27,8 @@ pub fn run(cfg: RenderConfig) -> anyhow::Result<()> {
     cfg.knobs.apply(&mut scene.settings)?;
     crate::memory::check(&scene, cfg.max_memory_mb)?;
     let plan = if cfg.all_effects { EffectsPlan::forced_on(&scene) } else { EffectsPlan::for_scene(&scene) };
-    let prepared = preprocess::prepare_with_plan(&scene, plan)?;
+    // Shared: the cluster's shard uploads send the scene's blocks without copying them.
+    let prepared = Arc::new(preprocess::prepare_with_plan(&scene, plan)?);
     if !cfg.quiet {
         eprint!("{}", prepared.header.plan);
     }
