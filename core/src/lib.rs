@@ -31,6 +31,7 @@ pub mod header;
 pub mod lrt;
 pub mod math;
 pub mod optics;
+pub mod placement;
 pub mod plan;
 pub mod preprocess;
 pub mod progress;

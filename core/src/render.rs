@@ -2,7 +2,9 @@
 //! cache over an in-memory store, running the phases LRT -> interpolation -> VRT with
 //! barriers. Nodes pull pairs and subscreens from shared queues (dynamic load balancing
 //! as in paper §4.4 and §4.6), so every core is busy; the result does not depend on the
-//! number of nodes, the cache size or the order work completes in.
+//! number of nodes, the cache size or the order work completes in. While the nodes fit
+//! one per core, node i's threads are pinned to core i ([`crate::placement`]), as the
+//! in-process cluster's nodes are.
 //!
 //! [`render_sequence`] reuses one light pass for several cameras (a camera path), or
 //! skips it when the energies are given (a saved energy file).
@@ -175,9 +177,18 @@ struct LightPass {
     pairs: u64,
 }
 
+/// Pins the calling worker (node `i`) to its core, if it has one (see
+/// [`crate::placement`]).
+fn pin_worker(cores: &[usize], i: usize) {
+    if let Some(&c) = cores.get(i) {
+        crate::placement::pin_current(c);
+    }
+}
+
 /// LRT: nodes pull (light, element) pairs from a shared counter.
 fn light_pass(
     views: &mut [SceneView],
+    cores: &[usize],
     header: &crate::header::SceneHeader,
     progress: &dyn Progress,
 ) -> Result<LightPass, RenderError> {
@@ -192,9 +203,11 @@ fn light_pass(
     let lrt_results: Vec<Result<(u64, LrtTally), RenderError>> = std::thread::scope(|s| {
         let handles: Vec<_> = views
             .iter_mut()
-            .map(|view| {
+            .enumerate()
+            .map(|(node, view)| {
                 let (flux, next_pair) = (&flux, &next_pair);
                 s.spawn(move || -> Result<(u64, LrtTally), BlockError> {
+                    pin_worker(cores, node);
                     let mut scratch = TraceScratch::default();
                     let mut tally = LrtTally::default();
                     let mut pairs = 0;
@@ -244,6 +257,7 @@ fn light_pass(
 /// the subscreens each node traced.
 fn view_pass(
     views: &mut [SceneView],
+    cores: &[usize],
     header: &crate::header::SceneHeader,
     camera: &Camera,
     tiles: &[Subscreen],
@@ -263,6 +277,7 @@ fn view_pass(
             .map(|(node, view)| {
                 let (queue, rig, frame) = (&queue, &rig, &frame);
                 sc.spawn(move || -> Result<u64, BlockError> {
+                    pin_worker(cores, node);
                     let mut scratch = TraceScratch::default();
                     let mut done = 0;
                     let mut px = Vec::new();
@@ -324,6 +339,8 @@ pub fn render_sequence(
         SceneView::new(header.clone(), cache)
     };
     let mut views: Vec<SceneView> = (0..nodes).map(make_view).collect();
+    // Node i's threads run on core i while the nodes fit one per core.
+    let cores = crate::placement::worker_cores(nodes as usize);
 
     // --- LRT, unless the energies are given.
     let t_lrt = Instant::now();
@@ -337,7 +354,7 @@ pub fn render_sequence(
                 pairs: 0,
             }
         }
-        None => light_pass(&mut views, &header, progress)?,
+        None => light_pass(&mut views, &cores, &header, progress)?,
     };
     let lrt_s = if seq.energies.is_some() { 0.0 } else { t_lrt.elapsed().as_secs_f64() };
 
@@ -366,7 +383,7 @@ pub fn render_sequence(
     for (index, camera) in cameras.iter().enumerate() {
         progress.frame_begins(index, cameras.len());
         let t_vrt = Instant::now();
-        let (f, per_node) = view_pass(&mut views, &header, camera, &tiles, progress)?;
+        let (f, per_node) = view_pass(&mut views, &cores, &header, camera, &tiles, progress)?;
         let frame_s = t_vrt.elapsed().as_secs_f64();
         vrt_s += frame_s;
         for (n, t) in node_tiles.iter_mut().zip(per_node) {

@@ -557,17 +557,14 @@ impl Shard {
     pub fn energies(&self, summary_only: bool) -> v1::GetEnergiesReply {
         let mut work = lock(&self.work);
         self.reclaim_expired(&mut work, Instant::now());
-        let energies = if summary_only {
-            Vec::new()
+        let (elements, energy) = if summary_only {
+            (Vec::new(), Vec::new())
         } else {
-            self.owned
-                .iter()
-                .zip(&work.energy)
-                .map(|(&element, e)| v1::ElementEnergy { element, r: e[0], g: e[1], b: e[2] })
-                .collect()
+            (self.owned.clone(), work.energy.iter().flatten().copied().collect())
         };
         v1::GetEnergiesReply {
-            energies,
+            elements,
+            energy,
             pairs_total: work.queue.total(),
             pairs_done: work.done.len() as u64,
             dma_bytes: self.traffic.dma_bytes.load(Ordering::Relaxed),

@@ -255,18 +255,16 @@ async fn deposits_apply_exactly_once_and_energies_sum() {
     assert_eq!(r4.unwrap().into_inner().applied, 1);
 
     let e1 = c.energies(1).await;
-    let ids: Vec<u32> = e1.energies.iter().map(|x| x.element).collect();
-    assert_eq!(ids, own1, "every owned element, ascending");
+    assert_eq!(e1.elements, own1, "every owned element, ascending");
     let get = |r: &v1::GetEnergiesReply, el: u32| {
-        let x = r.energies.iter().find(|x| x.element == el).unwrap();
-        [x.r, x.g, x.b]
+        magg_proto::convert::element_energies(r).unwrap().find(|x| x.0 == el).unwrap().1
     };
     assert_eq!(get(&e1, a), [15, 6, 7]);
     assert_eq!(get(&e1, b), [3, 4, 5]);
     assert_eq!(e1.pairs_done, 1);
     let req = v1::GetEnergiesRequest { summary_only: true };
     let summary = c.clients[1].get_energies(req).await.unwrap().into_inner();
-    assert!(summary.energies.is_empty());
+    assert!(summary.elements.is_empty() && summary.energy.is_empty());
     assert_eq!((summary.pairs_done, summary.pairs_total), (1, e1.pairs_total));
     let e0 = c.energies(0).await;
     assert_eq!(get(&e0, own0[3]), [100, 0, 0]);
@@ -274,8 +272,9 @@ async fn deposits_apply_exactly_once_and_energies_sum() {
     let mut sum = [0i64; 3];
     let mut count = 0;
     for i in 0..FORKS {
-        for x in c.energies(i).await.energies {
-            sum = [sum[0] + x.r, sum[1] + x.g, sum[2] + x.b];
+        let r = c.energies(i).await;
+        for (_, x) in magg_proto::convert::element_energies(&r).unwrap() {
+            sum = [sum[0] + x[0], sum[1] + x[1], sum[2] + x[2]];
             count += 1;
         }
     }
@@ -337,7 +336,7 @@ async fn bad_requests_get_the_right_codes_and_the_server_keeps_serving() {
     assert_eq!(k, Code::InvalidArgument, "{m}");
     assert!(m.contains("energy values"), "{m}");
     let e0 = c.energies(0).await;
-    assert!(e0.energies.iter().all(|x| [x.r, x.g, x.b] == [0, 0, 0]), "a refused deposit changed energies");
+    assert!(e0.energy.iter().all(|&x| x == 0), "a refused deposit changed energies");
     assert_eq!(e0.pairs_done, 0);
     let good = deposits(true, &[(pair_id(1, a0, e), a0, [9, 9, 9])]);
     let r = c.clients[0].deposit(good).await.unwrap().into_inner();

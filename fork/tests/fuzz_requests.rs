@@ -116,7 +116,7 @@ fn arbitrary_requests_on_a_loaded_shard_are_served_or_refused() {
         .run(&request, |(deposits, ids, puts, max, node)| {
             let before = shard.energies(false);
             if shard.deposit(&deposits).is_err() {
-                prop_assert_eq!(before.energies, shard.energies(false).energies, "a refused deposit changed energy");
+                prop_assert_eq!(before.energy, shard.energies(false).energy, "a refused deposit changed energy");
             }
             let _ = shard.owned_blocks(&ids);
             let puts = puts.into_iter().map(|(id, len)| v1::Block { id, data: vec![0; len].into() }).collect();

@@ -23,7 +23,6 @@ mod node;
 mod pace;
 mod report;
 mod retry;
-mod spin;
 mod timing;
 mod work;
 
@@ -33,4 +32,3 @@ pub use fork_blocks::ForkBlocks;
 pub use node::{run, run_with_runtime, NodeConfig, NodeSummary};
 pub use pace::{NodePace, Processor};
 pub use retry::{jitter, retry, transient};
-pub use spin::{allowed_cores, pin_current, spin_then_park};

@@ -109,9 +109,8 @@ fn run(args: Args) -> anyhow::Result<()> {
         },
         pair_delay: Duration::from_millis(args.slow_pair_ms),
         token,
-        // A node process of its own parks when it waits and runs where the kernel puts
-        // it: its machine may run other nodes and other work.
-        spin_wait: Duration::ZERO,
+        // A node process of its own runs where the kernel puts it: its machine may run
+        // other nodes and other work.
         cores: Vec::new(),
     };
     // A node keeps no state of its own: on Ctrl-C or SIGTERM it just exits (cleanly: in

@@ -47,11 +47,8 @@ pub struct NodeConfig {
     pub pair_delay: std::time::Duration,
     /// Cluster token presented on every call (none: the cluster checks none).
     pub token: Token,
-    /// How long a worker told to wait keeps its core (polling after each yield) before
-    /// it parks: for nodes that share the host's cores, see [`crate::spin`]. Zero (the
-    /// default): park at once.
-    pub spin_wait: std::time::Duration,
-    /// Cores to pin the workers to (worker j on `cores[j % len]`, see [`crate::spin`]);
+    /// Cores to pin the workers to (worker j on `cores[j % len]`, see
+    /// [`magg_core::placement`]);
     /// empty (the default): the kernel places them.
     pub cores: Vec<usize>,
 }
@@ -68,7 +65,6 @@ impl Default for NodeConfig {
             profile: None,
             pair_delay: std::time::Duration::ZERO,
             token: Token::default(),
-            spin_wait: std::time::Duration::ZERO,
             cores: Vec::new(),
         }
     }
@@ -184,14 +180,13 @@ pub fn run_with_runtime(rt: Handle, cfg: &NodeConfig) -> Result<NodeSummary, Nod
                 overlap,
                 vrt: Default::default(),
                 fetching,
-                spin_wait: if pace.is_some() { std::time::Duration::ZERO } else { cfg.spin_wait },
             };
             let core = (!cfg.cores.is_empty()).then(|| cfg.cores[index % cfg.cores.len()]);
             std::thread::Builder::new()
                 .name(format!("magg-node-{}-{index}", reg.node))
                 .spawn(move || {
                     if let Some(c) = core {
-                        if !crate::spin::pin_current(c) {
+                        if !magg_core::placement::pin_current(c) {
                             tracing::debug!(core = c, "could not pin the worker: the kernel places it");
                         }
                     }

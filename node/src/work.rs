@@ -77,9 +77,6 @@ pub struct Worker {
     /// emulated: a call is then only CPU work, and a background task only adds a hop to
     /// another thread; see [`overlap_pays`].
     pub overlap: bool,
-    /// How long a wait for work keeps the core before the thread parks (see
-    /// [`crate::spin`]); zero under a throttled profile, whose waits are modelled time.
-    pub spin_wait: Duration,
     /// Where this worker's time went in the viewing pass so far.
     pub vrt: PassTimes,
     /// Nanoseconds its block cache has spent fetching blocks so far.
@@ -135,8 +132,6 @@ impl Worker {
                         let mut host = self.host.clone();
                         async move { host.next_work(req).await.map(|r| r.into_inner()) }
                     });
-                    // The host holds the call while there is nothing to do.
-                    let call = crate::spin::spin_then_park(self.spin_wait, call);
                     let reply = self.rt.block_on(call).map_err(NodeError::rpc("NextWork"))?;
                     self.link_blocking(sent, reply.encoded_len());
                     reply

@@ -558,6 +558,19 @@ pub fn block_to_wire(id: u32, block: &Block) -> v1::Block {
     v1::Block { id, data: bytes::Bytes::copy_from_slice(block) }
 }
 
+/// The (element, r g b fixed point) pairs of a fork's `GetEnergies` reply, once its
+/// arrays are checked to fit (three energy values per element).
+pub fn element_energies(r: &v1::GetEnergiesReply) -> Result<impl Iterator<Item = (u32, [i64; 3])> + '_, ConvertError> {
+    if r.energy.len() != 3 * r.elements.len() {
+        return Err(invalid(
+            "GetEnergiesReply.energy",
+            r.energy.len(),
+            format!("3 values for each of {} elements", r.elements.len()),
+        ));
+    }
+    Ok(r.elements.iter().zip(r.energy.chunks_exact(3)).map(|(&e, v)| (e, [v[0], v[1], v[2]])))
+}
+
 /// Block `i` of a prepared scene, as the owner of a [`bytes::Bytes`] payload.
 struct SceneBlock(std::sync::Arc<magg_core::preprocess::PreparedScene>, usize);
 
@@ -763,6 +776,15 @@ mod tests {
         assert_eq!(field_of(&refused(|h| h.plan.as_mut().unwrap().vrt_depth = 1000)), "plan.vrt_depth");
         let e = refused(|h| h.plan.as_mut().unwrap().reasons = vec![String::new(); MAX_REASONS + 1]);
         assert_eq!(field_of(&e), "plan.reasons");
+    }
+
+    #[test]
+    fn element_energies_come_in_threes() {
+        let r = v1::GetEnergiesReply { elements: vec![4, 9], energy: vec![1, 2, 3, 4, 5, 6], ..Default::default() };
+        assert_eq!(element_energies(&r).unwrap().collect::<Vec<_>>(), vec![(4, [1, 2, 3]), (9, [4, 5, 6])]);
+        let short = v1::GetEnergiesReply { energy: vec![1, 2, 3, 4, 5], ..r };
+        let e = element_energies(&short).err().unwrap();
+        assert!(e.to_string().contains("3 values for each of 2 elements"), "{e}");
     }
 
     #[test]

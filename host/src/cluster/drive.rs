@@ -14,7 +14,7 @@ use magg_core::progress::Progress;
 use magg_core::render::{subscreens, FrameSink, RenderOutput, Sequence};
 use magg_core::stats::*;
 use magg_proto::auth::CheckToken;
-use magg_proto::convert::block_to_wire;
+use magg_proto::convert::{block_to_wire, element_energies};
 use magg_proto::v1;
 use magg_proto::v1::host_server::HostServer;
 use magg_throttle::{Profile, Scheme};
@@ -263,10 +263,11 @@ pub async fn drive(
                     let t_interp = Instant::now();
                     for i in 0..f {
                         let r = forks.poll_until_up(i, false, true).await?;
-                        for e in r.energies {
-                            match element_flux.get_mut(e.element as usize) {
-                                Some(slot) => *slot = [e.r, e.g, e.b],
-                                None => bail!("fork {i} sent energy for element {} of {n_el}", e.element),
+                        let energies = element_energies(&r).with_context(|| format!("the energies of fork {i}"))?;
+                        for (element, e) in energies {
+                            match element_flux.get_mut(element as usize) {
+                                Some(slot) => *slot = e,
+                                None => bail!("fork {i} sent energy for element {element} of {n_el}"),
                             }
                         }
                     }

@@ -12,11 +12,6 @@ use magg_core::render::RenderOutput;
 use std::time::Duration;
 use tokio::net::TcpListener;
 
-/// How long an in-process node told to wait keeps its core before it parks: longer than
-/// the phase changes of a render (shard upload, energy gathering), short enough that a
-/// long wait costs the machine little.
-const SPIN_WAIT: Duration = Duration::from_millis(10);
-
 /// Shape of an in-process (or partly external) cluster.
 #[derive(Clone, Debug)]
 pub struct InProcessOptions {
@@ -48,6 +43,96 @@ pub struct InProcessOptions {
     pub faults: crate::faults::FaultPolicy,
 }
 
+/// Where the harness's forks and host listen: what it can start before the scene is
+/// ready.
+#[derive(Clone, Debug)]
+pub struct ClusterShape {
+    /// Forks to run in this process (ignored when `forks_at` is given).
+    pub forks: u32,
+    /// External forks to use instead.
+    pub forks_at: Vec<String>,
+    /// Address the host serves nodes on.
+    pub listen: String,
+    /// The cluster token of every process.
+    pub token: magg_proto::auth::Token,
+}
+
+impl InProcessOptions {
+    /// The part of these options the cluster is started with.
+    pub fn shape(&self) -> ClusterShape {
+        ClusterShape {
+            forks: self.forks,
+            forks_at: self.forks_at.clone(),
+            listen: self.listen.clone(),
+            token: self.faults.token.clone(),
+        }
+    }
+}
+
+/// A harness started ahead of its render: the async runtime, the forks of this process
+/// (serving, empty), the host's bound listener. `magg-host render` starts it on another
+/// thread while the scene is preprocessed (the paper's conclusion asks for preprocessing
+/// in parallel; the forks have nothing to wait for meanwhile). Dropped unused, it stops
+/// its forks.
+pub struct StartedCluster {
+    rt: tokio::runtime::Runtime,
+    stop_tx: tokio::sync::broadcast::Sender<()>,
+    fork_addrs: Vec<String>,
+    fork_tasks: Vec<tokio::task::JoinHandle<Result<(), tonic::transport::Error>>>,
+    _registrations: Vec<magg_proto::transport::Registration>,
+    listener: TcpListener,
+    host_addr: String,
+}
+
+impl StartedCluster {
+    /// Starts the runtime, the forks (unless `shape` names external ones) and binds the
+    /// host's address.
+    pub fn start(shape: &ClusterShape) -> anyhow::Result<StartedCluster> {
+        let rt =
+            tokio::runtime::Builder::new_multi_thread().enable_all().build().context("starting the async runtime")?;
+        let (stop_tx, _) = tokio::sync::broadcast::channel::<()>(1);
+        let mut fork_addrs = shape.forks_at.clone();
+        let mut fork_tasks = Vec::new();
+        let mut registrations = Vec::new();
+        if fork_addrs.is_empty() {
+            // The forks of this process share one G-bus, as the paper's shared one.
+            let gbus = std::sync::Arc::new(magg_throttle::Resource::new());
+            for _ in 0..shape.forks.max(1) {
+                let listener =
+                    rt.block_on(TcpListener::bind("127.0.0.1:0")).context("binding a fork port on 127.0.0.1")?;
+                fork_addrs.push(listener.local_addr()?.to_string());
+                let mut stop = stop_tx.subscribe();
+                let service = std::sync::Arc::new(
+                    magg_fork::ForkService::with_token(shape.token.clone())
+                        .on_hardware(magg_fork::ForkHardware::new(gbus.clone(), true)),
+                );
+                // Calls from this process skip the socket (see magg_proto::transport).
+                registrations.push(magg_proto::transport::register(
+                    fork_addrs.last().expect("just pushed"),
+                    magg_fork::fork_server(service.clone(), shape.token.clone()),
+                ));
+                fork_tasks.push(rt.spawn(magg_fork::serve_service(
+                    service,
+                    shape.token.clone(),
+                    listener,
+                    async move {
+                        let _ = stop.recv().await;
+                    },
+                )));
+            }
+        }
+        let listener = rt
+            .block_on(TcpListener::bind(&shape.listen))
+            .with_context(|| format!("binding the host address {}", shape.listen))?;
+        let host_addr = listener.local_addr()?.to_string();
+        if let Some(w) = magg_proto::auth::exposure_warning(listener.local_addr()?, &shape.token) {
+            tracing::warn!("{w}");
+        }
+        tracing::info!("host serving nodes on {host_addr}, forks at {}", fork_addrs.join(","));
+        Ok(StartedCluster { rt, stop_tx, fork_addrs, fork_tasks, _registrations: registrations, listener, host_addr })
+    }
+}
+
 /// Runs the cluster and returns the render.
 pub fn render_in_process(
     prepared: &std::sync::Arc<PreparedScene>,
@@ -56,127 +141,96 @@ pub fn render_in_process(
     sink: &mut magg_core::render::FrameSink<'_>,
 ) -> anyhow::Result<RenderOutput> {
     let started = std::time::Instant::now();
-    let rt = tokio::runtime::Builder::new_multi_thread().enable_all().build().context("starting the async runtime")?;
-    let (stop_tx, _) = tokio::sync::broadcast::channel::<()>(1);
+    StartedCluster::start(&opts.shape())?.render(prepared, opts, started, progress, sink)
+}
 
-    // Forks.
-    let mut fork_addrs = opts.forks_at.clone();
-    let mut fork_tasks = Vec::new();
-    let mut registrations = Vec::new();
-    if fork_addrs.is_empty() {
-        // The forks of this process share one G-bus, as the paper's shared one.
-        let gbus = std::sync::Arc::new(magg_throttle::Resource::new());
-        for _ in 0..opts.forks.max(1) {
-            let listener = rt.block_on(TcpListener::bind("127.0.0.1:0")).context("binding a fork port on 127.0.0.1")?;
-            fork_addrs.push(listener.local_addr()?.to_string());
-            let mut stop = stop_tx.subscribe();
-            let service = std::sync::Arc::new(
-                magg_fork::ForkService::with_token(opts.faults.token.clone())
-                    .on_hardware(magg_fork::ForkHardware::new(gbus.clone(), true)),
-            );
-            // Calls from this process skip the socket (see magg_proto::transport).
-            registrations.push(magg_proto::transport::register(
-                fork_addrs.last().expect("just pushed"),
-                magg_fork::fork_server(service.clone(), opts.faults.token.clone()),
-            ));
-            fork_tasks.push(rt.spawn(magg_fork::serve_service(
-                service,
-                opts.faults.token.clone(),
-                listener,
-                async move {
-                    let _ = stop.recv().await;
-                },
-            )));
-        }
-    }
-
-    // The host's listener.
-    let listener = rt
-        .block_on(TcpListener::bind(&opts.listen))
-        .with_context(|| format!("binding the host address {}", opts.listen))?;
-    let host_addr = listener.local_addr()?.to_string();
-    if let Some(w) = magg_proto::auth::exposure_warning(listener.local_addr()?, &opts.faults.token) {
-        tracing::warn!("{w}");
-    }
-    tracing::info!("host serving nodes on {host_addr}, forks at {}", fork_addrs.join(","));
-
-    // Nodes, each on a thread of its own. While there are no more of them than cores,
-    // node i is pinned to core i, and a node told to wait keeps its core for a while
-    // before it parks (see magg_node::spin_then_park): left to the kernel, two nodes
-    // sometimes share a core for milliseconds while another idles.
-    let cores = magg_node::allowed_cores();
-    let own_cores = opts.nodes as usize <= cores.len() && std::env::var("NOPIN").is_err();
-    let spin_wait = if own_cores { SPIN_WAIT } else { Duration::ZERO };
-    let node_threads: Vec<_> = (0..opts.nodes)
-        .map(|i| {
-            let cfg = magg_node::NodeConfig {
-                host: host_addr.clone(),
-                threads: 1,
-                cache_blocks: Some(opts.cache_blocks),
-                name: format!("in-process-{i}"),
-                backoff: magg_node::Backoff::default(),
-                row_delay: Duration::ZERO,
-                profile: None,
-                pair_delay: Duration::ZERO,
-                token: opts.faults.token.clone(),
-                spin_wait,
-                cores: if own_cores { vec![cores[i as usize]] } else { Vec::new() },
-            };
-            let handle = rt.handle().clone();
-            std::thread::Builder::new().name(format!("magg-node-{i}")).spawn(move || {
-                // The host service registers for in-process calls when `drive` starts
-                // serving: connect after that, not over the socket before it.
-                magg_proto::transport::wait_registered(&cfg.host, Duration::from_secs(10));
-                magg_node::run_with_runtime(handle, &cfg)
+impl StartedCluster {
+    /// Runs the render on this cluster: starts the nodes, drives the phases, stops
+    /// everything. The stats' total counts from `started` (the end of preprocessing, or
+    /// earlier).
+    pub fn render(
+        self,
+        prepared: &std::sync::Arc<PreparedScene>,
+        opts: &InProcessOptions,
+        started: std::time::Instant,
+        progress: &dyn Progress,
+        sink: &mut magg_core::render::FrameSink<'_>,
+    ) -> anyhow::Result<RenderOutput> {
+        let StartedCluster { rt, stop_tx, fork_addrs, fork_tasks, _registrations, listener, host_addr } = self;
+        // Nodes, each on a thread of its own. While there are no more of them than cores,
+        // node i is pinned to core i (see magg_core::placement).
+        let cores = magg_core::placement::worker_cores(opts.nodes as usize);
+        let own_cores = !cores.is_empty();
+        let node_threads: Vec<_> = (0..opts.nodes)
+            .map(|i| {
+                let cfg = magg_node::NodeConfig {
+                    host: host_addr.clone(),
+                    threads: 1,
+                    cache_blocks: Some(opts.cache_blocks),
+                    name: format!("in-process-{i}"),
+                    backoff: magg_node::Backoff::default(),
+                    row_delay: Duration::ZERO,
+                    profile: None,
+                    pair_delay: Duration::ZERO,
+                    token: opts.faults.token.clone(),
+                    cores: if own_cores { vec![cores[i as usize]] } else { Vec::new() },
+                };
+                let handle = rt.handle().clone();
+                std::thread::Builder::new().name(format!("magg-node-{i}")).spawn(move || {
+                    // The host service registers for in-process calls when `drive` starts
+                    // serving: connect after that, not over the socket before it.
+                    magg_proto::transport::wait_registered(&cfg.host, Duration::from_secs(10));
+                    magg_node::run_with_runtime(handle, &cfg)
+                })
             })
-        })
-        .collect::<Result<_, _>>()
-        .context("starting node threads")?;
+            .collect::<Result<_, _>>()
+            .context("starting node threads")?;
 
-    let drive_opts = DriveOptions {
-        forks: fork_addrs,
-        cache_blocks: opts.cache_blocks,
-        subscreen: opts.subscreen,
-        nodes: opts.nodes + opts.external_nodes,
-        // With a core each, nodes register within a fraction of a millisecond: the light
-        // pass need not wait for them (one that arrives late joins it). Many nodes on few
-        // cores are all waited for, so that they all take part.
-        gather: !opts.profile.is_native() || opts.external_nodes > 0 || !own_cores,
-        stall_timeout: opts.stall_timeout,
-        profile: opts.profile.clone(),
-        scheme: opts.scheme,
-        sequence: opts.sequence.clone(),
-        events: opts.events.clone(),
-        faults: opts.faults.clone(),
-        started,
-    };
-    let result = rt.block_on(drive(prepared, &drive_opts, listener, progress, sink));
-    if result.is_err() {
-        // The render failed: its nodes may be retrying a host that is gone. Stop the
-        // forks and report; the node threads end on their own (retry deadline).
+        let drive_opts = DriveOptions {
+            forks: fork_addrs,
+            cache_blocks: opts.cache_blocks,
+            subscreen: opts.subscreen,
+            nodes: opts.nodes + opts.external_nodes,
+            // With a core each, nodes register within a fraction of a millisecond: the light
+            // pass need not wait for them (one that arrives late joins it). Many nodes on few
+            // cores are all waited for, so that they all take part.
+            gather: !opts.profile.is_native() || opts.external_nodes > 0 || !own_cores,
+            stall_timeout: opts.stall_timeout,
+            profile: opts.profile.clone(),
+            scheme: opts.scheme,
+            sequence: opts.sequence.clone(),
+            events: opts.events.clone(),
+            faults: opts.faults.clone(),
+            started,
+        };
+        let result = rt.block_on(drive(prepared, &drive_opts, listener, progress, sink));
+        if result.is_err() {
+            // The render failed: its nodes may be retrying a host that is gone. Stop the
+            // forks and report; the node threads end on their own (retry deadline).
+            let _ = stop_tx.send(());
+            return result;
+        }
+        let mut node_err = None;
+        for t in node_threads {
+            match t.join() {
+                Ok(Ok(_)) => {}
+                // Nodes join as they register: one that came after the end had nothing to do.
+                Ok(Err(e)) if e.came_after_the_render() => {}
+                Ok(Err(e)) => node_err = node_err.or(Some(anyhow::anyhow!(e))),
+                Err(_) => node_err = node_err.or(Some(anyhow::anyhow!("a node thread panicked"))),
+            }
+        }
         let _ = stop_tx.send(());
-        return result;
-    }
-    let mut node_err = None;
-    for t in node_threads {
-        match t.join() {
-            Ok(Ok(_)) => {}
-            // Nodes join as they register: one that came after the end had nothing to do.
-            Ok(Err(e)) if e.came_after_the_render() => {}
-            Ok(Err(e)) => node_err = node_err.or(Some(anyhow::anyhow!(e))),
-            Err(_) => node_err = node_err.or(Some(anyhow::anyhow!("a node thread panicked"))),
+        for t in fork_tasks {
+            let abort = t.abort_handle();
+            if rt.block_on(async { tokio::time::timeout(Duration::from_secs(1), t).await }).is_err() {
+                abort.abort();
+            }
         }
-    }
-    let _ = stop_tx.send(());
-    for t in fork_tasks {
-        let abort = t.abort_handle();
-        if rt.block_on(async { tokio::time::timeout(Duration::from_secs(1), t).await }).is_err() {
-            abort.abort();
+        let out = result?;
+        if let Some(e) = node_err {
+            return Err(e.context("a node failed"));
         }
+        Ok(out)
     }
-    let out = result?;
-    if let Some(e) = node_err {
-        return Err(e.context("a node failed"));
-    }
-    Ok(out)
 }

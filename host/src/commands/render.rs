@@ -5,7 +5,7 @@
 //! images (see [`crate::frames`]).
 
 use crate::cli::{Mode, RenderConfig};
-use crate::cluster::{render_in_process, InProcessOptions};
+use crate::cluster::{render_in_process, ClusterShape, InProcessOptions, StartedCluster};
 use crate::frames::{FrameRecord, RunStats};
 use crate::live::LiveView;
 use crate::{energy_csv, frames, images, progress::Bars, saved_energy, scene_file};
@@ -27,8 +27,33 @@ pub fn run(cfg: RenderConfig) -> anyhow::Result<()> {
     cfg.knobs.apply(&mut scene.settings)?;
     crate::memory::check(&scene, cfg.max_memory_mb)?;
     let plan = if cfg.all_effects { EffectsPlan::forced_on(&scene) } else { EffectsPlan::for_scene(&scene) };
+    // The cluster's runtime, forks and listener start while the scene is preprocessed.
+    let (prepared, cluster) = match &cfg.mode {
+        Mode::Embedded => (preprocess::prepare_with_plan(&scene, plan)?, None),
+        Mode::Cluster { forks_at, listen, external_nodes, faults, .. } => {
+            faults.install_tls(!forks_at.is_empty() || *external_nodes)?;
+            let shape = ClusterShape {
+                forks: cfg.forks,
+                forks_at: forks_at.clone(),
+                listen: listen.clone(),
+                token: faults.token.clone(),
+            };
+            std::thread::scope(|s| {
+                let cluster = std::thread::Builder::new()
+                    .name("magg-host-start".into())
+                    .spawn_scoped(s, || StartedCluster::start(&shape))
+                    .context("starting the cluster's start-up thread")?;
+                let prepared = preprocess::prepare_with_plan(&scene, plan);
+                let cluster = cluster.join().map_err(|_| anyhow::anyhow!("starting the cluster panicked"))?;
+                // A scene error first: it is what the user has to fix.
+                anyhow::Ok((prepared?, Some(cluster?)))
+            })?
+        }
+    };
+    // The render's clock: the stats' total is preprocessing plus what follows from here.
+    let preprocessed = std::time::Instant::now();
     // Shared: the cluster's shard uploads send the scene's blocks without copying them.
-    let prepared = Arc::new(preprocess::prepare_with_plan(&scene, plan)?);
+    let prepared = Arc::new(prepared);
     if !cfg.quiet {
         eprint!("{}", prepared.header.plan);
     }
@@ -80,8 +105,7 @@ pub fn run(cfg: RenderConfig) -> anyhow::Result<()> {
     let out = match &cfg.mode {
         Mode::Embedded => render::render_sequence(&prepared, &opts, progress, &sequence, &mut sink)?,
         Mode::Cluster { forks_at, listen, external_nodes, min_nodes, stall_timeout, faults } => {
-            faults.install_tls(!forks_at.is_empty() || *external_nodes)?;
-            let cluster = InProcessOptions {
+            let in_process = InProcessOptions {
                 nodes: if *external_nodes { 0 } else { opts.node_count() },
                 external_nodes: if *external_nodes { *min_nodes } else { 0 },
                 forks: cfg.forks,
@@ -96,7 +120,10 @@ pub fn run(cfg: RenderConfig) -> anyhow::Result<()> {
                 events: live.as_ref().map(|l| l.cluster_events()),
                 faults: faults.clone(),
             };
-            render_in_process(&prepared, &cluster, progress, &mut sink)?
+            match cluster {
+                Some(c) => c.render(&prepared, &in_process, preprocessed, progress, &mut sink)?,
+                None => render_in_process(&prepared, &in_process, progress, &mut sink)?,
+            }
         }
     };
     let stats = out.stats;
