@@ -10,6 +10,7 @@ use clap::Parser;
 use std::process::ExitCode;
 
 fn main() -> ExitCode {
+    magg_proto::allocator::keep_freed_memory();
     let cli = magg_host::cli::Cli::parse();
     if let magg_host::cli::Command::Probe(p) = &cli.command {
         return magg_proto::lifecycle::probe_command("magg-host", p);

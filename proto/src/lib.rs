@@ -13,6 +13,7 @@
 //! # Ok(()) }
 //! ```
 
+pub mod allocator;
 pub mod auth;
 pub mod convert;
 pub mod deposits;

@@ -160,9 +160,11 @@ pub struct ClusterArgs {
     pub tls: crate::tls::TlsFiles,
 }
 
-/// What a cluster process does first: puts its TLS files in force and, when asked to
-/// `probe ADDR`, probes. `Some(code)` means: exit with it now.
+/// What a cluster process does first: keeps the memory it frees
+/// ([`crate::allocator`]), puts its TLS files in force and, when asked to `probe ADDR`,
+/// probes. `Some(code)` means: exit with it now.
 pub fn start(program: &str, cluster: &ClusterArgs, command: &Option<ProbeCommand>) -> Option<ExitCode> {
+    crate::allocator::keep_freed_memory();
     if let Err(e) = crate::tls::install_files(&cluster.tls) {
         eprintln!("{program}: error: {e}");
         return Some(ExitCode::FAILURE);
