@@ -45,7 +45,7 @@ run() { # run MODE SCENE -> "total lrt vrt process" of one render
   echo "$(field "$tmp/s.json" total_s) $(field "$tmp/s.json" lrt_s) $(field "$tmp/s.json" vrt_s) $(awk -v a="$t0" -v b="$t1" 'BEGIN { printf "%.4f", b - a }')"
 }
 stats() { # stats < "x..." lines -> "best median"
-  sort -g | awk '{v[NR]=$1} END {m = (NR % 2) ? v[(NR+1)/2] : (v[NR/2]+v[NR/2+1])/2; printf "%.3f %.3f\n", v[1], m}'
+  sort -g | awk '{v[NR]=$1} END {m = (NR % 2) ? v[(NR+1)/2] : (v[NR/2]+v[NR/2+1])/2; printf "%.4f %.4f\n", v[1], m}'
 }
 
 echo "machine: $(lscpu 2>/dev/null | sed -n 's/^Model name: *//p' | head -n 1), $(nproc) cores; load $(cut -d' ' -f1-3 /proc/loadavg)"
