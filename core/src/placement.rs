@@ -1,16 +1,20 @@
-//! Where node workers run: one per core, pinned, when they fit.
+//! Where node workers run: one per core, pinned, when they fill the cores.
 //!
 //! Both the embedded renderer and the in-process cluster pin node worker *i* to the
-//! *i*-th core this process may use ([`allowed_cores`]) when there are no more workers
-//! than cores ([`worker_cores`]). Left to itself, the kernel sometimes puts two of them
-//! on one core while another idles, for a scheduler slice or more: a thread wakes where
-//! it last ran, a new one goes where the spawning thread saw the least load, and an idle
-//! core pulls a thread that ran a moment ago only at its next balancing tick. Measured
-//! on 2 cores (magg-paper): one node started the light pass 1-4 ms late in 6 of 8
-//! in-process renders, and the embedded renderer's two light-pass threads shared one
-//! core for 9 ms while the other idled. Dynamic load balancing (pairs and subscreens
-//! pulled on demand, redivision) keeps a pinned worker on a core that something else
-//! wants from holding a render back.
+//! *i*-th core this process may use ([`allowed_cores`]) when there are exactly as many
+//! workers as cores, the default ([`worker_cores`]). Left to itself, the kernel
+//! sometimes puts two busy workers on one core while another idles, for a scheduler
+//! slice or more: a thread wakes where it last ran, a new one goes where the spawning
+//! thread saw the least load, and an idle core pulls a thread that ran a moment ago only
+//! at its next balancing tick. Measured on 2 cores (magg-paper): one node started the
+//! light pass 1-4 ms late in 6 of 8 in-process renders, and the embedded renderer's two
+//! light-pass threads shared one core for 9 ms while the other idled. Dynamic load
+//! balancing (pairs and subscreens pulled on demand, redivision) keeps a pinned worker
+//! on a core that something else wants from holding a render back.
+//!
+//! Fewer workers than cores are left to the kernel, which then has idle cores to put
+//! them on (and two renders of a few nodes each, side by side on a big machine, do not
+//! pile onto its first cores); more workers than cores cannot have one each.
 
 /// The cores this thread may run on (its affinity mask: `taskset` and cgroup cpusets
 /// narrow it), by id; empty where the platform does not tell.
@@ -18,12 +22,12 @@ pub fn allowed_cores() -> Vec<usize> {
     core_affinity::get_core_ids().unwrap_or_default().into_iter().map(|c| c.id).collect()
 }
 
-/// The core for each of `workers` workers, or none when they do not fit one per core
+/// The core for each of `workers` workers when they are as many as the cores, else none
 /// (then the kernel places them).
 pub fn worker_cores(workers: usize) -> Vec<usize> {
     let cores = allowed_cores();
-    if workers <= cores.len() {
-        cores[..workers].to_vec()
+    if workers == cores.len() {
+        cores
     } else {
         Vec::new()
     }
@@ -40,16 +44,17 @@ mod tests {
     use super::*;
 
     #[test]
-    fn workers_get_distinct_allowed_cores_or_none() {
+    fn workers_that_fill_the_cores_get_one_each_others_none() {
         let cores = allowed_cores();
         let n = cores.len();
         if n == 0 {
             return; // a platform that does not tell: nothing is pinned
         }
-        let w = worker_cores(n);
-        assert_eq!(w, cores);
-        assert_eq!(worker_cores(1), cores[..1].to_vec());
+        assert_eq!(worker_cores(n), cores);
         assert!(worker_cores(n + 1).is_empty(), "more workers than cores are pinned");
+        if n > 1 {
+            assert!(worker_cores(n - 1).is_empty(), "fewer workers than cores are pinned");
+        }
     }
 
     #[test]

@@ -2,9 +2,9 @@
 //! cache over an in-memory store, running the phases LRT -> interpolation -> VRT with
 //! barriers. Nodes pull pairs and subscreens from shared queues (dynamic load balancing
 //! as in paper §4.4 and §4.6), so every core is busy; the result does not depend on the
-//! number of nodes, the cache size or the order work completes in. While the nodes fit
-//! one per core, node i's threads are pinned to core i ([`crate::placement`]), as the
-//! in-process cluster's nodes are.
+//! number of nodes, the cache size or the order work completes in. When the nodes are as
+//! many as the cores (the default), node i's threads are pinned to core i
+//! ([`crate::placement`]), as the in-process cluster's nodes are.
 //!
 //! [`render_sequence`] reuses one light pass for several cameras (a camera path), or
 //! skips it when the energies are given (a saved energy file).
@@ -339,7 +339,7 @@ pub fn render_sequence(
         SceneView::new(header.clone(), cache)
     };
     let mut views: Vec<SceneView> = (0..nodes).map(make_view).collect();
-    // Node i's threads run on core i while the nodes fit one per core.
+    // Node i's threads run on core i when the nodes fill the cores.
     let cores = crate::placement::worker_cores(nodes as usize);
 
     // --- LRT, unless the energies are given.

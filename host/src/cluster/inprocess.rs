@@ -157,8 +157,8 @@ impl StartedCluster {
         sink: &mut magg_core::render::FrameSink<'_>,
     ) -> anyhow::Result<RenderOutput> {
         let StartedCluster { rt, stop_tx, fork_addrs, fork_tasks, _registrations, listener, host_addr } = self;
-        // Nodes, each on a thread of its own. While there are no more of them than cores,
-        // node i is pinned to core i (see magg_core::placement).
+        // Nodes, each on a thread of its own. When they are as many as the cores, node i
+        // is pinned to core i (see magg_core::placement).
         let cores = magg_core::placement::worker_cores(opts.nodes as usize);
         let own_cores = !cores.is_empty();
         let node_threads: Vec<_> = (0..opts.nodes)
