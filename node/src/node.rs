@@ -19,8 +19,9 @@ use prost::Message;
 use std::sync::Arc;
 use tokio::runtime::Handle;
 
-/// Blocks fetched per cache miss when the cache is unlimited (the missed one and the
-/// following ones of the same kind on the same fork): 16 KB per request.
+/// Blocks fetched per cache miss when the cache is unlimited: the missed one and the
+/// uncached ones after it on the same fork, scene blocks (subspaces, patches, elements)
+/// and vertex-energy blocks apart (up to 8 MiB per request).
 pub const PREFETCH_BLOCKS: u32 = 4096;
 
 /// How to run a node.
@@ -158,7 +159,9 @@ pub fn run_with_runtime(rt: Handle, cfg: &NodeConfig) -> Result<NodeSummary, Nod
                 cache = cache.with_prefetch(
                     PREFETCH_BLOCKS,
                     forks.len() as u32,
-                    vec![0, l.patch_base, l.element_base, l.vertex_base, l.total],
+                    // Scene blocks (subspaces, patches, elements) in one run, the vertex
+                    // energies (new for each viewing pass) in another.
+                    vec![0, l.vertex_base, l.total],
                 );
             }
             let worker = Worker {
