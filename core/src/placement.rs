@@ -39,6 +39,15 @@ pub fn pin_current(id: usize) -> bool {
     core_affinity::set_for_current(core_affinity::CoreId { id })
 }
 
+/// Pins the calling thread, worker `i`, to `cores[i % cores.len()]`; nothing to do (true)
+/// with no cores, false where pinning was refused.
+pub fn pin_worker(cores: &[usize], i: usize) -> bool {
+    match cores.get(i % cores.len().max(1)) {
+        Some(&c) => pin_current(c),
+        None => true,
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

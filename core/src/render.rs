@@ -177,14 +177,6 @@ struct LightPass {
     pairs: u64,
 }
 
-/// Pins the calling worker (node `i`) to its core, if it has one (see
-/// [`crate::placement`]).
-fn pin_worker(cores: &[usize], i: usize) {
-    if let Some(&c) = cores.get(i) {
-        crate::placement::pin_current(c);
-    }
-}
-
 /// LRT: nodes pull (light, element) pairs from a shared counter.
 fn light_pass(
     views: &mut [SceneView],
@@ -207,7 +199,7 @@ fn light_pass(
             .map(|(node, view)| {
                 let (flux, next_pair) = (&flux, &next_pair);
                 s.spawn(move || -> Result<(u64, LrtTally), BlockError> {
-                    pin_worker(cores, node);
+                    crate::placement::pin_worker(cores, node);
                     let mut scratch = TraceScratch::default();
                     let mut tally = LrtTally::default();
                     let mut pairs = 0;
@@ -277,7 +269,7 @@ fn view_pass(
             .map(|(node, view)| {
                 let (queue, rig, frame) = (&queue, &rig, &frame);
                 sc.spawn(move || -> Result<u64, BlockError> {
-                    pin_worker(cores, node);
+                    crate::placement::pin_worker(cores, node);
                     let mut scratch = TraceScratch::default();
                     let mut done = 0;
                     let mut px = Vec::new();

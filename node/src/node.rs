@@ -49,8 +49,7 @@ pub struct NodeConfig {
     /// Cluster token presented on every call (none: the cluster checks none).
     pub token: Token,
     /// Cores to pin the workers to (worker j on `cores[j % len]`, see
-    /// [`magg_core::placement`]);
-    /// empty (the default): the kernel places them.
+    /// [`magg_core::placement`]); empty (the default): the kernel places them.
     pub cores: Vec<usize>,
 }
 
@@ -184,14 +183,12 @@ pub fn run_with_runtime(rt: Handle, cfg: &NodeConfig) -> Result<NodeSummary, Nod
                 vrt: Default::default(),
                 fetching,
             };
-            let core = (!cfg.cores.is_empty()).then(|| cfg.cores[index % cfg.cores.len()]);
+            let cores = cfg.cores.clone();
             std::thread::Builder::new()
                 .name(format!("magg-node-{}-{index}", reg.node))
                 .spawn(move || {
-                    if let Some(c) = core {
-                        if !magg_core::placement::pin_current(c) {
-                            tracing::debug!(core = c, "could not pin the worker: the kernel places it");
-                        }
+                    if !magg_core::placement::pin_worker(&cores, index) {
+                        tracing::debug!(?cores, "could not pin the worker: the kernel places it");
                     }
                     worker.run()
                 })

@@ -230,6 +230,7 @@ impl Worker {
                     .block_on(take(self.forks[self.home].clone(), self.node))
                     .map_err(NodeError::rpc("TakePairs"))?,
             };
+            let asked = PassTimes::lap(&mut times.asking, t);
             if got.pairs.is_empty() {
                 if got.exhausted {
                     break;
@@ -240,7 +241,7 @@ impl Worker {
             }
             next = ask(self);
             times.unit(t);
-            let t = PassTimes::lap(&mut times.asking, t);
+            let t = asked;
             tracing::debug!(node = self.node, pairs = got.pairs.len(), "tracing a batch of pairs");
             // Per fork: round 1 carries deposits on forks other than the pair's owner;
             // round 2 carries the owner's deposits and marks the pair complete, so that a

@@ -109,19 +109,17 @@ pub fn prepare(scene: &Scene) -> Result<PreparedScene, PrepareError> {
 /// cores that the passes after preprocessing need (measured: 2 ms on one of 2 cores,
 /// during which a node thread of the in-process cluster waited 2.4 ms to start).
 pub fn prepare_with_plan(scene: &Scene, plan: EffectsPlan) -> Result<PreparedScene, PrepareError> {
-    let start = Instant::now();
-    let prepared = match rayon::ThreadPoolBuilder::new().thread_name(|i| format!("magg-preprocess-{i}")).build() {
-        Ok(pool) => pool.install(|| prepare_here(scene, plan)),
-        // No threads to be had: the global pool (or this thread) does the work.
-        Err(_) => prepare_here(scene, plan),
-    };
     // The pool's start and end count as preprocessing.
-    prepared.map(|p| PreparedScene { preprocess_s: start.elapsed().as_secs_f64(), ..p })
+    let start = Instant::now();
+    match rayon::ThreadPoolBuilder::new().thread_name(|i| format!("magg-preprocess-{i}")).build() {
+        Ok(pool) => pool.install(|| prepare_here(scene, plan, start)),
+        // No threads to be had: the global pool (or this thread) does the work.
+        Err(_) => prepare_here(scene, plan, start),
+    }
 }
 
-/// [`prepare_with_plan`] on the current rayon pool.
-fn prepare_here(scene: &Scene, plan: EffectsPlan) -> Result<PreparedScene, PrepareError> {
-    let start = Instant::now();
+/// [`prepare_with_plan`] on the current rayon pool, timed from `start`.
+fn prepare_here(scene: &Scene, plan: EffectsPlan, start: Instant) -> Result<PreparedScene, PrepareError> {
     if scene.patches.is_empty() {
         return Err(PrepareError::Empty { file: scene.name.clone() });
     }

@@ -201,10 +201,10 @@ pub async fn drive(
     }
     let gather_s = t_gather.elapsed().as_secs_f64();
     mark(if opts.gather { "nodes registered" } else { "light pass open (nodes join as they register)" });
-    // With loaded energies the nodes never trace pairs: they wait for subscreens.
     // --- LRT: wait for every fork's pairs. The clock starts before the nodes hear of it
     // (this thread may lose its core to them at once).
     let t_lrt = Instant::now();
+    // With loaded energies the nodes never trace pairs: they wait for subscreens.
     service.set_phase(if loaded.is_some() { Phase::Interp } else { Phase::Lrt });
     let poll = if throttled { LRT_POLL_THROTTLED } else { LRT_POLL };
 

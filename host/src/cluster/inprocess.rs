@@ -12,19 +12,14 @@ use magg_core::render::RenderOutput;
 use std::time::Duration;
 use tokio::net::TcpListener;
 
-/// Shape of an in-process (or partly external) cluster.
+/// How a started in-process (or partly external) cluster renders; where its forks and
+/// host listen is its [`ClusterShape`].
 #[derive(Clone, Debug)]
 pub struct InProcessOptions {
     /// Nodes to run in this process.
     pub nodes: u32,
     /// Nodes of other processes to wait for before the light pass.
     pub external_nodes: u32,
-    /// Forks to run in this process (ignored when `forks_at` is given).
-    pub forks: u32,
-    /// External forks to use instead.
-    pub forks_at: Vec<String>,
-    /// Address the host serves nodes on (`127.0.0.1:0` picks a free port).
-    pub listen: String,
     /// Cache blocks per node (`None` = unlimited).
     pub cache_blocks: Option<u64>,
     /// Subscreen edge.
@@ -51,22 +46,10 @@ pub struct ClusterShape {
     pub forks: u32,
     /// External forks to use instead.
     pub forks_at: Vec<String>,
-    /// Address the host serves nodes on.
+    /// Address the host serves nodes on (`127.0.0.1:0` picks a free port).
     pub listen: String,
     /// The cluster token of every process.
     pub token: magg_proto::auth::Token,
-}
-
-impl InProcessOptions {
-    /// The part of these options the cluster is started with.
-    pub fn shape(&self) -> ClusterShape {
-        ClusterShape {
-            forks: self.forks,
-            forks_at: self.forks_at.clone(),
-            listen: self.listen.clone(),
-            token: self.faults.token.clone(),
-        }
-    }
 }
 
 /// A harness started ahead of its render: the async runtime, the forks of this process
@@ -133,17 +116,6 @@ impl StartedCluster {
     }
 }
 
-/// Runs the cluster and returns the render.
-pub fn render_in_process(
-    prepared: &std::sync::Arc<PreparedScene>,
-    opts: &InProcessOptions,
-    progress: &dyn Progress,
-    sink: &mut magg_core::render::FrameSink<'_>,
-) -> anyhow::Result<RenderOutput> {
-    let started = std::time::Instant::now();
-    StartedCluster::start(&opts.shape())?.render(prepared, opts, started, progress, sink)
-}
-
 impl StartedCluster {
     /// Runs the render on this cluster: starts the nodes, drives the phases, stops
     /// everything. The stats' total counts from `started` (the end of preprocessing, or
@@ -160,7 +132,6 @@ impl StartedCluster {
         // Nodes, each on a thread of its own. When they are as many as the cores, node i
         // is pinned to core i (see magg_core::placement).
         let cores = magg_core::placement::worker_cores(opts.nodes as usize);
-        let own_cores = !cores.is_empty();
         let node_threads: Vec<_> = (0..opts.nodes)
             .map(|i| {
                 let cfg = magg_node::NodeConfig {
@@ -173,7 +144,7 @@ impl StartedCluster {
                     profile: None,
                     pair_delay: Duration::ZERO,
                     token: opts.faults.token.clone(),
-                    cores: if own_cores { vec![cores[i as usize]] } else { Vec::new() },
+                    cores: cores.get(i as usize).map(|&c| vec![c]).unwrap_or_default(),
                 };
                 let handle = rt.handle().clone();
                 std::thread::Builder::new().name(format!("magg-node-{i}")).spawn(move || {
@@ -194,7 +165,7 @@ impl StartedCluster {
             // With a core each, nodes register within a fraction of a millisecond: the light
             // pass need not wait for them (one that arrives late joins it). Many nodes on few
             // cores are all waited for, so that they all take part.
-            gather: !opts.profile.is_native() || opts.external_nodes > 0 || !own_cores,
+            gather: !opts.profile.is_native() || opts.external_nodes > 0 || cores.is_empty(),
             stall_timeout: opts.stall_timeout,
             profile: opts.profile.clone(),
             scheme: opts.scheme,

@@ -18,4 +18,4 @@ pub mod schedule;
 pub mod service;
 
 pub use drive::{drive, DriveOptions};
-pub use inprocess::{render_in_process, ClusterShape, InProcessOptions, StartedCluster};
+pub use inprocess::{ClusterShape, InProcessOptions, StartedCluster};

@@ -5,7 +5,7 @@
 //! images (see [`crate::frames`]).
 
 use crate::cli::{Mode, RenderConfig};
-use crate::cluster::{render_in_process, ClusterShape, InProcessOptions, StartedCluster};
+use crate::cluster::{ClusterShape, InProcessOptions, StartedCluster};
 use crate::frames::{FrameRecord, RunStats};
 use crate::live::LiveView;
 use crate::{energy_csv, frames, images, progress::Bars, saved_energy, scene_file};
@@ -104,13 +104,10 @@ pub fn run(cfg: RenderConfig) -> anyhow::Result<()> {
     };
     let out = match &cfg.mode {
         Mode::Embedded => render::render_sequence(&prepared, &opts, progress, &sequence, &mut sink)?,
-        Mode::Cluster { forks_at, listen, external_nodes, min_nodes, stall_timeout, faults } => {
+        Mode::Cluster { external_nodes, min_nodes, stall_timeout, faults, .. } => {
             let in_process = InProcessOptions {
                 nodes: if *external_nodes { 0 } else { opts.node_count() },
                 external_nodes: if *external_nodes { *min_nodes } else { 0 },
-                forks: cfg.forks,
-                forks_at: forks_at.clone(),
-                listen: listen.clone(),
                 cache_blocks: cfg.cache_blocks,
                 subscreen: cfg.subscreen,
                 stall_timeout: *stall_timeout,
@@ -120,10 +117,8 @@ pub fn run(cfg: RenderConfig) -> anyhow::Result<()> {
                 events: live.as_ref().map(|l| l.cluster_events()),
                 faults: faults.clone(),
             };
-            match cluster {
-                Some(c) => c.render(&prepared, &in_process, preprocessed, progress, &mut sink)?,
-                None => render_in_process(&prepared, &in_process, progress, &mut sink)?,
-            }
+            let cluster = cluster.context("the cluster was not started")?;
+            cluster.render(&prepared, &in_process, preprocessed, progress, &mut sink)?
         }
     };
     let stats = out.stats;
