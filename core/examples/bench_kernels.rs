@@ -25,9 +25,10 @@
 use magg_core::blocks::{BlockCache, BlockSource, MemStore};
 use magg_core::camera::CameraRig;
 use magg_core::energy::vertex_energy_blocks;
+use magg_core::phases::subscreens;
 use magg_core::preprocess::{prepare, PreparedScene};
 use magg_core::progress::NoProgress;
-use magg_core::render::{render, subscreens, RenderOptions};
+use magg_core::render::{render, RenderOptions};
 use magg_core::trace::TraceScratch;
 use magg_core::view::SceneView;
 use magg_core::{lrt, scene, vrt};

@@ -7,9 +7,11 @@
 //! every access of the kernels goes through an LRU [`blocks::BlockCache`], exactly as a
 //! node processor of the MAGG system reads shared memory through its local cache.
 //!
-//! The crate does no I/O and knows nothing of networking: the embedded renderer
-//! ([`render::render`]) and the cluster processes both drive the same kernels
-//! ([`lrt::trace_pair`], [`vrt::shade_pixel`]).
+//! The crate does no I/O and knows nothing of networking. The phases are sequenced once
+//! ([`phases::run`]) over a [`machine::Machine`]: the embedded renderer
+//! ([`render::EmbeddedMachine`], [`render::render`]) and the cluster's host are its two
+//! implementations, and both run the same kernels ([`lrt::trace_pair`],
+//! [`vrt::shade_pixel`]).
 //!
 //! ```no_run
 //! use magg_core::{preprocess, render, scene};
@@ -29,8 +31,10 @@ pub mod frame;
 pub mod geometry;
 pub mod header;
 pub mod lrt;
+pub mod machine;
 pub mod math;
 pub mod optics;
+pub mod phases;
 pub mod placement;
 pub mod plan;
 pub mod preprocess;

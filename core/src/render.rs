@@ -6,19 +6,24 @@
 //! many as the cores (the default), node i's threads are pinned to core i
 //! ([`crate::placement`]), as the in-process cluster's nodes are.
 //!
-//! [`render_sequence`] reuses one light pass for several cameras (a camera path), or
-//! skips it when the energies are given (a saved energy file).
+//! [`EmbeddedMachine`] is one of the two [`Machine`]s (the cluster is the other): the
+//! phases themselves are sequenced by [`crate::phases::run`]; [`render`] and
+//! [`render_sequence`] run them on an embedded machine.
 
 use crate::blocks::{BlockCache, BlockError, BlockSource, MemStore};
 use crate::camera::CameraRig;
-use crate::energy::{interpolate, vertex_energy_blocks, Fixed};
+use crate::energy::{vertex_energy_blocks, Fixed};
 use crate::frame::Frame;
 use crate::lrt::{trace_pair, LrtTally};
+use crate::machine::{
+    self, FrameSink, Machine, MachineFigures, PhaseTimes, RenderError, RenderOutput, Sequence, ViewPass, ViewedFrame,
+};
 use crate::math::Rgb;
+use crate::phases::subscreens;
 use crate::preprocess::PreparedScene;
 use crate::progress::Progress;
 use crate::scene::Camera;
-use crate::stats::*;
+use crate::stats::{NodeStats, Stages, Traffic};
 use crate::trace::TraceScratch;
 use crate::view::SceneView;
 use crate::vrt::{shade_pixel, Subscreen};
@@ -56,117 +61,12 @@ impl RenderOptions {
     }
 }
 
-/// Why a render failed.
-#[derive(Debug, thiserror::Error)]
-pub enum RenderError {
-    /// A block could not be read.
-    #[error(transparent)]
-    Block(#[from] BlockError),
-    /// A worker thread died.
-    #[error("a node worker panicked: {0}")]
-    Worker(String),
-    /// Given energies do not fit the scene.
-    #[error("the energies do not fit the scene: {0}")]
-    Energies(String),
-    /// The frame sink refused a frame (e.g. an image could not be written).
-    #[error("{0}")]
-    Output(String),
-}
-
-/// What a render produces.
-#[derive(Clone, Debug)]
-pub struct RenderOutput {
-    /// Linear image.
-    pub frame: Frame,
-    /// Flux per element, fixed point.
-    pub element_flux: Vec<Fixed>,
-    /// Irradiance per vertex.
-    pub vertex_irradiance: Vec<Rgb>,
-    /// Figures of the run.
-    pub stats: RenderStats,
-}
-
-/// Splits the screen into subscreens of `edge` pixels, row by row.
-pub fn subscreens(width: u32, height: u32, edge: u32) -> Vec<Subscreen> {
-    let edge = edge.max(1);
-    let mut v = Vec::new();
-    let mut y = 0;
-    while y < height {
-        let mut x = 0;
-        while x < width {
-            v.push(Subscreen { x, y, w: edge.min(width - x), h: edge.min(height - y) });
-            x += edge;
-        }
-        y += edge;
-    }
-    v
-}
-
 /// The result of a node worker thread; a panic becomes an error, not a crash.
 fn join_worker<T>(h: std::thread::ScopedJoinHandle<'_, Result<T, BlockError>>) -> Result<T, RenderError> {
     match h.join() {
         Ok(r) => r.map_err(RenderError::from),
         Err(_) => Err(RenderError::Worker("a node worker thread panicked".into())),
     }
-}
-
-/// Energies of an earlier light pass (e.g. read back from a saved energy file): given
-/// them, a render skips LRT and interpolation and goes straight to VRT.
-#[derive(Clone, Debug, PartialEq)]
-pub struct Energies {
-    /// Flux per element, fixed point.
-    pub element_flux: Vec<Fixed>,
-    /// Irradiance per vertex (as interpolated from `element_flux`).
-    pub vertex_irradiance: Vec<Rgb>,
-}
-
-impl Energies {
-    /// Checks that the energies fit `header`'s element and vertex counts.
-    pub fn check(&self, header: &crate::header::SceneHeader) -> Result<(), RenderError> {
-        let (e, v) = (header.counts.elements as usize, header.counts.vertices as usize);
-        if self.element_flux.len() != e || self.vertex_irradiance.len() != v {
-            return Err(RenderError::Energies(format!(
-                "{} elements and {} vertices given, the scene has {e} and {v}",
-                self.element_flux.len(),
-                self.vertex_irradiance.len()
-            )));
-        }
-        Ok(())
-    }
-}
-
-/// What a render runs beyond one frame of the scene's camera: energies computed before
-/// (no light pass), and several cameras (one light pass, one viewing pass per camera).
-#[derive(Clone, Debug, Default)]
-pub struct Sequence {
-    /// Energies to use instead of tracing the light pass.
-    pub energies: Option<Arc<Energies>>,
-    /// One frame per camera; empty means one frame of the scene's camera.
-    pub cameras: Vec<Camera>,
-}
-
-impl Sequence {
-    /// The cameras of the frames: `cameras`, or the scene's camera alone.
-    pub fn frame_cameras(&self, scene_camera: &Camera) -> Vec<Camera> {
-        if self.cameras.is_empty() {
-            vec![scene_camera.clone()]
-        } else {
-            self.cameras.clone()
-        }
-    }
-}
-
-/// Receives every finished frame: its index, the frame, and the seconds its viewing pass
-/// took. An error stops the render.
-pub type FrameSink<'a> = dyn FnMut(usize, &Frame, f64) -> Result<(), String> + 'a;
-
-/// Renders a prepared scene in this process: one frame of the scene's camera.
-pub fn render(
-    prepared: &PreparedScene,
-    opts: &RenderOptions,
-    progress: &dyn Progress,
-) -> Result<RenderOutput, RenderError> {
-    render_sequence(prepared, opts, progress, &Sequence::default(), &mut |_, _, _| Ok(()))
 }
 
 /// Light pass totals: flux per element, pairs per node, where the light went.
@@ -310,9 +210,135 @@ fn view_pass(
     Ok((frame, node_tiles))
 }
 
-/// Renders a prepared scene in this process: the light pass once (or not at all when
-/// `seq` brings energies), then one viewing pass per camera of `seq`, each frame handed
-/// to `sink` as it is done. The output's frame is the last one.
+/// The embedded machine: `nodes` worker threads in this process, each a [`SceneView`]
+/// with its own LRU block cache over one in-memory store of the scene's blocks.
+pub struct EmbeddedMachine {
+    store: Arc<MemStore>,
+    header: Arc<crate::header::SceneHeader>,
+    views: Vec<SceneView>,
+    cores: Vec<usize>,
+    opts: RenderOptions,
+    forks: u32,
+    tiles: Vec<Subscreen>,
+    node_pairs: Vec<u64>,
+    node_tiles: Vec<u64>,
+    tally: LrtTally,
+    preprocess_s: f64,
+    started: Instant,
+}
+
+impl EmbeddedMachine {
+    /// A machine for `prepared` shaped by `opts` (its clock starts now).
+    pub fn new(prepared: &PreparedScene, opts: &RenderOptions) -> EmbeddedMachine {
+        let started = Instant::now();
+        let header = prepared.header.clone();
+        let nodes = opts.node_count();
+        let forks = opts.forks.max(1);
+        let store = Arc::new(MemStore::new(prepared.blocks.clone()));
+        let views = (0..nodes)
+            .map(|node| {
+                let source: Arc<dyn BlockSource> = store.clone();
+                let cache =
+                    BlockCache::new(source, opts.cache_blocks.map(|c| c as usize)).with_home(node % forks, forks);
+                SceneView::new(header.clone(), cache)
+            })
+            .collect();
+        let s = &header.settings;
+        let tiles = subscreens(s.width, s.height, opts.subscreen);
+        EmbeddedMachine {
+            store,
+            views,
+            // Node i's threads run on core i when the nodes fill the cores.
+            cores: crate::placement::worker_cores(nodes as usize),
+            opts: opts.clone(),
+            forks,
+            tiles,
+            node_pairs: vec![0; nodes as usize],
+            node_tiles: vec![0; nodes as usize],
+            tally: LrtTally::default(),
+            preprocess_s: prepared.preprocess_s,
+            started,
+            header,
+        }
+    }
+}
+
+impl Machine for EmbeddedMachine {
+    fn light_pass(&mut self, progress: &dyn Progress) -> Result<machine::LightPass, RenderError> {
+        let light = light_pass(&mut self.views, &self.cores, &self.header, progress)?;
+        self.node_pairs = light.node_pairs;
+        self.tally = light.tally;
+        Ok(machine::LightPass { element_flux: light.flux, pairs: light.pairs, collect_s: 0.0 })
+    }
+
+    fn publish_vertex_energies(&mut self, vertex_irradiance: &[Rgb]) -> Result<(), RenderError> {
+        for (id, block) in vertex_energy_blocks(vertex_irradiance, &self.header.layout) {
+            self.store.replace(id, block)?;
+        }
+        for v in self.views.iter_mut() {
+            v.invalidate_vertex_energy();
+        }
+        Ok(())
+    }
+
+    fn view_pass(&mut self, pass: ViewPass<'_>, progress: &dyn Progress) -> Result<ViewedFrame, RenderError> {
+        let (frame, per_node) =
+            view_pass(&mut self.views, &self.cores, &self.header, pass.camera, &self.tiles, progress)?;
+        for (n, t) in self.node_tiles.iter_mut().zip(per_node) {
+            *n += t;
+        }
+        Ok(ViewedFrame { frame, tiles: self.tiles.len() as u64, redivisions: 0 })
+    }
+
+    fn figures(&mut self, times: PhaseTimes) -> Result<MachineFigures, RenderError> {
+        let per_node = self
+            .views
+            .iter()
+            .enumerate()
+            .map(|(node, view)| NodeStats {
+                node: node as u32,
+                home_fork: node as u32 % self.forks,
+                pairs: self.node_pairs.get(node).copied().unwrap_or(0),
+                tiles: self.node_tiles[node],
+                cache: view.cache_stats().into(),
+                ops: view.counters,
+                ..Default::default()
+            })
+            .collect();
+        let cache = self.views.iter().fold(crate::blocks::CacheStats::default(), |a, v| a.add(v.cache_stats()));
+        Ok(MachineFigures {
+            mode: "embedded".into(),
+            nodes: self.views.len() as u32,
+            forks: self.forks,
+            cache_blocks: self.opts.cache_blocks,
+            profile: "native".into(),
+            scheme: "magg".into(),
+            cache,
+            traffic: Traffic {
+                link_bytes: 0,
+                dma_bytes: cache.misses * crate::blocks::BLOCK_SIZE as u64,
+                gbus_bytes: cache.remote_misses * crate::blocks::BLOCK_SIZE as u64,
+                rpcs: 0,
+            },
+            light: self.tally,
+            per_node,
+            emulation: None,
+            stages: Stages::measured(self.preprocess_s, times.lrt_s, times.interp_s, times.vrt_s, self.started),
+        })
+    }
+}
+
+/// Renders a prepared scene in this process: one frame of the scene's camera.
+pub fn render(
+    prepared: &PreparedScene,
+    opts: &RenderOptions,
+    progress: &dyn Progress,
+) -> Result<RenderOutput, RenderError> {
+    render_sequence(prepared, opts, progress, &Sequence::default(), &mut |_, _, _| Ok(()))
+}
+
+/// Renders a prepared scene in this process: the phases of [`crate::phases::run`] on an
+/// [`EmbeddedMachine`] shaped by `opts`.
 pub fn render_sequence(
     prepared: &PreparedScene,
     opts: &RenderOptions,
@@ -320,114 +346,6 @@ pub fn render_sequence(
     seq: &Sequence,
     sink: &mut FrameSink<'_>,
 ) -> Result<RenderOutput, RenderError> {
-    let t_start = Instant::now();
-    let header = prepared.header.clone();
-    let nodes = opts.node_count();
-    let forks = opts.forks.max(1);
-    let store = Arc::new(MemStore::new(prepared.blocks.clone()));
-    let make_view = |node: u32| {
-        let source: Arc<dyn BlockSource> = store.clone();
-        let cache = BlockCache::new(source, opts.cache_blocks.map(|c| c as usize)).with_home(node % forks, forks);
-        SceneView::new(header.clone(), cache)
-    };
-    let mut views: Vec<SceneView> = (0..nodes).map(make_view).collect();
-    // Node i's threads run on core i when the nodes fill the cores.
-    let cores = crate::placement::worker_cores(nodes as usize);
-
-    // --- LRT, unless the energies are given.
-    let t_lrt = Instant::now();
-    let light = match &seq.energies {
-        Some(e) => {
-            e.check(&header)?;
-            LightPass {
-                flux: e.element_flux.clone(),
-                node_pairs: vec![0; nodes as usize],
-                tally: LrtTally::default(),
-                pairs: 0,
-            }
-        }
-        None => light_pass(&mut views, &cores, &header, progress)?,
-    };
-    let lrt_s = if seq.energies.is_some() { 0.0 } else { t_lrt.elapsed().as_secs_f64() };
-
-    // --- Energy interpolation (the given energies carry theirs).
-    let t_interp = Instant::now();
-    let element_flux = light.flux;
-    let vertex_irradiance = match &seq.energies {
-        Some(e) => e.vertex_irradiance.clone(),
-        None => interpolate(&prepared.elements, &element_flux, header.counts.vertices as usize, header.energy_quantum),
-    };
-    for (id, block) in vertex_energy_blocks(&vertex_irradiance, &header.layout) {
-        store.replace(id, block)?;
-    }
-    for v in views.iter_mut() {
-        v.invalidate_vertex_energy();
-    }
-    let interp_s = t_interp.elapsed().as_secs_f64();
-
-    // --- VRT: one viewing pass per camera.
-    let s = &header.settings;
-    let tiles = subscreens(s.width, s.height, opts.subscreen);
-    let cameras = seq.frame_cameras(&header.camera);
-    let mut node_tiles = vec![0u64; nodes as usize];
-    let mut vrt_s = 0.0;
-    let mut frame = Frame::new(s.width, s.height);
-    for (index, camera) in cameras.iter().enumerate() {
-        progress.frame_begins(index, cameras.len());
-        let t_vrt = Instant::now();
-        let (f, per_node) = view_pass(&mut views, &cores, &header, camera, &tiles, progress)?;
-        let frame_s = t_vrt.elapsed().as_secs_f64();
-        vrt_s += frame_s;
-        for (n, t) in node_tiles.iter_mut().zip(per_node) {
-            *n += t;
-        }
-        sink(index, &f, frame_s).map_err(RenderError::Output)?;
-        frame = f;
-    }
-
-    let per_node = views
-        .iter()
-        .enumerate()
-        .map(|(node, view)| NodeStats {
-            node: node as u32,
-            home_fork: node as u32 % forks,
-            pairs: light.node_pairs.get(node).copied().unwrap_or(0),
-            tiles: node_tiles[node],
-            cache: view.cache_stats().into(),
-            ops: view.counters,
-            ..Default::default()
-        })
-        .collect();
-    let cache_total = views.iter().fold(crate::blocks::CacheStats::default(), |a, v| a.add(v.cache_stats()));
-    let ops = views.iter().fold(crate::view::OpCounters::default(), |a, v| a.add(v.counters));
-    let stats = RenderStats {
-        scene: prepared.name.clone(),
-        mode: "embedded".into(),
-        nodes,
-        forks,
-        cache_blocks: opts.cache_blocks,
-        profile: "native".into(),
-        scheme: "magg".into(),
-        stages: Stages::measured(prepared.preprocess_s, lrt_s, interp_s, vrt_s, t_start),
-        cache: cache_total.into(),
-        traffic: Traffic {
-            link_bytes: 0,
-            dma_bytes: cache_total.misses * crate::blocks::BLOCK_SIZE as u64,
-            gbus_bytes: cache_total.remote_misses * crate::blocks::BLOCK_SIZE as u64,
-            rpcs: 0,
-        },
-        work: Work {
-            pairs: light.pairs,
-            tiles: tiles.len() as u64 * cameras.len() as u64,
-            redivisions: 0,
-            light_rays: ops.light_rays,
-            view_rays: ops.view_rays,
-        },
-        plan: (&header.plan).into(),
-        counts: header.counts,
-        light: light.tally,
-        per_node,
-        emulation: None,
-    };
-    Ok(RenderOutput { frame, element_flux, vertex_irradiance, stats })
+    let mut machine = EmbeddedMachine::new(prepared, opts);
+    crate::phases::run(&mut machine, prepared, seq, progress, sink)
 }

@@ -10,8 +10,8 @@
 
 use anyhow::{bail, Context};
 use magg_core::fingerprint::{EnergyInputs, Fnv64};
+use magg_core::machine::Energies;
 use magg_core::math::Rgb;
-use magg_core::render::Energies;
 use serde::{Deserialize, Serialize};
 use std::path::Path;
 

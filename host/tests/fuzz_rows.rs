@@ -33,7 +33,7 @@ fn any_sequence_of_node_calls_keeps_the_frame_consistent() {
     let (w, h) = (24u32, 20u32);
     runner
         .run(&proptest::collection::vec(call(), 0..80), |calls| {
-            let tiles = magg_core::render::subscreens(w, h, 8);
+            let tiles = magg_core::phases::subscreens(w, h, 8);
             // Half the cases let requests take runs of adjacent subscreens.
             let mut s = Scheduler::new(w, h, tiles);
             if calls.len() % 2 == 0 {

@@ -2,10 +2,11 @@
 #![allow(dead_code)]
 
 use magg_core::blocks::{BlockCache, MemStore};
+use magg_core::machine::RenderOutput;
 use magg_core::math::{Rgb, Vec3};
 use magg_core::preprocess::{prepare, PreparedScene};
 use magg_core::progress::NoProgress;
-use magg_core::render::{render, RenderOptions, RenderOutput};
+use magg_core::render::{render, RenderOptions};
 use magg_core::scene::*;
 use magg_core::view::SceneView;
 use std::sync::Arc;

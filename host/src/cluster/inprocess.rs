@@ -4,11 +4,11 @@
 //! in-process transport ([`magg_proto::transport`]): calls between them are gRPC
 //! (encoded, intercepted, size-checked) without sockets, unless `--transport tcp`.
 
-use super::drive::{drive, DriveOptions};
+use super::machine::{ClusterMachine, DriveOptions};
 use anyhow::Context;
+use magg_core::machine::{FrameSink, RenderOutput, Sequence};
 use magg_core::preprocess::PreparedScene;
 use magg_core::progress::Progress;
-use magg_core::render::RenderOutput;
 use std::time::Duration;
 use tokio::net::TcpListener;
 
@@ -31,7 +31,7 @@ pub struct InProcessOptions {
     /// The paper's schedule or ours.
     pub scheme: magg_throttle::Scheme,
     /// Energies to use instead of the light pass, and the cameras of the frames.
-    pub sequence: magg_core::render::Sequence,
+    pub sequence: Sequence,
     /// Where the host service sends events for a watcher (the live view).
     pub events: Option<super::events::EventSender>,
     /// Node leases, fork timeout, and the cluster token of every process.
@@ -126,7 +126,7 @@ impl StartedCluster {
         opts: &InProcessOptions,
         started: std::time::Instant,
         progress: &dyn Progress,
-        sink: &mut magg_core::render::FrameSink<'_>,
+        sink: &mut FrameSink<'_>,
     ) -> anyhow::Result<RenderOutput> {
         let StartedCluster { rt, stop_tx, fork_addrs, fork_tasks, _registrations, listener, host_addr } = self;
         // Nodes, each on a thread of its own. When they are as many as the cores, node i
@@ -169,12 +169,17 @@ impl StartedCluster {
             stall_timeout: opts.stall_timeout,
             profile: opts.profile.clone(),
             scheme: opts.scheme,
-            sequence: opts.sequence.clone(),
             events: opts.events.clone(),
             faults: opts.faults.clone(),
             started,
         };
-        let result = rt.block_on(drive(prepared, &drive_opts, listener, progress, sink));
+        // The phases run on this thread; the machine's passes run on the runtime.
+        let result = rt.block_on(ClusterMachine::start(prepared, &drive_opts, listener, rt.handle().clone())).and_then(
+            |mut machine| {
+                magg_core::phases::run(&mut machine, prepared, &opts.sequence, progress, sink)
+                    .map_err(anyhow::Error::from)
+            },
+        );
         if result.is_err() {
             // The render failed: its nodes may be retrying a host that is gone. Stop the
             // forks and report; the node threads end on their own (retry deadline).

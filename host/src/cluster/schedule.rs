@@ -273,7 +273,7 @@ mod tests {
     #[test]
     fn a_request_takes_a_run_of_adjacent_subscreens_while_many_are_left() {
         // 4 bands of 4 subscreens 2x2, shared by 1 node: half the queue, within a band.
-        let tiles = magg_core::render::subscreens(8, 8, 2);
+        let tiles = magg_core::phases::subscreens(8, 8, 2);
         let mut s = Scheduler::new(8, 8, tiles).merging(1);
         let mut got = Vec::new();
         loop {
@@ -296,7 +296,7 @@ mod tests {
 
     #[test]
     fn without_merging_each_request_gets_one_subscreen() {
-        let tiles = magg_core::render::subscreens(8, 8, 2);
+        let tiles = magg_core::phases::subscreens(8, 8, 2);
         let mut s = Scheduler::new(8, 8, tiles);
         let Next::Trace(_, t) = s.next(0) else { panic!("expected work") };
         assert_eq!((t.w, t.h), (2, 2));

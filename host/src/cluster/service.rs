@@ -165,6 +165,13 @@ impl HostService {
         self.version.send_modify(|v| *v += 1);
     }
 
+    /// Sleeps for `d`, or less when a node signals the driver (a pass may be over).
+    pub async fn wait_for(&self, d: std::time::Duration) {
+        tokio::select! {
+            _ = tokio::time::sleep(d) => {}
+            _ = self.changed.notified() => {}
+        }
+    }
     /// Enters `phase` and wakes the waiting nodes.
     pub fn set_phase(&self, phase: Phase) {
         self.lock().phase = phase;

@@ -12,8 +12,8 @@ use crate::{energy_csv, frames, images, progress::Bars, saved_energy, scene_file
 use anyhow::Context;
 use magg_core::fingerprint::EnergyInputs;
 use magg_core::frame::Frame;
+use magg_core::machine::{Energies, Sequence};
 use magg_core::plan::EffectsPlan;
-use magg_core::render::{Energies, Sequence};
 use magg_core::{preprocess, render};
 use std::sync::Arc;
 

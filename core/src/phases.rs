@@ -1,0 +1,114 @@
+//! The phase sequence of a render, written once for every [`Machine`]: light ray
+//! tracing (or energies given), energy interpolation to the vertices and their
+//! publication, one viewing pass per camera, then the stats.
+//!
+//! The embedded renderer and the cluster differ only in how they run each pass; what
+//! comes between the passes (checking given energies, interpolating, timing the phases,
+//! handing frames to the sink, assembling [`RenderStats`]) lives here. A new pass (a
+//! second light pass, adaptive refinement) is added to [`run`] and to the trait.
+
+use crate::energy::interpolate;
+use crate::machine::{FrameSink, Machine, PhaseTimes, RenderError, RenderOutput, Sequence, ViewPass};
+use crate::preprocess::PreparedScene;
+use crate::progress::Progress;
+use crate::stats::{RenderStats, Work};
+use crate::view::OpCounters;
+use crate::vrt::Subscreen;
+use std::time::Instant;
+
+/// Splits the screen into subscreens of `edge` pixels, row by row.
+pub fn subscreens(width: u32, height: u32, edge: u32) -> Vec<Subscreen> {
+    let edge = edge.max(1);
+    let mut v = Vec::new();
+    let mut y = 0;
+    while y < height {
+        let mut x = 0;
+        while x < width {
+            v.push(Subscreen { x, y, w: edge.min(width - x), h: edge.min(height - y) });
+            x += edge;
+        }
+        y += edge;
+    }
+    v
+}
+
+/// Runs the phases of a render of `prepared` on `machine`: the light pass once (not at all
+/// when `seq` brings energies), then one viewing pass per camera of `seq`, each frame
+/// handed to `sink` as it is done. The output's frame is the last one.
+pub fn run(
+    machine: &mut dyn Machine,
+    prepared: &PreparedScene,
+    seq: &Sequence,
+    progress: &dyn Progress,
+    sink: &mut FrameSink<'_>,
+) -> Result<RenderOutput, RenderError> {
+    let header = &prepared.header;
+    let mut times = PhaseTimes::default();
+
+    // --- LRT, unless the energies are given; interpolation (given energies carry theirs).
+    let (element_flux, vertex_irradiance, pairs) = match &seq.energies {
+        Some(e) => {
+            e.check(header)?;
+            let t_interp = Instant::now();
+            machine.publish_vertex_energies(&e.vertex_irradiance)?;
+            times.interp_s = t_interp.elapsed().as_secs_f64();
+            (e.element_flux.clone(), e.vertex_irradiance.clone(), 0)
+        }
+        None => {
+            let t_lrt = Instant::now();
+            let light = machine.light_pass(progress)?;
+            let lrt_end = t_lrt.elapsed().as_secs_f64();
+            times.lrt_s = lrt_end - light.collect_s;
+            let t_interp = Instant::now();
+            let vertex = interpolate(
+                &prepared.elements,
+                &light.element_flux,
+                header.counts.vertices as usize,
+                header.energy_quantum,
+            );
+            machine.publish_vertex_energies(&vertex)?;
+            times.interp_s = light.collect_s + t_interp.elapsed().as_secs_f64();
+            (light.element_flux, vertex, light.pairs)
+        }
+    };
+
+    // --- VRT: one viewing pass per camera.
+    let cameras = seq.frame_cameras(&header.camera);
+    let (mut tiles, mut redivisions) = (0, 0);
+    let mut frame = None;
+    for (index, camera) in cameras.iter().enumerate() {
+        progress.frame_begins(index, cameras.len());
+        let t_vrt = Instant::now();
+        let viewed = machine.view_pass(ViewPass { index, count: cameras.len(), camera }, progress)?;
+        let frame_s = t_vrt.elapsed().as_secs_f64();
+        times.vrt_s += frame_s;
+        tiles += viewed.tiles;
+        redivisions += viewed.redivisions;
+        sink(index, &viewed.frame, frame_s).map_err(RenderError::Output)?;
+        frame = Some(viewed.frame);
+    }
+    let frame = frame.unwrap_or_else(|| crate::frame::Frame::new(header.settings.width, header.settings.height));
+
+    // --- Figures.
+    let m = machine.figures(times)?;
+    let ops = m.per_node.iter().fold(OpCounters::default(), |a, n| a.add(n.ops));
+    let stats = RenderStats {
+        scene: prepared.name.clone(),
+        mode: m.mode,
+        nodes: m.nodes,
+        forks: m.forks,
+        cache_blocks: m.cache_blocks,
+        profile: m.profile,
+        scheme: m.scheme,
+        stages: m.stages,
+        cache: m.cache.into(),
+        traffic: m.traffic,
+        work: Work { pairs, tiles, redivisions, light_rays: ops.light_rays, view_rays: ops.view_rays },
+        plan: (&header.plan).into(),
+        counts: header.counts,
+        light: m.light,
+        per_node: m.per_node,
+        emulation: m.emulation,
+    };
+    Ok(RenderOutput { frame, element_flux, vertex_irradiance, stats })
+}

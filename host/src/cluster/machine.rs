@@ -1,0 +1,271 @@
+//! The cluster as a [`Machine`]: the host of the paper's machine, serving `Host` to the
+//! nodes and driving the forks over gRPC. [`ClusterMachine::start`] connects the forks,
+//! serves the host service, loads the shards and gathers the nodes; the phases themselves
+//! are sequenced by [`magg_core::phases::run`], as for the embedded renderer.
+//!
+//! The passes are async (tonic); the machine runs each on its runtime with
+//! [`tokio::runtime::Handle::block_on`], so it must be driven from a thread that is not
+//! one of that runtime's workers (the harness drives it from the calling thread).
+
+use super::emulation::{preprocess_time, process_cpu_s};
+use super::events::EventSender;
+use super::forks::ForkSet;
+use super::service::{HostService, HostState, Phase};
+use anyhow::{bail, Context};
+use magg_core::machine::{LightPass, Machine, MachineFigures, PhaseTimes, RenderError, ViewPass, ViewedFrame};
+use magg_core::math::Rgb;
+use magg_core::preprocess::PreparedScene;
+use magg_core::progress::Progress;
+use magg_core::stats::EmulatedBusy;
+use magg_core::vrt::Subscreen;
+use magg_proto::auth::CheckToken;
+use magg_proto::v1;
+use magg_proto::v1::host_server::HostServer;
+use magg_throttle::{Profile, Scheme};
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+use tokio::net::TcpListener;
+use tonic::service::interceptor::InterceptedService;
+
+/// How to drive a render.
+#[derive(Clone, Debug)]
+pub struct DriveOptions {
+    /// Fork addresses, by index.
+    pub forks: Vec<String>,
+    /// Cache blocks per node (`None` = unlimited).
+    pub cache_blocks: Option<u64>,
+    /// Subscreen edge in pixels.
+    pub subscreen: u32,
+    /// Nodes expected (sizes the forks' pair batches; see `gather`).
+    pub nodes: u32,
+    /// Whether the light pass waits for the expected nodes to register. An emulated run
+    /// must (the paper's processors were wired: connecting is not part of its time), and
+    /// so must a render that was told to wait for external nodes; native in-process
+    /// nodes start on pairs as soon as they are in, and later ones join.
+    pub gather: bool,
+    /// Give up if a phase makes no progress for this long.
+    pub stall_timeout: Duration,
+    /// Hardware profile, sent to every fork and node.
+    pub profile: Profile,
+    /// The paper's schedule or ours.
+    pub scheme: Scheme,
+    /// Where the host service sends events for a watcher (the live view).
+    pub events: Option<EventSender>,
+    /// Node leases, fork timeout, cluster token.
+    pub faults: crate::faults::FaultPolicy,
+    /// When the render began (before this process started its forks and nodes): the
+    /// stats' total counts from here, so that it holds every cost of the cluster.
+    pub started: Instant,
+}
+
+/// Accepted connections with Nagle's algorithm off: the protocol is many small
+/// request/reply pairs, which Nagle plus delayed ACKs would stall for tens of ms each.
+fn nodelay_incoming(listener: TcpListener) -> impl tokio_stream::Stream<Item = std::io::Result<tokio::net::TcpStream>> {
+    use tokio_stream::StreamExt;
+    tokio_stream::wrappers::TcpListenerStream::new(listener).map(|r| {
+        r.inspect(|s| {
+            let _ = s.set_nodelay(true);
+        })
+    })
+}
+
+/// Sets the phase to [`Phase::Done`] when dropped: a render that fails still lets the
+/// nodes go.
+struct DoneOnDrop(HostService);
+
+impl Drop for DoneOnDrop {
+    fn drop(&mut self) {
+        self.0.set_phase(Phase::Done);
+    }
+}
+
+/// The host's gRPC server while the render runs.
+pub(super) struct HostServerTask {
+    stop_tx: Option<tokio::sync::oneshot::Sender<()>>,
+    task: Option<tokio::task::JoinHandle<Result<(), tonic::transport::Error>>>,
+    _in_process: magg_proto::transport::Registration,
+}
+
+impl HostServerTask {
+    /// Stops the server. Graceful shutdown waits for clients to hang up; a client that
+    /// never does (a stuck or hostile peer) must not keep the host alive: give them a
+    /// moment, then stop.
+    pub(super) async fn stop(&mut self) {
+        if let Some(tx) = self.stop_tx.take() {
+            let _ = tx.send(());
+        }
+        if let Some(task) = self.task.take() {
+            let abort = task.abort_handle();
+            if tokio::time::timeout(Duration::from_secs(1), task).await.is_err() {
+                abort.abort();
+                tracing::warn!("a client kept its connection to the host open after the render: closed it");
+            }
+        }
+    }
+}
+
+/// The cluster, started and ready for the light pass: see the module doc.
+pub struct ClusterMachine {
+    pub(super) rt: tokio::runtime::Handle,
+    pub(super) prepared: Arc<PreparedScene>,
+    pub(super) opts: DriveOptions,
+    pub(super) forks: ForkSet,
+    pub(super) service: HostService,
+    pub(super) server: HostServerTask,
+    pub(super) tiles: Vec<Subscreen>,
+    /// The process's CPU seconds when the render began (for the emulation's CPU share).
+    pub(super) cpu0: Option<f64>,
+    /// Real seconds from the start until every shard was loaded.
+    pub(super) preprocess_wall: f64,
+    /// Real seconds spent waiting for the expected nodes to register.
+    pub(super) gather_s: f64,
+    /// Modelled busy seconds, filled in as the passes report them.
+    pub(super) busy: EmulatedBusy,
+    _done_on_exit: DoneOnDrop,
+}
+
+/// The render's timeline at debug level (RUST_LOG=magg_host=debug): where the cluster's
+/// fixed costs go.
+pub(super) fn mark(started: Instant, what: &str) {
+    tracing::debug!(ms = format!("{:.2}", 1e3 * started.elapsed().as_secs_f64()), "timeline: {what}");
+}
+
+impl ClusterMachine {
+    /// Connects the forks, serves `Host` on `listener`, loads every fork's shard and waits
+    /// for the expected nodes (when `opts.gather`). `rt` is the runtime this future runs on.
+    pub async fn start(
+        prepared: &Arc<PreparedScene>,
+        opts: &DriveOptions,
+        listener: TcpListener,
+        rt: tokio::runtime::Handle,
+    ) -> anyhow::Result<ClusterMachine> {
+        let t_start = opts.started;
+        let cpu0 = process_cpu_s();
+        mark(t_start, "driving: forks and nodes started");
+        let h = prepared.header.clone();
+        let f = opts.forks.len();
+        if f == 0 {
+            bail!("no fork to render with");
+        }
+        let throttled = !opts.profile.is_native();
+        let wire_profile = if throttled { opts.profile.to_wire() } else { String::new() };
+        // Preprocessing as the emulated machine spends it (the real one took
+        // `prepared.preprocess_s`, a thousandth of that or less).
+        let preprocess_model =
+            if throttled { preprocess_time(&opts.profile, opts.scheme, prepared, f as u32) } else { Duration::ZERO };
+        // Not even a zero sleep natively: the timer would round it up to its next tick (1 ms).
+        magg_throttle::wait(Instant::now() + opts.profile.dilate(preprocess_model)).await;
+        let mut forks =
+            ForkSet::connect(prepared, &opts.forks, &opts.faults).await?.for_render(wire_profile.clone(), opts.nodes);
+
+        // Serve the host service.
+        let service = HostService::new(HostState {
+            phase: Phase::Gather,
+            nodes: Vec::new(),
+            schedule: None,
+            header: v1::SceneHeader::from(&*h),
+            fork_addrs: opts.forks.clone(),
+            cache_blocks: opts.cache_blocks.unwrap_or(0),
+            profile: wire_profile,
+            scheme: opts.scheme.name().to_string(),
+            link_bytes: 0,
+            rpcs: 0,
+            frame_camera: None,
+            events: opts.events.clone(),
+            pairs_epoch: 0,
+        });
+        let (stop_tx, stop_rx) = tokio::sync::oneshot::channel::<()>();
+        let (health, health_service) = magg_proto::lifecycle::health_service();
+        health.set_serving::<HostServer<HostService>>().await;
+        let host_server = InterceptedService::new(
+            HostServer::new(service.clone()).max_decoding_message_size(16 << 20),
+            CheckToken { token: opts.faults.token.clone(), server: "host" },
+        );
+        // Nodes of this process reach the host without a socket (see magg_proto::transport).
+        let host_addr = listener.local_addr().context("the host listener's address")?;
+        let in_process = magg_proto::transport::register(&host_addr.to_string(), host_server.clone());
+        let server = magg_proto::tls::server_builder()
+            .map_err(|e| anyhow::anyhow!("host server TLS: {e}"))?
+            .initial_stream_window_size(Some(4 << 20))
+            .initial_connection_window_size(Some(16 << 20))
+            .add_service(health_service)
+            .add_service(host_server)
+            .serve_with_incoming_shutdown(nodelay_incoming(listener), async {
+                let _ = stop_rx.await;
+            });
+        let server =
+            HostServerTask { stop_tx: Some(stop_tx), task: Some(tokio::spawn(server)), _in_process: in_process };
+        // However the render ends, nodes asking for work hear "done" and exit.
+        let done_on_exit = DoneOnDrop(service.clone());
+
+        // The shards load while the nodes register (they wait for the light pass).
+        forks.load_all().await?;
+        mark(t_start, "shards loaded");
+        // Preprocessing ends when every shard is loaded.
+        let preprocess_wall = t_start.elapsed().as_secs_f64();
+        // The expected nodes register (connecting 80 nodes to 6 servers takes this machine
+        // a moment that the emulated one, whose processors were wired, never spent).
+        let t_gather = Instant::now();
+        while opts.gather && service.lock().nodes.len() < opts.nodes as usize {
+            if t_gather.elapsed() > opts.stall_timeout {
+                tracing::warn!(
+                    "only {} of {} nodes registered within {:?}: starting with them",
+                    service.lock().nodes.len(),
+                    opts.nodes,
+                    opts.stall_timeout
+                );
+                break;
+            }
+            service.wait_for(Duration::from_millis(2)).await;
+        }
+        let gather_s = t_gather.elapsed().as_secs_f64();
+        mark(t_start, if opts.gather { "nodes registered" } else { "light pass open (nodes join as they register)" });
+        let s = &h.settings;
+        Ok(ClusterMachine {
+            rt,
+            prepared: prepared.clone(),
+            tiles: magg_core::phases::subscreens(s.width, s.height, opts.subscreen),
+            opts: opts.clone(),
+            forks,
+            service,
+            server,
+            cpu0,
+            preprocess_wall,
+            gather_s,
+            busy: EmulatedBusy { preprocess_s: preprocess_model.as_secs_f64(), ..Default::default() },
+            _done_on_exit: done_on_exit,
+        })
+    }
+
+    /// Whether the profile throttles (stage times are then modelled seconds).
+    pub(super) fn throttled(&self) -> bool {
+        !self.opts.profile.is_native()
+    }
+}
+
+/// A cluster failure as the phase sequence's error (its chain of causes kept).
+fn failed(e: anyhow::Error) -> RenderError {
+    RenderError::Machine(e.into())
+}
+
+impl Machine for ClusterMachine {
+    fn light_pass(&mut self, progress: &dyn Progress) -> Result<LightPass, RenderError> {
+        let rt = self.rt.clone();
+        rt.block_on(self.trace_light(progress)).map_err(failed)
+    }
+
+    fn publish_vertex_energies(&mut self, vertex_irradiance: &[Rgb]) -> Result<(), RenderError> {
+        let rt = self.rt.clone();
+        rt.block_on(self.put_vertex_energies(vertex_irradiance)).map_err(failed)
+    }
+
+    fn view_pass(&mut self, pass: ViewPass<'_>, progress: &dyn Progress) -> Result<ViewedFrame, RenderError> {
+        let rt = self.rt.clone();
+        rt.block_on(self.trace_view(pass, progress)).map_err(failed)
+    }
+
+    fn figures(&mut self, times: PhaseTimes) -> Result<MachineFigures, RenderError> {
+        let rt = self.rt.clone();
+        rt.block_on(self.collect_figures(times)).map_err(failed)
+    }
+}

@@ -1,0 +1,199 @@
+//! The cluster's passes: the light pass (wait until every fork's pairs are done, then
+//! collect the energies), the vertex energies sent to the forks, and one viewing pass
+//! (subscreens handed to the nodes until every pixel row is in).
+
+use super::events::ClusterEvent;
+use super::machine::{mark, ClusterMachine};
+use super::schedule::Scheduler;
+use super::service::Phase;
+use anyhow::{bail, Context};
+use magg_core::energy::{vertex_energy_blocks, Fixed};
+use magg_core::machine::{LightPass, ViewPass, ViewedFrame};
+use magg_core::math::Rgb;
+use magg_core::progress::Progress;
+use magg_proto::convert::{block_to_wire, element_energies};
+use magg_proto::v1;
+use magg_throttle::Scheme;
+use std::time::{Duration, Instant};
+
+/// Interval of the host's LRT progress polls.
+const LRT_POLL: Duration = Duration::from_millis(25);
+/// The same under a throttled profile, where the poll sets the resolution of the
+/// modelled LRT time (the polls cost the forks nothing there).
+const LRT_POLL_THROTTLED: Duration = Duration::from_millis(5);
+/// Interval of the host's checks that every fork is alive during VRT.
+const FORK_CHECK: Duration = Duration::from_millis(500);
+/// Progress checks of the viewing pass (the end of the pass wakes the driver at once).
+const VRT_POLL: Duration = Duration::from_millis(20);
+
+impl ClusterMachine {
+    /// LRT: the nodes pull pairs from their home forks; the host waits until every fork
+    /// reports all of its pairs done, then collects the energies, all within one replay
+    /// epoch (a fork that restarts meanwhile starts a new one, and the wait goes on).
+    pub(super) async fn trace_light(&mut self, progress: &dyn Progress) -> anyhow::Result<LightPass> {
+        let f = self.forks.len();
+        let n_el = self.prepared.header.counts.elements as usize;
+        // The clock (in the phase sequence) started before the nodes hear of the pass
+        // (this thread may lose its core to them at once).
+        self.service.set_phase(Phase::Lrt);
+        let poll = if self.throttled() { LRT_POLL_THROTTLED } else { LRT_POLL };
+        let mut total_pairs = 0;
+        for i in 0..f {
+            total_pairs += self.forks.poll_until_up(i, true, true).await?.pairs_total;
+        }
+        progress.begin("light ray tracing", total_pairs);
+        let mut last = (0u64, Instant::now());
+        let (mut returned_seen, mut epoch_seen) = (0, 0);
+        let mut element_flux: Vec<Fixed> = vec![[0; 3]; n_el];
+        let collect_s = loop {
+            let (mut done, mut returned) = (0, 0);
+            for i in 0..f {
+                let r = self.forks.poll_until_up(i, true, true).await?;
+                done += r.pairs_done;
+                returned += r.pairs_returned;
+            }
+            if returned > returned_seen || self.forks.epoch > epoch_seen {
+                // Pairs of a lost node are back on a queue, or a replay started: wake the
+                // nodes that ran out.
+                if self.forks.epoch > epoch_seen {
+                    last = (done, Instant::now()); // the count starts again: not a stall
+                }
+                (returned_seen, epoch_seen) = (returned, self.forks.epoch);
+                {
+                    let mut st = self.service.lock();
+                    st.pairs_epoch += 1;
+                    st.phase = Phase::Lrt;
+                }
+                self.service.bump();
+            }
+            tracing::debug!(done, total_pairs, "light pass: pairs done");
+            if done > last.0 {
+                progress.advance(done - last.0);
+                last = (done, Instant::now());
+            }
+            if done >= total_pairs {
+                // Collect the energies (interpolation time, as the paper's host spends it).
+                self.service.set_phase(Phase::Interp);
+                let t_collect = Instant::now();
+                for i in 0..f {
+                    let r = self.forks.poll_until_up(i, false, true).await?;
+                    let energies = element_energies(&r).with_context(|| format!("the energies of fork {i}"))?;
+                    for (element, e) in energies {
+                        match element_flux.get_mut(element as usize) {
+                            Some(slot) => *slot = e,
+                            None => bail!("fork {i} sent energy for element {element} of {n_el}"),
+                        }
+                    }
+                }
+                if self.forks.epoch == epoch_seen {
+                    break t_collect.elapsed().as_secs_f64();
+                }
+                continue;
+            }
+            if last.1.elapsed() > self.opts.stall_timeout {
+                bail!(
+                    "light ray tracing stalled at {done} of {total_pairs} pairs for {:?} (are nodes connected?)",
+                    self.opts.stall_timeout
+                );
+            }
+            // One RPC per fork per poll: keep it gentle, but look at once when a node runs
+            // out of pairs (the pass may be over).
+            self.service.wait_for(poll).await;
+        };
+        progress.end();
+        Ok(LightPass { element_flux, pairs: total_pairs, collect_s })
+    }
+
+    /// Sends every fork the vertex-energy blocks it owns.
+    pub(super) async fn put_vertex_energies(&mut self, vertex_irradiance: &[Rgb]) -> anyhow::Result<()> {
+        // Given energies skip the light pass: the nodes wait meanwhile.
+        self.service.set_phase(Phase::Interp);
+        let f = self.forks.len();
+        let mut per_fork: Vec<Vec<v1::Block>> = vec![Vec::new(); f];
+        for (id, block) in vertex_energy_blocks(vertex_irradiance, &self.prepared.header.layout) {
+            per_fork[id as usize % f].push(block_to_wire(id, &block));
+        }
+        mark(self.opts.started, "light pass done, energies gathered and interpolated");
+        self.forks.put_vertex_blocks(per_fork).await?;
+        mark(self.opts.started, "vertex energies on the forks");
+        Ok(())
+    }
+
+    /// VRT of one frame: a camera path sends each frame's camera along with its
+    /// subscreens, and the nodes keep their caches from frame to frame.
+    pub(super) async fn trace_view(
+        &mut self,
+        pass: ViewPass<'_>,
+        progress: &dyn Progress,
+    ) -> anyhow::Result<ViewedFrame> {
+        let h = self.prepared.header.clone();
+        let s = &h.settings;
+        let f = self.forks.len();
+        if let Some(tx) = &self.opts.events {
+            let _ = tx.send(ClusterEvent::FrameBegins { index: pass.index, count: pass.count });
+        }
+        {
+            let mut st = self.service.lock();
+            let schedule = Scheduler::new(s.width, s.height, self.tiles.clone());
+            let nodes = st.nodes.len() as u32;
+            st.schedule = Some(if self.opts.scheme == Scheme::Magg { schedule.merging(nodes) } else { schedule });
+            // Nodes hold the header's camera; another one rides on the subscreens.
+            st.frame_camera = (*pass.camera != h.camera).then(|| v1::Camera::from(pass.camera));
+            st.phase = Phase::Vrt;
+        }
+        self.service.bump();
+        progress.begin("viewing ray tracing", s.width as u64 * s.height as u64);
+        let mut last_rows = (0u64, Instant::now());
+        let mut last_check = Instant::now();
+        loop {
+            // A fork that died is waited for (and loaded again when it is back) or named.
+            if last_check.elapsed() > FORK_CHECK {
+                for i in 0..f {
+                    self.forks.poll(i, true, false).await?;
+                }
+                last_check = Instant::now();
+            }
+            let (done, px) = {
+                let mut st = self.service.lock();
+                if let Some(sc) = st.schedule.as_mut() {
+                    let lost = sc.expire(self.opts.faults.lease);
+                    if !lost.is_empty() {
+                        tracing::warn!(
+                            ?lost,
+                            "nodes silent for over {:?}: their subscreens are back on the queue",
+                            self.opts.faults.lease
+                        );
+                    }
+                }
+                let sc = st.schedule.as_ref();
+                (sc.is_some_and(|s| s.is_done()), sc.map_or(0, |s| s.pixels_done()))
+            };
+            if px > last_rows.0 {
+                progress.advance(px - last_rows.0);
+                last_rows = (px, Instant::now());
+            }
+            if done {
+                break;
+            }
+            if last_rows.1.elapsed() > self.opts.stall_timeout {
+                bail!("viewing ray tracing stalled at {px} pixels for {:?}", self.opts.stall_timeout);
+            }
+            self.service.wait_for(VRT_POLL).await;
+        }
+        progress.end();
+        mark(self.opts.started, "viewing pass done");
+        let (frame, redivisions) = {
+            let mut st = self.service.lock();
+            match st.schedule.as_mut() {
+                Some(sc) => (sc.take_frame(), sc.redivisions),
+                None => bail!("the viewing pass lost its schedule"),
+            }
+        };
+        if pass.is_last() {
+            // The last frame is in: the nodes hear "done" and send their final reports
+            // while the image is written.
+            self.service.set_phase(Phase::Done);
+        }
+        Ok(ViewedFrame { frame, tiles: self.tiles.len() as u64, redivisions })
+    }
+}
