@@ -289,7 +289,7 @@ pub enum Mode {
         /// Phase stall limit.
         stall_timeout: std::time::Duration,
         /// Node leases, fork timeout, cluster token.
-        faults: crate::faults::FaultPolicy,
+        faults: magg_cluster::FaultPolicy,
     },
 }
 

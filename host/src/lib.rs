@@ -3,15 +3,16 @@
 //! Reads a scene, preprocesses it, runs the render phases and writes the image, the
 //! stats and the energies. `magg-host render SCENE --out IMAGE` runs the whole cluster
 //! (forks, nodes and this host, over gRPC on 127.0.0.1) inside this process, so one
-//! command renders a scene with no set-up; [`cluster`] also drives separate processes.
+//! command renders a scene with no set-up ([`harness`]); the host library
+//! (`magg-cluster`) also drives separate processes.
 
 pub mod accuracy;
 pub mod cli;
-pub mod cluster;
 pub mod commands;
 pub mod energy_csv;
 pub mod faults;
 pub mod frames;
+pub mod harness;
 pub mod images;
 pub mod live;
 pub mod logging;

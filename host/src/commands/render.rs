@@ -5,8 +5,8 @@
 //! images (see [`crate::frames`]).
 
 use crate::cli::{Mode, RenderConfig};
-use crate::cluster::{ClusterShape, InProcessOptions, StartedCluster};
 use crate::frames::{FrameRecord, RunStats};
+use crate::harness::{ClusterShape, InProcessOptions, StartedCluster};
 use crate::live::LiveView;
 use crate::{energy_csv, frames, images, progress::Bars, saved_energy, scene_file};
 use anyhow::Context;

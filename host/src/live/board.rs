@@ -7,8 +7,8 @@
 //! base64 of little-endian f32 linear RGB; the page tone-maps them itself.
 
 use super::NodeRow;
-use crate::cluster::events::ClusterEvent;
 use base64::Engine;
+use magg_cluster::events::ClusterEvent;
 use magg_core::math::Rgb;
 use magg_core::vrt::Subscreen;
 use serde_json::{json, Value};

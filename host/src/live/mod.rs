@@ -5,7 +5,7 @@
 //!
 //! The server runs on a runtime of its own (one thread), so it neither slows nor waits on
 //! the render's. The page gets server-sent events; the cluster's host service feeds the
-//! board through [`crate::cluster::events`], the embedded renderer through the
+//! board through [`magg_cluster::events`], the embedded renderer through the
 //! [`Progress`] hooks (there, per-node figures other than subscreens arrive at the end).
 //!
 //! ```text
@@ -16,10 +16,10 @@
 mod board;
 mod server;
 
-use crate::cluster::events::EventSender;
 use crate::frames::RunStats;
 use anyhow::Context;
 use board::Board;
+use magg_cluster::events::EventSender;
 use magg_core::frame::Frame;
 use magg_core::math::Rgb;
 use magg_core::progress::Progress;

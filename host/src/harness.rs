@@ -4,8 +4,8 @@
 //! in-process transport ([`magg_proto::transport`]): calls between them are gRPC
 //! (encoded, intercepted, size-checked) without sockets, unless `--transport tcp`.
 
-use super::machine::{ClusterMachine, DriveOptions};
 use anyhow::Context;
+use magg_cluster::{ClusterMachine, DriveOptions, FaultPolicy};
 use magg_core::machine::{FrameSink, RenderOutput, Sequence};
 use magg_core::preprocess::PreparedScene;
 use magg_core::progress::Progress;
@@ -33,9 +33,9 @@ pub struct InProcessOptions {
     /// Energies to use instead of the light pass, and the cameras of the frames.
     pub sequence: Sequence,
     /// Where the host service sends events for a watcher (the live view).
-    pub events: Option<super::events::EventSender>,
+    pub events: Option<magg_cluster::events::EventSender>,
     /// Node leases, fork timeout, and the cluster token of every process.
-    pub faults: crate::faults::FaultPolicy,
+    pub faults: FaultPolicy,
 }
 
 /// Where the harness's forks and host listen: what it can start before the scene is

@@ -4,8 +4,8 @@
 //! never count more pixels than the frame has; afterwards, once the leases of the
 //! fuzzing nodes expire, a well-behaved node still finishes the frame (no row is lost).
 
+use magg_cluster::schedule::{Next, Scheduler};
 use magg_core::vrt::Subscreen;
-use magg_host::cluster::schedule::{Next, Scheduler};
 use proptest::prelude::*;
 use proptest::test_runner::{Config, RngAlgorithm, TestRng, TestRunner};
 use std::time::Duration;

@@ -18,7 +18,7 @@
 //! without the failure. Completions from before the epoch are not counted, so no pair
 //! whose deposit the restarted fork lost is taken for done.
 
-use crate::faults::FaultPolicy;
+use crate::FaultPolicy;
 use anyhow::{bail, Context};
 use magg_core::preprocess::PreparedScene;
 use magg_proto::auth::{AddToken, Authed, Token};

@@ -52,7 +52,7 @@ pub struct DriveOptions {
     /// Where the host service sends events for a watcher (the live view).
     pub events: Option<EventSender>,
     /// Node leases, fork timeout, cluster token.
-    pub faults: crate::faults::FaultPolicy,
+    pub faults: crate::FaultPolicy,
     /// When the render began (before this process started its forks and nodes): the
     /// stats' total counts from here, so that it holds every cost of the cluster.
     pub started: Instant,
