@@ -133,7 +133,7 @@ fn bad_flags_are_refused_before_reading_the_scene() {
     for (args, needle) in [
         (&["--out", "x.png", "--cache-blocks", "0"][..], "--cache-blocks 0"),
         (&["--out", "x.png", "--cache-blocks", "lots"][..], "--cache-blocks"),
-        (&["--out", "x.jpg"][..], "x.jpg"),
+        (&["--out", "x.bmp"][..], "x.bmp"),
         (&["--out", "x.png", "--linear", "y.png"][..], "--linear"),
         (&["--out", "x.png", "--forks", "0"][..], "--forks 0"),
         (&["--out", "x.png", "--subscreen", "0"][..], "--subscreen 0"),

@@ -50,10 +50,11 @@ pub enum Command {
 pub struct RenderArgs {
     /// Scene file (TOML), e.g. scenes/cornell.toml.
     pub scene: PathBuf,
-    /// Output image: .png (tone-mapped sRGB), .exr or .pfm (linear radiance).
+    /// Output image, by extension: .png, .jpg, .tif (tone-mapped sRGB); .exr, .hdr, .pfm
+    /// (linear radiance).
     #[arg(short, long)]
     pub out: PathBuf,
-    /// Also write the linear image to this .exr or .pfm file.
+    /// Also write the linear image to this .exr, .hdr or .pfm file.
     #[arg(long)]
     pub linear: Option<PathBuf>,
     /// Nodes started in this process (0 = one per core).
@@ -199,29 +200,7 @@ pub struct InfoArgs {
     pub json: bool,
 }
 
-/// Image formats by extension.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum ImageFormat {
-    /// Tone-mapped 8-bit sRGB.
-    Png,
-    /// OpenEXR, linear f32.
-    Exr,
-    /// Portable float map, linear f32.
-    Pfm,
-}
-
-impl ImageFormat {
-    /// The format of `path`, from its extension.
-    pub fn of(path: &std::path::Path) -> anyhow::Result<ImageFormat> {
-        let ext = path.extension().and_then(|e| e.to_str()).map(|e| e.to_ascii_lowercase());
-        match ext.as_deref() {
-            Some("png") => Ok(ImageFormat::Png),
-            Some("exr") => Ok(ImageFormat::Exr),
-            Some("pfm") => Ok(ImageFormat::Pfm),
-            _ => bail!("{}: unknown image format (use .png, .exr or .pfm)", path.display()),
-        }
-    }
-}
+pub use crate::images::ImageFormat;
 
 /// A validated render command.
 #[derive(Debug)]
@@ -321,8 +300,8 @@ impl RenderArgs {
         let linear = match self.linear {
             Some(p) => {
                 let f = ImageFormat::of(&p)?;
-                if f == ImageFormat::Png {
-                    bail!("--linear {}: must be .exr or .pfm", p.display());
+                if !f.is_linear() {
+                    bail!("--linear {}: must be .exr, .hdr or .pfm", p.display());
                 }
                 Some((p, f))
             }
@@ -456,6 +435,7 @@ mod tests {
     fn formats_by_extension() {
         assert_eq!(ImageFormat::of("a/b.PNG".as_ref()).unwrap(), ImageFormat::Png);
         assert_eq!(ImageFormat::of("x.exr".as_ref()).unwrap(), ImageFormat::Exr);
-        assert!(ImageFormat::of("x.jpg".as_ref()).is_err());
+        assert_eq!(ImageFormat::of("x.jpg".as_ref()).unwrap(), ImageFormat::Jpeg);
+        assert!(ImageFormat::of("x.bmp".as_ref()).is_err());
     }
 }

@@ -200,7 +200,7 @@ pub fn run(args: &AccuracyArgs) -> anyhow::Result<()> {
     }
 
     let csv_path = out_dir.join("accuracy.csv");
-    std::fs::write(&csv_path, csv(&rows)).with_context(|| format!("cannot write {}", csv_path.display()))?;
+    std::fs::write(&csv_path, csv(&rows)?).with_context(|| format!("cannot write {}", csv_path.display()))?;
     // The front is drawn on modelled time: wall time on a shared machine is noisy (the
     // same work measured 1.8 s and 3.2 s in one study), the cost model is not.
     let front = pareto::pareto_front(
@@ -234,12 +234,12 @@ pub fn run(args: &AccuracyArgs) -> anyhow::Result<()> {
 /// The knobs varied one at a time, with their value of a row on a log axis (depths and
 /// bounces plus one, since they can be 0) and the axis title.
 pub const PLOT_KNOBS: [(&str, &str); 6] = [
-    ("element_size", "element size (m)"),
-    ("light_rays", "light rays per pair"),
-    ("pixel_samples", "pixel samples"),
-    ("lrt_depth", "lrt depth + 1"),
-    ("vrt_depth", "vrt depth + 1"),
-    ("diffuse_bounces", "diffuse bounces + 1"),
+    ("element_size", "Element size (m)"),
+    ("light_rays", "Light rays per pair"),
+    ("pixel_samples", "Pixel samples"),
+    ("lrt_depth", "LRT depth + 1"),
+    ("vrt_depth", "VRT depth + 1"),
+    ("diffuse_bounces", "Diffuse bounces + 1"),
 ];
 
 /// The value of `knob` in `row`, as plotted (see [`PLOT_KNOBS`]).
@@ -269,7 +269,7 @@ pub fn write_plots(out_dir: &Path, rows: &[Row], front: &[usize]) -> anyhow::Res
         }
     }
     let mut written = Vec::new();
-    let mut plot = Plot::new("error against modelled time", "modelled t800 seconds", "image relative mse");
+    let mut plot = Plot::new("Error against modelled time", "Modelled T800 seconds", "Image relative MSE");
     let mut front_pts: Vec<(f64, f64)> = front.iter().map(|&i| (rows[i].modelled_s, err(&rows[i]))).collect();
     front_pts.sort_by(|a, b| a.0.total_cmp(&b.0));
     plot.series.push(Series { markers: false, ..Series::new("pareto front", front_pts, [0, 0, 0]) });
@@ -289,7 +289,7 @@ pub fn write_plots(out_dir: &Path, rows: &[Row], front: &[usize]) -> anyhow::Res
             continue;
         }
         let pts = rows.iter().filter(|r| r.setting.knob == *knob).chain(base.iter().copied());
-        let mut plot = Plot::new(format!("error against {knob}"), *title, "image relative mse");
+        let mut plot = Plot::new(format!("Error against {knob}"), *title, "Image relative MSE");
         plot.series.push(Series::new(*knob, pts.map(|r| (knob_value(r, knob), err(r))).collect(), PALETTE[i]));
         let path = out_dir.join(format!("error_vs_{knob}.png"));
         plot.write(&path)?;
@@ -306,44 +306,52 @@ fn opt(v: Option<f64>, digits: usize) -> String {
     }
 }
 
-/// A CSV field, quoted when it holds a comma or a quote.
-fn field(s: &str) -> String {
-    if s.contains([',', '"']) {
-        format!("\"{}\"", s.replace('"', "\"\""))
-    } else {
-        s.to_string()
-    }
-}
+/// The columns of accuracy.csv, in order.
+pub const CSV_HEADER: [&str; 16] = [
+    "knob",
+    "value",
+    "element_size",
+    "light_rays",
+    "pixel_samples",
+    "lrt_depth",
+    "vrt_depth",
+    "diffuse_bounces",
+    "seconds",
+    "modelled_s",
+    "image_rmse",
+    "image_rel_mse",
+    "png_psnr",
+    "element_rmse",
+    "elements",
+    "vertex_cf_rel_rmse",
+];
 
 /// The CSV text of `rows`: one line per setting; a missing error is an empty field.
-pub fn csv(rows: &[Row]) -> String {
-    let mut s = String::from(
-        "knob,value,element_size,light_rays,pixel_samples,lrt_depth,vrt_depth,diffuse_bounces,seconds,modelled_s,image_rmse,image_rel_mse,png_psnr,element_rmse,elements,vertex_cf_rel_rmse\n",
-    );
+pub fn csv(rows: &[Row]) -> anyhow::Result<String> {
+    let mut out = csv::Writer::from_writer(Vec::new());
+    out.write_record(CSV_HEADER)?;
     for r in rows {
         let p = &r.setting.point;
-        let _ = writeln!(
-            s,
-            "{},{},{},{},{},{},{},{},{:.6},{:.4},{},{},{},{},{},{}",
-            field(&r.setting.knob),
-            field(&r.setting.value),
-            r.element_size,
-            p.light_rays,
-            p.pixel_samples,
-            p.lrt_depth,
-            p.vrt_depth,
-            p.diffuse_bounces,
-            r.seconds,
-            r.modelled_s,
+        out.write_record([
+            r.setting.knob.clone(),
+            r.setting.value.clone(),
+            r.element_size.to_string(),
+            p.light_rays.to_string(),
+            p.pixel_samples.to_string(),
+            p.lrt_depth.to_string(),
+            p.vrt_depth.to_string(),
+            p.diffuse_bounces.to_string(),
+            format!("{:.6}", r.seconds),
+            format!("{:.4}", r.modelled_s),
             opt(r.image_rmse, 6),
             opt(r.image_rel_mse, 6),
             r.png_psnr.filter(|x| x.is_finite()).map(|x| format!("{x:.3}")).unwrap_or_default(),
             opt(r.element_rmse, 6),
-            r.elements,
-            opt(r.vertex_cf_rel_rmse, 6)
-        );
+            r.elements.to_string(),
+            opt(r.vertex_cf_rel_rmse, 6),
+        ])?;
     }
-    s
+    Ok(String::from_utf8(out.into_inner()?)?)
 }
 
 /// A markdown table of the rows at `idx`, in that order.
@@ -410,7 +418,7 @@ mod tests {
 
     #[test]
     fn csv_has_no_nan_and_quotes_commas() {
-        let text = csv(&[row("combined", "x0.5, 16 rays", Some(0.25)), row("base", "scene", Some(f64::NAN))]);
+        let text = csv(&[row("combined", "x0.5, 16 rays", Some(0.25)), row("base", "scene", Some(f64::NAN))]).unwrap();
         assert!(!text.to_ascii_lowercase().contains("nan"), "{text}");
         let lines: Vec<&str> = text.lines().collect();
         assert_eq!(lines.len(), 3);

@@ -14,7 +14,7 @@
 //! again with a larger dilation, and the table says which dilation each row used.
 
 use crate::sweep::figures;
-use crate::sweep::run::{run_one, Row, Runner, Shape, COLUMNS};
+use crate::sweep::run::{run_one, write_csv, Row, Runner, Shape};
 use anyhow::{bail, Context};
 use clap::Args;
 use std::fmt::Write as _;
@@ -129,12 +129,7 @@ pub fn run(args: &SweepArgs) -> anyhow::Result<()> {
         }
     }
     let csv_path = args.out_dir.join("sweep.csv");
-    let mut csv = COLUMNS.join(",") + "\n";
-    for r in &rows {
-        csv.push_str(&r.csv());
-        csv.push('\n');
-    }
-    std::fs::write(&csv_path, csv).with_context(|| format!("writing {}", csv_path.display()))?;
+    write_csv(&csv_path, &rows)?;
     let figs = figures::write_all(&rows, &args.out_dir)?;
     print!("{}", table(&rows));
     eprintln!("wrote {} and {} figures in {}", csv_path.display(), figs.len(), args.out_dir.display());

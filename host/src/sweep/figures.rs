@@ -48,19 +48,28 @@ pub fn write_all(rows: &[Row], dir: &Path) -> anyhow::Result<Vec<PathBuf>> {
                 continue;
             }
             let mut plot = Plot::new(
-                format!("rendering time, cache {cache} blocks ({scheme} scheme)"),
-                "node processors",
-                "modelled seconds",
+                format!("Rendering time, cache {cache} blocks ({scheme} scheme)"),
+                "Node processors",
+                "Modelled seconds",
             );
-            for (i, stage) in ["total_s", "lrt_s", "vrt_s", "preprocess_s", "interp_s"].iter().enumerate() {
+            let stages = [
+                ("total_s", "total"),
+                ("lrt_s", "LRT"),
+                ("vrt_s", "VRT"),
+                ("preprocess_s", "preprocessing"),
+                ("interp_s", "interpolation"),
+            ];
+            for (i, (stage, label)) in stages.into_iter().enumerate() {
                 let pts = l.iter().map(|r| (r.shape.nodes as f64, r.num(stage))).collect();
-                plot.series.push(Series::new(stage.trim_end_matches("_s"), pts, color(i)));
+                plot.series.push(Series::new(label, pts, color(i)));
             }
             save(plot, format!("time-cache{cache}-{scheme}.png"))?;
         }
         // Figures 9-11: speed-up T(n0)/T(n) per cache size, with the linear line.
-        for (stage, what) in [("total_s", "total"), ("lrt_s", "light ray tracing"), ("vrt_s", "viewing ray tracing")] {
-            let mut plot = Plot::new(format!("speed-up, {what} ({scheme} scheme)"), "node processors", "T(n0) / T(n)");
+        for (stage, what) in
+            [("total_s", "total"), ("lrt_s", "light ray tracing (LRT)"), ("vrt_s", "viewing ray tracing (VRT)")]
+        {
+            let mut plot = Plot::new(format!("Speed-up, {what} ({scheme} scheme)"), "Node processors", "T(n0) / T(n)");
             let mut n0_all = BTreeSet::new();
             for (i, &cache) in caches.iter().enumerate() {
                 let l = line(rows, scheme, forks, cache);
@@ -82,7 +91,7 @@ pub fn write_all(rows: &[Row], dir: &Path) -> anyhow::Result<Vec<PathBuf>> {
     // Figure 8: the cache's miss ratio with the most nodes, per schedule.
     if let Some(nmax) = rows.iter().map(|r| r.shape.nodes).max() {
         let mut plot =
-            Plot::new(format!("cache miss ratio (1 - hit ratio), {nmax} nodes"), "cache blocks per node", "miss ratio");
+            Plot::new(format!("Cache miss ratio (1 - hit ratio), {nmax} nodes"), "Cache blocks per node", "Miss ratio");
         for (i, scheme) in schemes.iter().enumerate() {
             let mut pts: Vec<(f64, f64)> = rows
                 .iter()

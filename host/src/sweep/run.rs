@@ -77,11 +77,6 @@ impl Row {
         self.values.iter().find(|(k, _)| k == column).and_then(|(_, v)| v.parse().ok()).unwrap_or(f64::NAN)
     }
 
-    /// The CSV line.
-    pub fn csv(&self) -> String {
-        self.values.iter().map(|(_, v)| v.as_str()).collect::<Vec<_>>().join(",")
-    }
-
     /// Reads a row from a stats JSON file.
     pub fn from_stats(shape: Shape, stats: &Value) -> Row {
         let get = |path: &[&str]| -> String {
@@ -121,6 +116,20 @@ impl Row {
             .collect();
         Row { shape, values }
     }
+}
+
+/// Writes `rows` to `path` as CSV: the header [`COLUMNS`], then one record per run.
+pub fn write_csv(path: &Path, rows: &[Row]) -> anyhow::Result<()> {
+    let write = || -> anyhow::Result<()> {
+        let mut out = csv::Writer::from_path(path)?;
+        out.write_record(COLUMNS)?;
+        for r in rows {
+            out.write_record(r.values.iter().map(|(_, v)| v))?;
+        }
+        out.flush()?;
+        Ok(())
+    };
+    write().with_context(|| format!("writing {}", path.display()))
 }
 
 /// Runs one render of `scene` with `shape`, writing its stats to `stats` and its image
