@@ -25,6 +25,7 @@
 
 pub mod blocks;
 pub mod camera;
+pub mod cluster;
 pub mod energy;
 pub mod fingerprint;
 pub mod frame;

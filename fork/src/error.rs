@@ -164,6 +164,17 @@ impl ForkError {
     }
 }
 
+/// A message that does not convert: a block of the wrong size is a bad block, anything
+/// else a bad scene header (the only other part of a request that converts).
+impl From<ConvertError> for ForkError {
+    fn from(e: ConvertError) -> ForkError {
+        match e {
+            ConvertError::BlockSize { .. } => ForkError::BadBlock(e),
+            _ => ForkError::BadHeader(e),
+        }
+    }
+}
+
 impl From<ForkError> for Status {
     fn from(e: ForkError) -> Status {
         Status::new(e.code(), e.to_string())

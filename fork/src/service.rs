@@ -2,14 +2,21 @@
 //! and G-bus paths, pair hand-out with stealing, exactly-once energy deposits.
 //!
 //! Each handler takes the current [`Shard`] (an `Arc`, so a concurrent `LoadShard` never
-//! pulls state from under a running request), does its checks, and maps every
-//! [`ForkError`] to a `Status` through the one mapping in [`crate::error`].
+//! pulls state from under a running request), converts the request to the domain values
+//! of [`magg_core::cluster`] (with the `From`/`TryFrom` of [`magg_proto::convert`]; a
+//! batch of deposits is borrowed from the request, not copied), does its checks, and
+//! maps every [`ForkError`] to a `Status` through the one mapping in [`crate::error`].
+//! This is the only module of the fork's state that sees protobuf types; the peer
+//! client ([`crate::peers`]) is the other.
 
 use crate::error::ForkError;
 use crate::hardware::ForkHardware;
 use crate::locks::{read, write};
 use crate::shard::{Shard, MAX_IDS_PER_REQUEST, MAX_PAIRS_PER_REQUEST};
+use bytes::Bytes;
+use magg_core::cluster::{DepositBatch, PairLease, ShardLoad};
 use magg_proto::auth::Token;
+use magg_proto::convert::block_bytes_from_wire;
 use magg_proto::v1;
 use magg_proto::v1::fork_server::Fork;
 use magg_throttle::Profile;
@@ -64,6 +71,27 @@ fn too_many(what: &'static str, got: usize, max: usize) -> ForkError {
     ForkError::TooMany { what, got: got as u64, max: max as u64 }
 }
 
+/// A shard from a `LoadShard` request: the protocol version checked first, then the
+/// request converted (header, 2 KB blocks) and the shard built (placement, ownership).
+pub fn load_shard(req: v1::LoadShardRequest, token: Token) -> Result<Shard, ForkError> {
+    if req.protocol_version != magg_proto::PROTOCOL_VERSION {
+        return Err(ForkError::ProtocolVersion { got: req.protocol_version, want: magg_proto::PROTOCOL_VERSION });
+    }
+    Shard::load(ShardLoad::try_from(req)?, token)
+}
+
+/// Blocks from the wire, each checked to be 2 KB (kept as received, no copy).
+pub fn blocks_from_wire(blocks: Vec<v1::Block>) -> Result<Vec<(u32, Bytes)>, ForkError> {
+    Ok(blocks.into_iter().map(block_bytes_from_wire).collect::<Result<_, _>>()?)
+}
+
+/// Applies a `Deposit` request's pairs, read in place from its packed arrays; returns
+/// (applied, duplicates).
+pub fn deposit(shard: &Shard, req: &v1::DepositRequest) -> Result<(u32, u32), ForkError> {
+    let batch = DepositBatch::try_from(req).map_err(|e| ForkError::BadRequest(e.to_string()))?;
+    shard.deposit(batch)
+}
+
 /// `GetBlocks`: owned blocks from memory, the others from their forks (one
 /// `PeerBlocks` per owner over the G-bus, concurrently), in request order; the reply
 /// goes to the node through the DMA engine. The peer calls run concurrently within this
@@ -89,7 +117,7 @@ async fn get_blocks(shard: Arc<Shard>, hw: Arc<ForkHardware>, ids: Vec<u32>) -> 
     }
     let local_ids: Vec<u32> = local.iter().map(|&p| ids[p]).collect();
     for (pos, b) in local.into_iter().zip(shard.owned_blocks(&local_ids)?) {
-        out[pos] = Some(b);
+        out[pos] = Some(v1::Block::from(b));
     }
     let calls = remote.into_iter().map(|(owner, positions)| {
         let (shard, hw) = (&shard, &hw);
@@ -116,22 +144,17 @@ async fn get_blocks(shard: Arc<Shard>, hw: Arc<ForkHardware>, ids: Vec<u32>) -> 
 
 /// `TakePairs`: the fork's own queue first; when it is empty, the other forks in turn
 /// (index+1, index+2, ...) are asked to give some away (paper §4.4).
-async fn take_pairs(
-    shard: Arc<Shard>,
-    hw: &ForkHardware,
-    max: u32,
-    node: u32,
-) -> Result<v1::TakePairsReply, ForkError> {
+async fn take_pairs(shard: Arc<Shard>, hw: &ForkHardware, max: u32, node: u32) -> Result<PairLease, ForkError> {
     let max = max.clamp(1, MAX_PAIRS_PER_REQUEST);
     let (pairs, epoch) = shard.take_own_pairs(max, node);
     if !pairs.is_empty() {
-        return Ok(v1::TakePairsReply { pairs, exhausted: false, epoch, remaining: shard.pairs_left() });
+        return Ok(PairLease { pairs, exhausted: false, epoch, remaining: shard.pairs_left() });
     }
     let me = shard.placement().index;
     let ask = shard.steal_batch(max);
     let mut failure = None;
     for peer in shard.steal_order() {
-        let stolen = shard.peers().steal(peer, ask, node).await;
+        let stolen = shard.peers().steal(peer, ask, node).await.map(PairLease::from);
         // A request and a reply of pair ids cross the G-bus.
         hw.gbus(me, shard.peers(), 16 + 8 * stolen.as_ref().map_or(0, |r| r.pairs.len())).await;
         if let Ok(r) = &stolen {
@@ -139,10 +162,10 @@ async fn take_pairs(
         }
         match stolen {
             Ok(r) if r.pairs.is_empty() => {}
-            Ok(v1::TakePairsReply { pairs, epoch, .. }) => {
+            Ok(PairLease { pairs, epoch, .. }) => {
                 check_stolen(&shard, peer, &pairs)?;
                 tracing::debug!(fork = me, from = peer, pairs = pairs.len(), "stole pairs");
-                return Ok(v1::TakePairsReply { pairs, exhausted: false, epoch, remaining: 0 });
+                return Ok(PairLease { pairs, exhausted: false, epoch, remaining: 0 });
             }
             Err(e) => {
                 tracing::warn!(fork = me, peer, "pair stealing failed: {e}");
@@ -153,7 +176,7 @@ async fn take_pairs(
     // A fork that could not be asked may still hold pairs: not exhausted.
     match failure {
         Some(e) => Err(e),
-        None => Ok(v1::TakePairsReply { pairs: Vec::new(), exhausted: true, epoch: 0, remaining: 0 }),
+        None => Ok(PairLease { pairs: Vec::new(), exhausted: true, epoch: 0, remaining: 0 }),
     }
 }
 
@@ -180,7 +203,7 @@ impl Fork for ForkService {
             Some(Profile::from_wire(&req.profile).map_err(|e| ForkError::BadRequest(e.to_string()))?)
         };
         self.hw.check_profile(profile.as_ref())?;
-        let shard = Shard::load(req, self.token.clone())?;
+        let shard = load_shard(req, self.token.clone())?;
         shard.count_rpc();
         self.hw.set_profile(profile);
         // The host's upload crosses the G-bus.
@@ -204,7 +227,7 @@ impl Fork for ForkService {
         self.hw.serve(0).await;
         let req = req.into_inner();
         self.hw.gbus(shard.placement().index, shard.peers(), prost::Message::encoded_len(&req)).await;
-        let stored = shard.put_blocks(req.blocks)?;
+        let stored = shard.put_blocks(blocks_from_wire(req.blocks)?)?;
         Ok(Response::new(v1::PutBlocksReply { stored }))
     }
 
@@ -222,7 +245,7 @@ impl Fork for ForkService {
         if ids.len() > MAX_IDS_PER_REQUEST {
             return Err(too_many("block ids in a request", ids.len(), MAX_IDS_PER_REQUEST).into());
         }
-        let blocks = shard.owned_blocks(&ids)?;
+        let blocks = shard.owned_blocks(&ids)?.into_iter().map(v1::Block::from).collect();
         Ok(Response::new(v1::GetBlocksReply { blocks }))
     }
 
@@ -230,7 +253,7 @@ impl Fork for ForkService {
         let shard = self.shard()?;
         self.hw.serve(0).await;
         let r = req.into_inner();
-        let reply = take_pairs(shard.clone(), &self.hw, r.max, r.node).await?;
+        let reply = v1::TakePairsReply::from(take_pairs(shard.clone(), &self.hw, r.max, r.node).await?);
         shard.count_link(prost::Message::encoded_len(&r) + prost::Message::encoded_len(&reply));
         Ok(Response::new(reply))
     }
@@ -240,20 +263,20 @@ impl Fork for ForkService {
         self.hw.serve(0).await;
         let r = req.into_inner();
         let (pairs, epoch) = shard.take_own_pairs(r.max, r.node);
-        let exhausted = pairs.is_empty();
-        Ok(Response::new(v1::TakePairsReply { pairs, exhausted, epoch, remaining: shard.pairs_left() }))
+        let lease = PairLease { exhausted: pairs.is_empty(), pairs, epoch, remaining: shard.pairs_left() };
+        Ok(Response::new(lease.into()))
     }
 
     async fn deposit(&self, req: Request<v1::DepositRequest>) -> Result<Response<v1::DepositReply>, Status> {
         let shard = self.shard()?;
         let r = req.into_inner();
         self.hw.serve(r.elements.len()).await;
-        let (applied, duplicates) = shard.deposit(&r)?;
+        let (applied, duplicates) = deposit(&shard, &r)?;
         // The node's next batch, asked for in the same call.
         let taken = match &r.take {
             Some(t) => {
                 self.hw.serve(0).await;
-                Some(take_pairs(shard.clone(), &self.hw, t.max, t.node).await?)
+                Some(take_pairs(shard.clone(), &self.hw, t.max, t.node).await?.into())
             }
             None => None,
         };
@@ -274,7 +297,7 @@ impl Fork for ForkService {
     ) -> Result<Response<v1::GetEnergiesReply>, Status> {
         let shard = self.shard()?;
         let summary_only = req.into_inner().summary_only;
-        let mut reply = shard.energies(summary_only);
+        let mut reply = v1::GetEnergiesReply::from(shard.energies(summary_only));
         // The energies go back to the host over the G-bus. The host's progress polls
         // (summaries) are our monitoring, not the paper's protocol: they cost nothing.
         if !summary_only {

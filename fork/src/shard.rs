@@ -1,25 +1,29 @@
 //! A fork's state for one render: its place among the forks, its shard of blocks, its
 //! pair queue and the energy accumulated on its elements (paper §4.3–4.4).
 //!
-//! Everything here is synchronous and checks its input before changing anything, so a
-//! refused request leaves the state as it was. The gRPC layer ([`crate::service`]) adds
-//! the peer calls (G-bus fetches, pair stealing).
+//! Everything here is synchronous, works on domain values ([`magg_core::cluster`]) and
+//! checks its input before changing anything, so a refused request leaves the state as
+//! it was. The jobs are done by the [`crate::state`] modules (block store, pair book,
+//! ledger); this puts them together under the fork's placement. The gRPC layer
+//! ([`crate::service`]) converts the messages and adds the peer calls (G-bus fetches,
+//! pair stealing).
 
-use crate::bits::Bitset;
 use crate::error::ForkError;
-use crate::locks::{lock, read, write};
-use crate::pairs::PairQueue;
+use crate::locks::lock;
 use crate::peers::Peers;
+use crate::state::ledger::Ledger;
+use crate::state::pairs::{guided_batch, PairBook, PairQueue};
+use crate::state::store::BlockStore;
+use bytes::Bytes;
 use magg_core::blocks::BLOCK_SIZE;
-use magg_core::energy::Fixed;
+use magg_core::cluster::{DepositBatch, ForkReport, PairDeposit, ShardLoad};
 use magg_core::header::SceneHeader;
 use magg_proto::auth::Token;
-use magg_proto::convert::block_bytes_from_wire;
-use magg_proto::v1;
-use std::collections::HashMap;
 use std::sync::atomic::{AtomicU64, Ordering};
-use std::sync::{Mutex, RwLock};
+use std::sync::Mutex;
 use std::time::{Duration, Instant};
+
+pub use crate::state::pairs::GAPS_PER_LEASE;
 
 /// Most forks a cluster may have.
 pub const MAX_FORKS: usize = 4096;
@@ -35,9 +39,6 @@ pub const MAX_DEPOSITS: usize = 1 << 20;
 pub const MAX_ADDR_LEN: usize = 256;
 /// Pair lease when `LoadShard` gives none: a node silent this long is taken for dead.
 pub const DEFAULT_LEASE: Duration = Duration::from_secs(30);
-/// A lease lasts at least this many times the longest gap seen between two requests of a
-/// node that held pairs (a live node's gap is about one batch of pairs).
-pub const GAPS_PER_LEASE: u32 = 4;
 
 /// Which fork this is, and where the others are.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -71,29 +72,10 @@ pub struct Traffic {
 /// Pair and energy bookkeeping, under one lock.
 #[derive(Debug)]
 struct Work {
-    /// Unassigned pairs of this fork.
-    queue: PairQueue,
-    /// Pairs of this fork handed out and not yet complete, with the node they went to
-    /// and when (given back to the queue when the lease expires: node failure).
-    leased: HashMap<u64, (u32, Instant)>,
-    /// When each node last asked this fork for pairs (refreshes all its leases).
-    seen: HashMap<u32, Instant>,
-    /// Longest time a node holding pairs here took to ask again: leases last at least
-    /// [`GAPS_PER_LEASE`] times this, so slow (e.g. throttled) batches do not expire.
-    max_gap: Duration,
-    /// Leases that expired so far.
-    returned: u64,
-    /// Replay epoch: completions of pairs handed out in an earlier epoch do not count.
-    epoch: u64,
-    /// Pairs (by id) whose deposits this fork has applied (exactly-once).
-    applied: Bitset,
-    /// Pairs of this fork reported complete, by local index (see [`Shard::local_pair`]).
-    done: Bitset,
-    /// For each other fork, the complete pairs of this fork (local index) that deposited
-    /// on it: the pairs to trace again if it restarts and loses its energy.
-    deposited_on: Vec<Option<Bitset>>,
-    /// Fixed-point flux of each owned element, parallel to `Shard::owned`.
-    energy: Vec<Fixed>,
+    /// Unassigned pairs of this fork and those lent to nodes.
+    pairs: PairBook,
+    /// Applied deposits, complete pairs, element energy.
+    ledger: Ledger,
 }
 
 /// One fork's share of a render.
@@ -101,9 +83,8 @@ struct Work {
 pub struct Shard {
     header: SceneHeader,
     place: Placement,
-    /// Owned blocks by local index `id / forks` (2 KB each, as received: served without
-    /// a copy); `None` until supplied.
-    blocks: RwLock<Vec<Option<bytes::Bytes>>>,
+    /// Owned blocks (2 KB each, as received: served without a copy).
+    store: BlockStore,
     /// Elements whose element block this fork holds, ascending.
     owned: Vec<u32>,
     work: Mutex<Work>,
@@ -120,35 +101,27 @@ pub struct Shard {
 }
 
 impl Shard {
-    /// Builds the shard from a `LoadShard` request: checks the protocol version, the
-    /// placement, the header and every block, then builds the pair queue. Other forks
-    /// are reached with the cluster `token`.
-    pub fn load(req: v1::LoadShardRequest, token: Token) -> Result<Shard, ForkError> {
-        if req.protocol_version != magg_proto::PROTOCOL_VERSION {
-            return Err(ForkError::ProtocolVersion { got: req.protocol_version, want: magg_proto::PROTOCOL_VERSION });
-        }
-        let forks = req.fork_addrs.len();
+    /// Builds the shard of a render: checks the placement and every block, then builds
+    /// the pair queue. Other forks are reached with the cluster `token`.
+    pub fn load(load: ShardLoad<Bytes>, token: Token) -> Result<Shard, ForkError> {
+        let forks = load.fork_addrs.len();
         if forks == 0 || forks > MAX_FORKS {
             return Err(ForkError::BadRequest(format!("fork_addrs has {forks} addresses, expected 1..={MAX_FORKS}")));
         }
-        if let Some(a) = req.fork_addrs.iter().find(|a| a.is_empty() || a.len() > MAX_ADDR_LEN) {
+        if let Some(a) = load.fork_addrs.iter().find(|a| a.is_empty() || a.len() > MAX_ADDR_LEN) {
             return Err(ForkError::BadRequest(format!("fork address {a:?} is empty or over {MAX_ADDR_LEN} bytes")));
         }
-        if req.fork_index as usize >= forks {
-            return Err(ForkError::BadRequest(format!("fork_index {} is not below {forks} forks", req.fork_index)));
+        if load.fork_index as usize >= forks {
+            return Err(ForkError::BadRequest(format!("fork_index {} is not below {forks} forks", load.fork_index)));
         }
-        let header = req.header.ok_or_else(|| ForkError::BadRequest("header is missing".into()))?;
-        let header = SceneHeader::try_from(header).map_err(ForkError::BadHeader)?;
-        let place = Placement { index: req.fork_index, addrs: req.fork_addrs };
+        let header = load.header;
+        let place = Placement { index: load.fork_index, addrs: load.fork_addrs };
         let (index, f) = (place.index, place.forks());
-        let total = header.layout.total;
-        let local_blocks = (total.saturating_sub(index) as usize).div_ceil(f as usize);
         let owned: Vec<u32> =
             (0..header.counts.elements).filter(|&e| header.layout.element_slot(e).0 % f == index).collect();
         let lights = header.lights.len() as u32;
         let pair_count = lights as u64 * header.counts.elements as u64;
         let own_pairs = lights as u64 * owned.len() as u64;
-        let lease = if req.lease_ms == 0 { DEFAULT_LEASE } else { Duration::from_millis(req.lease_ms as u64) };
         let mut left_elsewhere = vec![0u64; forks];
         if header.plan.lrt {
             for e in 0..header.counts.elements {
@@ -156,30 +129,22 @@ impl Shard {
             }
         }
         let work = Work {
-            queue: PairQueue::new(lights, owned.len(), header.plan.lrt),
-            leased: HashMap::new(),
-            seen: HashMap::new(),
-            max_gap: Duration::ZERO,
-            returned: 0,
-            epoch: req.epoch,
-            applied: Bitset::new(pair_count),
-            done: Bitset::new(own_pairs),
-            deposited_on: vec![None; forks],
-            energy: vec![[0; 3]; owned.len()],
+            pairs: PairBook::new(PairQueue::new(lights, owned.len(), header.plan.lrt)),
+            ledger: Ledger::new(pair_count, own_pairs, forks, owned.len(), load.epoch),
         };
         let shard = Shard {
+            store: BlockStore::new(index, f, header.layout.total),
             header,
-            blocks: RwLock::new(vec![None; local_blocks]),
             owned,
             work: Mutex::new(work),
             traffic: Traffic::default(),
             peers: Peers::new(place.addrs.clone(), token),
             place,
-            nodes: req.nodes,
+            nodes: load.nodes,
             left_elsewhere: Mutex::new(left_elsewhere),
-            lease,
+            lease: load.lease.unwrap_or(DEFAULT_LEASE),
         };
-        shard.put_blocks(req.blocks)?;
+        shard.put_blocks(load.blocks)?;
         Ok(shard)
     }
 
@@ -215,12 +180,12 @@ impl Shard {
 
     /// Pairs of this fork in all.
     pub fn pairs_total(&self) -> u64 {
-        lock(&self.work).queue.total()
+        lock(&self.work).pairs.total()
     }
 
     /// The fork holding block `id`.
     pub fn block_owner(&self, id: u32) -> u32 {
-        id % self.place.forks()
+        self.store.owner(id)
     }
 
     /// The fork owning element `e` (the one holding its element block).
@@ -230,66 +195,33 @@ impl Shard {
 
     /// Refuses ids past the scene's last block.
     pub fn check_block_id(&self, id: u32) -> Result<(), ForkError> {
-        let total = self.header.layout.total;
-        if id < total {
-            Ok(())
-        } else {
-            Err(ForkError::BlockOutOfRange { id, total })
-        }
+        self.store.check_id(id)
     }
 
     /// Refuses ids out of range or owned by another fork.
     pub fn check_owned_block(&self, id: u32) -> Result<(), ForkError> {
-        self.check_block_id(id)?;
-        let owner = self.block_owner(id);
-        if owner == self.place.index {
-            Ok(())
-        } else {
-            Err(ForkError::BlockNotOwned { id, owner, fork: self.place.index })
-        }
+        self.store.check_owned(id)
     }
 
-    /// Replaces owned blocks; all are checked before any is stored. Returns how many
-    /// were stored.
-    pub fn put_blocks(&self, blocks: Vec<v1::Block>) -> Result<u32, ForkError> {
-        let mut checked = Vec::with_capacity(blocks.len());
-        for b in blocks {
-            let (id, data) = block_bytes_from_wire(b).map_err(ForkError::BadBlock)?;
-            self.check_owned_block(id)?;
-            checked.push((id, data));
-        }
-        let n = checked.len() as u32;
-        let f = self.place.forks();
-        let mut store = write(&self.blocks);
-        for (id, data) in checked {
-            store[(id / f) as usize] = Some(data);
-        }
-        Ok(n)
+    /// Replaces owned blocks (id, 2 KB payload); all are checked before any is stored.
+    /// Returns how many were stored.
+    pub fn put_blocks(&self, blocks: Vec<(u32, Bytes)>) -> Result<u32, ForkError> {
+        self.store.put(blocks)
     }
 
     /// Owned blocks supplied so far.
     pub fn stored_blocks(&self) -> u32 {
-        read(&self.blocks).iter().filter(|b| b.is_some()).count() as u32
+        self.store.stored()
     }
 
-    /// Owned blocks by id, in request order, ready for the wire.
-    pub fn owned_blocks(&self, ids: &[u32]) -> Result<Vec<v1::Block>, ForkError> {
-        for &id in ids {
-            self.check_owned_block(id)?;
-        }
-        let f = self.place.forks();
-        let store = read(&self.blocks);
-        ids.iter()
-            .map(|&id| match &store[(id / f) as usize] {
-                Some(b) => Ok(v1::Block { id, data: b.clone() }),
-                None => Err(ForkError::BlockNotLoaded { id, fork: self.place.index }),
-            })
-            .collect()
+    /// Owned blocks by id, in request order (payloads shared, not copied).
+    pub fn owned_blocks(&self, ids: &[u32]) -> Result<Vec<(u32, Bytes)>, ForkError> {
+        self.store.get(ids)
     }
 
     /// Unassigned pairs of this fork's own queue.
     pub fn pairs_left(&self) -> u64 {
-        lock(&self.work).queue.remaining()
+        lock(&self.work).pairs.remaining()
     }
 
     /// Estimated unassigned pairs of the other forks together.
@@ -329,7 +261,7 @@ impl Shard {
     pub fn steal_batch(&self, max: u32) -> u32 {
         let max = max.clamp(1, MAX_PAIRS_PER_REQUEST);
         // This fork's queue is empty when it steals: what the others said is all it has.
-        crate::pairs::guided_batch(max, self.pairs_left() + self.left_at_peers(), self.nodes)
+        guided_batch(max, self.pairs_left() + self.left_at_peers(), self.nodes)
     }
 
     /// Takes up to `max` unassigned pairs of this fork's own queue for `node` (first
@@ -339,27 +271,14 @@ impl Shard {
         let max = max.clamp(1, MAX_PAIRS_PER_REQUEST);
         let now = Instant::now();
         let mut work = lock(&self.work);
-        if let Some(last) = work.seen.insert(node, now) {
-            if work.leased.values().any(|l| l.0 == node) {
-                let gap = now.saturating_duration_since(last);
-                work.max_gap = work.max_gap.max(gap);
-            }
-        }
+        work.pairs.heard_from(node, now);
         self.reclaim_expired(&mut work, now);
-        let max = crate::pairs::guided_batch(max, self.left_in_cluster(work.queue.remaining()), self.nodes) as usize;
-        let mut pairs = Vec::new();
-        while pairs.len() < max {
-            let got = work.queue.pop(max - pairs.len(), &self.owned, self.header.counts.elements);
-            if got.is_empty() {
-                break;
-            }
-            // A given-back pair may have been completed since by its first (slow) node.
-            pairs.extend(got.into_iter().filter(|&p| self.local_pair(p).is_ok_and(|k| !work.done.contains(k))));
-        }
-        for &p in &pairs {
-            work.leased.insert(p, (node, now));
-        }
-        (pairs, work.epoch)
+        let max = guided_batch(max, self.left_in_cluster(work.pairs.remaining()), self.nodes) as usize;
+        let Work { pairs, ledger } = &mut *work;
+        let elements = self.header.counts.elements;
+        // A given-back pair may have been completed since by its first (slow) node.
+        let keep = |p| self.local_pair(p).is_ok_and(|k| !ledger.is_done(k));
+        (pairs.take(max, node, now, &self.owned, elements, keep), ledger.epoch())
     }
 
     /// Starts replay epoch `epoch` because fork `lost` restarted and lost the energy on
@@ -370,28 +289,12 @@ impl Shard {
     /// An epoch not above the current one changes nothing (a repeated call).
     pub fn replay(&self, epoch: u64, lost: Option<u32>) -> u64 {
         let mut work = lock(&self.work);
-        if epoch <= work.epoch {
-            return 0;
-        }
-        work.epoch = epoch;
-        let before = work.queue.remaining();
-        let w = &mut *work;
-        let again: Vec<u64> = match lost.and_then(|j| w.deposited_on.get(j as usize)) {
-            Some(Some(on_lost)) => on_lost.iter().collect(),
-            Some(None) => Vec::new(),
-            None => w.done.iter().collect(),
-        };
-        for k in again {
-            w.done.remove(k);
-            w.queue.give_back(self.pair_of_local(k));
-        }
-        for (p, _) in w.leased.drain() {
-            w.queue.give_back(p);
-        }
-        if let Some(Some(on_lost)) = lost.and_then(|j| w.deposited_on.get_mut(j as usize)) {
-            *on_lost = Bitset::new(0);
-        }
-        let queued = work.queue.remaining() - before;
+        let Work { pairs, ledger } = &mut *work;
+        let Some(again) = ledger.replay(epoch, lost) else { return 0 };
+        let before = pairs.remaining();
+        pairs.requeue(again.into_iter().map(|k| self.pair_of_local(k)));
+        pairs.recall();
+        let queued = pairs.remaining() - before;
         tracing::warn!(
             fork = self.place.index,
             epoch,
@@ -405,35 +308,15 @@ impl Shard {
     /// Gives back to the queue the pairs of every node silent for longer than the lease
     /// (or [`GAPS_PER_LEASE`] times the longest gap of a live node, if longer).
     fn reclaim_expired(&self, work: &mut Work, now: Instant) {
-        let lease = self.lease.max(work.max_gap * GAPS_PER_LEASE);
-        let seen = &work.seen;
-        let expired: Vec<u64> = work
-            .leased
-            .iter()
-            .filter(|(_, &(node, at))| {
-                let last = seen.get(&node).map_or(at, |&s| s.max(at));
-                now.saturating_duration_since(last) > lease
-            })
-            .map(|(&p, _)| p)
-            .collect();
-        if expired.is_empty() {
-            return;
+        if let Some(e) = work.pairs.expire(self.lease, now) {
+            tracing::warn!(
+                fork = self.place.index,
+                pairs = e.pairs,
+                nodes = ?e.nodes,
+                "pair leases expired (node silent for over {:?}): pairs back on the queue",
+                e.lease
+            );
         }
-        let mut nodes: Vec<u32> = expired.iter().filter_map(|p| work.leased.get(p).map(|l| l.0)).collect();
-        nodes.sort_unstable();
-        nodes.dedup();
-        for p in &expired {
-            work.leased.remove(p);
-            work.queue.give_back(*p);
-        }
-        work.returned += expired.len() as u64;
-        tracing::warn!(
-            fork = self.place.index,
-            pairs = expired.len(),
-            ?nodes,
-            "pair leases expired (node silent for over {:?}): pairs back on the queue",
-            lease
-        );
     }
 
     /// The id range of pairs: `lights * elements`.
@@ -481,34 +364,36 @@ impl Shard {
         })
     }
 
-    /// Applies a batch's deposits (see [`magg_proto::deposits`]) exactly once per pair
-    /// id; returns (applied, duplicates). The whole request is checked before anything
-    /// is applied.
-    pub fn deposit(&self, req: &v1::DepositRequest) -> Result<(u32, u32), ForkError> {
-        if req.pairs.len() > MAX_DEPOSIT_PAIRS {
+    /// Applies a batch's deposits exactly once per pair id; returns (applied,
+    /// duplicates). The whole batch is checked before anything is applied.
+    pub fn deposit<'a, P>(&self, batch: DepositBatch<P>) -> Result<(u32, u32), ForkError>
+    where
+        P: ExactSizeIterator<Item = PairDeposit<'a>> + Clone,
+    {
+        let n = batch.pairs.len();
+        if n > MAX_DEPOSIT_PAIRS {
             return Err(ForkError::TooMany {
                 what: "pairs in a deposit",
-                got: req.pairs.len() as u64,
+                got: n as u64,
                 max: MAX_DEPOSIT_PAIRS as u64,
             });
         }
-        if req.elements.len() > MAX_DEPOSITS {
+        if batch.deposits > MAX_DEPOSITS {
             return Err(ForkError::TooMany {
                 what: "element deposits in a request",
-                got: req.elements.len() as u64,
+                got: batch.deposits as u64,
                 max: MAX_DEPOSITS as u64,
             });
         }
-        let pairs = magg_proto::deposits::read(req).map_err(|e| ForkError::BadRequest(e.to_string()))?;
         let total_pairs = self.pair_count();
         let forks = self.place.forks();
-        let mut slots = Vec::with_capacity(req.elements.len());
-        let mut local = Vec::with_capacity(if req.complete { req.pairs.len() } else { 0 });
-        for p in pairs.clone() {
+        let mut slots = Vec::with_capacity(batch.deposits);
+        let mut local = Vec::with_capacity(if batch.complete { n } else { 0 });
+        for p in batch.pairs.clone() {
             if p.pair >= total_pairs {
                 return Err(ForkError::PairOutOfRange { pair: p.pair, pairs: total_pairs });
             }
-            if req.complete {
+            if batch.complete {
                 local.push(self.local_pair(p.pair)?);
             }
             if let Some(&j) = p.also_on.iter().find(|&&j| j >= forks || j == self.place.index) {
@@ -524,29 +409,18 @@ impl Shard {
         let (mut applied, mut duplicates) = (0, 0);
         let mut slots = slots.into_iter();
         let mut work = lock(&self.work);
-        let own_pairs = self.header.lights.len() as u64 * self.owned.len() as u64;
-        let counts_done = req.complete && req.epoch == work.epoch;
-        for (k, p) in pairs.enumerate() {
-            let fresh = work.applied.insert(p.pair);
-            for (d, slot) in p.energy.chunks_exact(3).zip(slots.by_ref()) {
-                if fresh {
-                    let e = &mut work.energy[slot];
-                    e[0] = e[0].wrapping_add(d[0]);
-                    e[1] = e[1].wrapping_add(d[1]);
-                    e[2] = e[2].wrapping_add(d[2]);
-                }
-            }
-            if fresh {
+        let Work { pairs, ledger } = &mut *work;
+        let counts_done = batch.complete && ledger.counts(batch.epoch);
+        for (k, p) in batch.pairs.enumerate() {
+            let deposits = p.energy.chunks_exact(3).zip(slots.by_ref()).map(|(d, slot)| (slot, d));
+            if ledger.apply(p.pair, deposits) {
                 applied += 1;
             } else {
                 duplicates += 1;
             }
             if let (Some(&k), true) = (local.get(k), counts_done) {
-                work.done.insert(k);
-                work.leased.remove(&p.pair);
-                for &j in p.also_on {
-                    work.deposited_on[j as usize].get_or_insert_with(|| Bitset::new(own_pairs)).insert(k);
-                }
+                ledger.complete(k, p.also_on);
+                pairs.complete(p.pair);
             }
         }
         Ok((applied, duplicates))
@@ -554,25 +428,21 @@ impl Shard {
 
     /// Energies of every owned element (ascending id; none when `summary_only`), pair
     /// progress, and the traffic counters of [`Shard::traffic`].
-    pub fn energies(&self, summary_only: bool) -> v1::GetEnergiesReply {
+    pub fn energies(&self, summary_only: bool) -> ForkReport {
         let mut work = lock(&self.work);
         self.reclaim_expired(&mut work, Instant::now());
-        let (elements, energy) = if summary_only {
-            (Vec::new(), Vec::new())
-        } else {
-            (self.owned.clone(), work.energy.iter().flatten().copied().collect())
-        };
-        v1::GetEnergiesReply {
+        let (elements, energy) =
+            if summary_only { (Vec::new(), Vec::new()) } else { (self.owned.clone(), work.ledger.energy().to_vec()) };
+        ForkReport {
             elements,
             energy,
-            pairs_total: work.queue.total(),
-            pairs_done: work.done.len() as u64,
+            pairs_total: work.pairs.total(),
+            pairs_done: work.ledger.done(),
+            pairs_returned: work.pairs.returned(),
             dma_bytes: self.traffic.dma_bytes.load(Ordering::Relaxed),
             gbus_bytes: self.traffic.gbus_bytes.load(Ordering::Relaxed),
             rpcs: self.traffic.rpcs.load(Ordering::Relaxed),
             link_bytes: self.traffic.link_bytes.load(Ordering::Relaxed),
-            pairs_returned: work.returned,
-            ..Default::default()
         }
     }
 

@@ -7,7 +7,7 @@
 mod common;
 
 use common::load_request;
-use magg_fork::Shard;
+use magg_fork::service::{blocks_from_wire, load_shard};
 use magg_proto::deposits::DepositWriter;
 use magg_proto::v1;
 use proptest::prelude::*;
@@ -61,7 +61,7 @@ fn mutated_load_shard_requests_load_or_are_refused() {
             bytes.truncate(cut.max(head));
             decode_all(&bytes);
             if let Ok(req) = v1::LoadShardRequest::decode(bytes.as_slice()) {
-                let _ = Shard::load(req, Default::default());
+                let _ = load_shard(req, Default::default());
             }
             Ok(())
         })
@@ -70,7 +70,7 @@ fn mutated_load_shard_requests_load_or_are_refused() {
 
 #[test]
 fn arbitrary_requests_on_a_loaded_shard_are_served_or_refused() {
-    let shard = Shard::load(load_request(), Default::default()).unwrap();
+    let shard = load_shard(load_request(), Default::default()).unwrap();
     let pairs = shard.pair_count();
     let blocks = shard.header().layout.total;
     let elements = shard.header().counts.elements;
@@ -115,12 +115,12 @@ fn arbitrary_requests_on_a_loaded_shard_are_served_or_refused() {
     runner(3, 512)
         .run(&request, |(deposits, ids, puts, max, node)| {
             let before = shard.energies(false);
-            if shard.deposit(&deposits).is_err() {
+            if magg_fork::service::deposit(&shard, &deposits).is_err() {
                 prop_assert_eq!(before.energy, shard.energies(false).energy, "a refused deposit changed energy");
             }
             let _ = shard.owned_blocks(&ids);
             let puts = puts.into_iter().map(|(id, len)| v1::Block { id, data: vec![0; len].into() }).collect();
-            let _ = shard.put_blocks(puts);
+            let _ = blocks_from_wire(puts).and_then(|b| shard.put_blocks(b));
             let (got, _) = shard.take_own_pairs(max, node);
             prop_assert!(got.len() <= magg_fork::shard::MAX_PAIRS_PER_REQUEST as usize);
             Ok(())

@@ -6,6 +6,7 @@
 mod common;
 
 use common::load_request;
+use magg_fork::service::{deposit, load_shard};
 use magg_fork::Shard;
 use magg_proto::deposits::DepositWriter;
 use magg_proto::v1;
@@ -25,7 +26,7 @@ fn completions(pairs: &[(u64, Vec<u32>)], epoch: u64) -> v1::DepositRequest {
 }
 
 fn shard(lease_ms: u32) -> Shard {
-    Shard::load(v1::LoadShardRequest { lease_ms, ..load_request() }, Default::default()).unwrap()
+    load_shard(v1::LoadShardRequest { lease_ms, ..load_request() }, Default::default()).unwrap()
 }
 
 #[test]
@@ -55,11 +56,11 @@ fn a_replay_queues_every_pair_again_and_ignores_older_completions() {
     assert_eq!(epoch, 0);
     assert!(s.replay(1, None) > 0);
     let done = |p: u64, epoch: u64| completions(&[(p, vec![])], epoch);
-    s.deposit(&done(pairs[0], 0)).unwrap();
+    deposit(&s, &done(pairs[0], 0)).unwrap();
     assert_eq!(s.energies(true).pairs_done, 0, "a completion from before the replay counted");
     let (again, epoch) = s.take_own_pairs(4, 2);
     assert_eq!((again, epoch), (pairs.clone(), 1));
-    s.deposit(&done(pairs[0], 1)).unwrap();
+    deposit(&s, &done(pairs[0], 1)).unwrap();
     assert_eq!(s.energies(true).pairs_done, 1);
     assert_eq!(s.replay(1, None), 0, "a repeated replay changes nothing");
 }
@@ -72,7 +73,7 @@ fn a_replay_for_a_lost_fork_queues_exactly_the_pairs_that_deposited_on_it() {
     // Pairs 0, 2 and 4 deposited on fork 1 as well; 1 and 3 only here; 5 is still out.
     let done: Vec<_> =
         pairs[..5].iter().enumerate().map(|(i, &p)| (p, if i % 2 == 0 { vec![1] } else { vec![] })).collect();
-    s.deposit(&completions(&done, 0)).unwrap();
+    deposit(&s, &completions(&done, 0)).unwrap();
     assert_eq!(s.energies(true).pairs_done, 5);
     assert_eq!(s.replay(1, Some(1)), 4, "three pairs on the lost fork and one out with a node");
     assert_eq!(s.energies(true).pairs_done, 2, "the pairs that never touched fork 1 stay done");
@@ -89,7 +90,7 @@ fn a_completion_naming_a_fork_that_is_not_another_one_is_refused() {
     let (pairs, _) = s.take_own_pairs(1, 1);
     for bad in [0u32, 2, 99] {
         let d = completions(&[(pairs[0], vec![bad])], 0);
-        assert!(s.deposit(&d).is_err(), "also_on {bad} accepted");
+        assert!(deposit(&s, &d).is_err(), "also_on {bad} accepted");
     }
     assert_eq!(s.energies(true).pairs_done, 0, "a refused request changed the state");
 }
@@ -98,7 +99,7 @@ fn a_completion_naming_a_fork_that_is_not_another_one_is_refused() {
 /// them: large while the other fork still holds its pairs, small once it said it has none.
 #[test]
 fn batches_shrink_with_the_pairs_left_in_the_cluster_not_only_here() {
-    let s = Shard::load(v1::LoadShardRequest { nodes: 2, ..load_request() }, Default::default()).unwrap();
+    let s = load_shard(v1::LoadShardRequest { nodes: 2, ..load_request() }, Default::default()).unwrap();
     let own = s.pairs_left();
     assert_eq!(own, 832, "magg-paper's 1664 pairs, half of them here");
     // Take all but 40 of this fork's pairs.

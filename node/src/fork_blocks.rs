@@ -6,7 +6,7 @@ use crate::retry::retry;
 use magg_core::blocks::{Block, BlockError, BlockSource, BLOCK_SIZE};
 use magg_proto::auth::Authed;
 use magg_proto::v1::fork_client::ForkClient;
-use magg_proto::v1::{GetBlocksReply, GetBlocksRequest};
+use magg_proto::v1::GetBlocksRequest;
 use prost::Message;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Arc;
@@ -44,8 +44,9 @@ impl ForkBlocks {
         self
     }
 
-    /// One `GetBlocks` call (a read: safe to retry); its request pays the link.
-    fn get(&self, ids: &[u32]) -> Result<GetBlocksReply, tonic::Status> {
+    /// One `GetBlocks` call (a read: safe to retry); its request pays the link. The
+    /// blocks as (id, payload), in the fork's order.
+    fn get(&self, ids: &[u32]) -> Result<impl ExactSizeIterator<Item = (u32, prost::bytes::Bytes)>, tonic::Status> {
         let req = GetBlocksRequest { ids: ids.to_vec() };
         if let Some(p) = &self.pace {
             p.send_blocking(req.encoded_len());
@@ -56,35 +57,36 @@ impl ForkBlocks {
             async move { client.get_blocks(req).await.map(|r| r.into_inner()) }
         }));
         self.fetching.fetch_add(t.elapsed().as_nanos() as u64, Ordering::Relaxed);
-        reply
+        Ok(reply?.blocks.into_iter().map(|b| (b.id, b.data)))
     }
 }
 
 impl BlockSource for ForkBlocks {
     fn fetch_batch(&self, ids: &[u32], out: &mut [Box<Block>]) -> Result<(), BlockError> {
         let first = ids.first().copied().unwrap_or(0);
-        let reply =
+        let blocks =
             self.get(ids).map_err(|s| BlockError::Unavailable { id: first, reason: s.message().to_string() })?;
-        if reply.blocks.len() != ids.len() {
+        if blocks.len() != ids.len() {
             return Err(BlockError::Unavailable {
                 id: first,
                 reason: "the fork sent the wrong number of blocks".into(),
             });
         }
-        for ((id, b), slot) in ids.iter().zip(reply.blocks).zip(out.iter_mut()) {
-            if b.id != *id || b.data.len() != BLOCK_SIZE {
+        for ((id, (got, data)), slot) in ids.iter().zip(blocks).zip(out.iter_mut()) {
+            if got != *id || data.len() != BLOCK_SIZE {
                 return Err(BlockError::Unavailable { id: *id, reason: "the fork sent a malformed block".into() });
             }
-            slot.copy_from_slice(&b.data);
+            slot.copy_from_slice(&data);
         }
         Ok(())
     }
 
     fn fetch(&self, id: u32, out: &mut Block) -> Result<(), BlockError> {
-        let reply = self.get(&[id]).map_err(|s| BlockError::Unavailable { id, reason: s.message().to_string() })?;
-        match reply.blocks.into_iter().next() {
-            Some(b) if b.id == id && b.data.len() == BLOCK_SIZE => {
-                out.copy_from_slice(&b.data);
+        let mut blocks =
+            self.get(&[id]).map_err(|s| BlockError::Unavailable { id, reason: s.message().to_string() })?;
+        match blocks.next() {
+            Some((got, data)) if got == id && data.len() == BLOCK_SIZE => {
+                out.copy_from_slice(&data);
                 Ok(())
             }
             _ => Err(BlockError::Unavailable { id, reason: "the fork sent no block or a malformed one".into() }),

@@ -23,6 +23,7 @@ mod node;
 mod pace;
 mod report;
 mod retry;
+pub mod route;
 mod timing;
 mod work;
 

@@ -1,11 +1,11 @@
-//! What a node tells the host about its work: cumulative counters over its workers.
+//! What a node tells the host about its work: cumulative counters over its workers, as a
+//! [`NodeReport`] (converted to the wire at the call that carries it).
 
 use crate::pace::NodePace;
 use magg_core::blocks::CacheStats;
+use magg_core::cluster::NodeReport;
 use magg_core::lrt::LrtTally;
-use magg_core::math::Rgb;
 use magg_core::view::OpCounters;
-use magg_proto::v1;
 use std::sync::{Arc, Mutex};
 
 /// One worker's totals.
@@ -28,10 +28,6 @@ pub struct WorkerTotals {
 pub struct Totals {
     workers: Mutex<Vec<WorkerTotals>>,
     pace: Option<Arc<NodePace>>,
-}
-
-fn rgb(c: Rgb) -> Option<v1::Rgb> {
-    Some(v1::Rgb { r: c.0[0], g: c.0[1], b: c.0[2] })
 }
 
 impl Totals {
@@ -63,26 +59,15 @@ impl Totals {
             tally: a.tally.add(w.tally),
         })
     }
-    /// The sum, as sent to the host.
-    pub fn report(&self) -> v1::NodeReport {
+    /// The sum, with the link and processor time, as reported to the host.
+    pub fn report(&self) -> NodeReport {
         let s = self.sum();
-        v1::NodeReport {
-            cache_hits: s.cache.hits,
-            cache_misses: s.cache.misses,
-            cache_remote_misses: s.cache.remote_misses,
-            grid_steps: s.ops.grid_steps,
-            patch_tests: s.ops.patch_tests,
-            light_rays: s.ops.light_rays,
-            view_rays: s.ops.view_rays,
-            shades: s.ops.shades,
+        NodeReport {
+            cache: s.cache,
+            ops: s.ops,
             pairs: s.pairs,
             tiles: s.tiles,
-            reached: rgb(s.tally.reached),
-            occluded: rgb(s.tally.occluded),
-            absorbed: rgb(s.tally.absorbed),
-            diffuse_end: rgb(s.tally.diffuse_end),
-            escaped: rgb(s.tally.escaped),
-            cut: rgb(s.tally.cut),
+            tally: s.tally,
             link_busy_s: self.pace.as_ref().map_or(0.0, |p| p.link_busy_s()),
             cpu_busy_s: self.pace.as_ref().map_or(0.0, |p| p.compute_cost(&s.ops).as_secs_f64()),
         }

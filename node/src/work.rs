@@ -1,12 +1,17 @@
 //! The work loops of one node worker: pairs from the home fork, subscreens from the host.
+//!
+//! The loops work on domain values: pairs arrive as a [`PairLease`] and deposits are
+//! split by fork in [`crate::route`]; the messages are converted at each gRPC call.
 
 use crate::connect::Backoff;
 use crate::pace::{NodePace, Processor};
 use crate::report::{Totals, WorkerTotals};
 use crate::retry::retry;
+use crate::route::{element_owner, Rounds};
 use crate::timing::PassTimes;
 use crate::NodeError;
 use magg_core::camera::CameraRig;
+use magg_core::cluster::PairLease;
 use magg_core::lrt::trace_pair;
 use magg_core::trace::TraceScratch;
 use magg_core::view::SceneView;
@@ -33,7 +38,7 @@ pub const MAX_WAIT_MS: u32 = 1000;
 pub const ROW_REPORT: Duration = Duration::from_millis(5);
 
 /// Pairs asked for per request (batched hand-out, DESIGN.md §4 `--scheme magg`; the
-/// fork may hand out fewer, see `magg_fork::pairs::guided_batch`). The paper's scheme
+/// fork may hand out fewer, see `magg_fork::state::pairs::guided_batch`). The paper's scheme
 /// asks for one pair per request.
 pub const PAIR_BATCH: u32 = 64;
 
@@ -124,7 +129,7 @@ impl Worker {
             let reply = match handed.take() {
                 Some(r) => r,
                 None => {
-                    let req = NextWorkRequest { node: self.node, report: Some(self.totals.report()) };
+                    let req = NextWorkRequest { node: self.node, report: Some((&self.totals.report()).into()) };
                     let sent = req.encoded_len();
                     // A lost answer is harmless: a subscreen handed out and never traced
                     // goes back to the queue when its lease expires.
@@ -162,7 +167,7 @@ impl Worker {
                     self.publish();
                     let mut host = self.host.clone();
                     // Final report, so the host's stats include everything.
-                    let req = NextWorkRequest { node: self.node, report: Some(self.totals.report()) };
+                    let req = NextWorkRequest { node: self.node, report: Some((&self.totals.report()).into()) };
                     let _ = self.rt.block_on(host.next_work(req));
                     return Ok(());
                 }
@@ -171,8 +176,7 @@ impl Worker {
     }
 
     fn owner_of(&self, element: u32) -> usize {
-        let forks = self.forks.len().max(1) as u32;
-        (self.view.header.layout.element_slot(element).0 % forks) as usize
+        element_owner(&self.view.header.layout, self.forks.len(), element)
     }
 
     /// Pulls pairs from the home fork until no fork has any left. Communication overlaps
@@ -204,7 +208,7 @@ impl Worker {
                 if let (Some(p), Ok(r)) = (&pace, &reply) {
                     p.recv(r.encoded_len()).await;
                 }
-                reply
+                reply.map(PairLease::from)
             }
         };
         let mut in_flight: VecDeque<JoinHandle<Result<(), NodeError>>> = VecDeque::new();
@@ -215,7 +219,7 @@ impl Worker {
         let mut times = PassTimes::default();
         // Without overlap, the next batch is asked for in the call that completes this
         // one on the home fork, and arrives with its reply.
-        let mut piggybacked: Option<v1::TakePairsReply> = None;
+        let mut piggybacked: Option<PairLease> = None;
         loop {
             let t = Instant::now();
             let got = match (piggybacked.take(), next.take()) {
@@ -243,12 +247,8 @@ impl Worker {
             times.unit(t);
             let t = asked;
             tracing::debug!(node = self.node, pairs = got.pairs.len(), "tracing a batch of pairs");
-            // Per fork: round 1 carries deposits on forks other than the pair's owner;
-            // round 2 carries the owner's deposits and marks the pair complete, so that a
-            // pair counted as done has all its energy in place. Indexed by fork.
-            let forks = self.forks.len().max(1);
-            let mut round1: Vec<DepositWriter> = (0..forks).map(|_| DepositWriter::new(false, got.epoch)).collect();
-            let mut round2: Vec<DepositWriter> = (0..forks).map(|_| DepositWriter::new(true, got.epoch)).collect();
+            // Split by fork in two rounds (see crate::route).
+            let mut rounds = Rounds::new(self.forks.len(), got.epoch);
             for &pair in &got.pairs {
                 if pair >= total || elements == 0 {
                     return Err(NodeError::Convert(format!("pair {pair} out of range ({total} pairs)")));
@@ -261,21 +261,9 @@ impl Worker {
                 }
                 self.mine.pairs += 1;
                 self.mine.tally = self.mine.tally.add(r.tally);
-                let owner = self.owner_of(element);
-                round2[owner].pair(pair);
-                for (e, f) in r.deposits {
-                    let fork = self.owner_of(e);
-                    if fork == owner {
-                        round2[owner].deposit(e, f);
-                        continue;
-                    }
-                    if !round1[fork].last_pair_is(pair) {
-                        round1[fork].pair(pair);
-                        round2[owner].also_on(fork as u32);
-                    }
-                    round1[fork].deposit(e, f);
-                }
+                rounds.add(pair, self.owner_of(element), r.deposits, |e| self.owner_of(e));
             }
+            let (round1, round2) = rounds.into_writers();
             let t = PassTimes::lap(&mut times.tracing, t);
             let home_take = (!self.overlap).then_some((self.home, TakePairsRequest { max, node: self.node }));
             let send = send_deposits(self.forks.clone(), self.pace.clone(), round1, round2, self.backoff, home_take);
@@ -391,7 +379,7 @@ async fn send_deposits(
     round2: Vec<DepositWriter>,
     backoff: Backoff,
     take: Option<(usize, TakePairsRequest)>,
-) -> Result<Option<v1::TakePairsReply>, NodeError> {
+) -> Result<Option<PairLease>, NodeError> {
     let mut taken = None;
     for round in [round1, round2] {
         for (fork, pairs) in round.into_iter().enumerate() {
@@ -421,7 +409,7 @@ async fn send_deposits(
                 p.recv(reply.encoded_len()).await;
             }
             if req.take.is_some() {
-                taken = reply.taken;
+                taken = reply.taken.map(PairLease::from);
             }
         }
     }

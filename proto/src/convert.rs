@@ -7,6 +7,9 @@
 //! are refused with a [`ConvertError`] that names the field and the value. A header that
 //! converts is one the kernels can use without panicking.
 //!
+//! The light pass's messages (shards, pair leases, deposit batches, fork and node
+//! reports) convert to the domain values of [`magg_core::cluster`] in `convert/cluster.rs`.
+//!
 //! ```
 //! use magg_proto::{convert, v1};
 //! let block = Box::new([7u8; magg_core::blocks::BLOCK_SIZE]);
@@ -23,6 +26,8 @@ use magg_core::header::{Counts, GridHeader, SceneHeader};
 use magg_core::math::{Rgb, Vec3};
 use magg_core::plan::EffectsPlan;
 use magg_core::scene::{Camera, Exposure, GridSpec, Light, Material, RenderSettings, SourceLoc, Spot};
+
+mod cluster;
 
 /// Most blocks a scene may have (32 GiB of scene data).
 pub const MAX_BLOCKS: u32 = 1 << 24;

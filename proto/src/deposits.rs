@@ -4,8 +4,8 @@
 //! A node writes one request per fork and round ([`DepositWriter`]): for each pair of
 //! the batch, [`DepositWriter::pair`] starts it and [`DepositWriter::deposit`] adds the
 //! flux on one element. A fork reads a request through [`read`], which checks that the
-//! arrays fit together before anything is applied and yields one [`PairDeposit`] per
-//! pair, borrowing from the request (no copy, no allocation per pair).
+//! arrays fit together before anything is applied and yields one [`PairDeposit`] (a
+//! [`magg_core::cluster`] value) per pair, borrowing from the request (no copy, no allocation per pair).
 //!
 //! ```
 //! use magg_proto::deposits::{read, DepositWriter};
@@ -19,6 +19,7 @@
 //! ```
 
 use crate::v1::DepositRequest;
+pub use magg_core::cluster::PairDeposit;
 
 /// Builds a `DepositRequest` pair by pair.
 #[derive(Clone, Debug, Default)]
@@ -84,19 +85,6 @@ impl DepositWriter {
     }
 }
 
-/// One pair's part of a request.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct PairDeposit<'a> {
-    /// The pair id (light * elements + element).
-    pub pair: u64,
-    /// Elements it deposited on.
-    pub elements: &'a [u32],
-    /// Three fixed-point values (r, g, b) per element.
-    pub energy: &'a [i64],
-    /// Other forks it deposited on (round 2).
-    pub also_on: &'a [u32],
-}
-
 /// Why a request's arrays do not fit together.
 #[derive(Debug, thiserror::Error, PartialEq, Eq)]
 pub enum DepositError {
@@ -140,7 +128,7 @@ pub enum DepositError {
 
 /// The pairs of `req`, once its arrays are checked to fit together (the values
 /// themselves, pair and element ids, are for the fork to check).
-pub fn read(req: &DepositRequest) -> Result<impl ExactSizeIterator<Item = PairDeposit<'_>> + Clone + '_, DepositError> {
+pub fn read(req: &DepositRequest) -> Result<Pairs<'_>, DepositError> {
     let n = req.pairs.len();
     if req.counts.len() != n {
         return Err(DepositError::Counts { counts: req.counts.len(), pairs: n });
@@ -166,20 +154,46 @@ pub fn read(req: &DepositRequest) -> Result<impl ExactSizeIterator<Item = PairDe
             forks: req.also_on.len(),
         });
     }
-    let (mut e, mut a) = (0usize, 0usize);
-    Ok((0..n).map(move |k| {
+    Ok(Pairs { req, k: 0, e: 0, a: 0 })
+}
+
+/// The pairs of a checked request ([`read`]), one [`PairDeposit`] each, borrowing its
+/// arrays.
+#[derive(Clone, Debug)]
+pub struct Pairs<'a> {
+    req: &'a DepositRequest,
+    /// Next pair.
+    k: usize,
+    /// Its first element.
+    e: usize,
+    /// Its first entry of `also_on`.
+    a: usize,
+}
+
+impl<'a> Iterator for Pairs<'a> {
+    type Item = PairDeposit<'a>;
+
+    fn next(&mut self) -> Option<PairDeposit<'a>> {
+        let (req, k, e, a) = (self.req, self.k, self.e, self.a);
+        let pair = *req.pairs.get(k)?;
         let c = req.counts[k] as usize;
         let f = req.also_on_counts.get(k).map_or(0, |&f| f as usize);
-        let p = PairDeposit {
-            pair: req.pairs[k],
+        (self.k, self.e, self.a) = (k + 1, e + c, a + f);
+        Some(PairDeposit {
+            pair,
             elements: &req.elements[e..e + c],
             energy: &req.energy[3 * e..3 * (e + c)],
             also_on: &req.also_on[a..a + f],
-        };
-        (e, a) = (e + c, a + f);
-        p
-    }))
+        })
+    }
+
+    fn size_hint(&self) -> (usize, Option<usize>) {
+        let n = self.req.pairs.len() - self.k;
+        (n, Some(n))
+    }
 }
+
+impl ExactSizeIterator for Pairs<'_> {}
 
 #[cfg(test)]
 mod tests {

@@ -1,0 +1,147 @@
+//! Conversions of the light pass's messages (`LoadShard`, `TakePairs`, `Deposit`,
+//! `GetEnergies`, node reports) to and from the domain values of
+//! [`magg_core::cluster`], which the fork's and the node's state work on.
+//!
+//! A batch of deposits is not copied: [`DepositBatch`] borrows the request's packed
+//! arrays ([`crate::deposits`]).
+
+use super::{block_bytes_from_wire, require, rgb_to_wire, ConvertError};
+use crate::deposits::{DepositError, Pairs};
+use crate::v1;
+use magg_core::cluster::{DepositBatch, ForkReport, NodeReport, PairLease, ShardLoad};
+use magg_core::header::SceneHeader;
+use std::time::Duration;
+
+/// A `LoadShard` request as a shard to load: the header converted, every block checked
+/// to be 2 KB (kept as received, no copy), `lease_ms == 0` as the default lease. The
+/// protocol version and the hardware profile are for the receiver to check first.
+impl TryFrom<v1::LoadShardRequest> for ShardLoad<bytes::Bytes> {
+    type Error = ConvertError;
+    fn try_from(r: v1::LoadShardRequest) -> Result<Self, ConvertError> {
+        let header = SceneHeader::try_from(require(r.header, "header")?)?;
+        let blocks = r.blocks.into_iter().map(block_bytes_from_wire).collect::<Result<_, _>>()?;
+        Ok(ShardLoad {
+            fork_index: r.fork_index,
+            fork_addrs: r.fork_addrs,
+            header,
+            blocks,
+            nodes: r.nodes,
+            lease: (r.lease_ms != 0).then(|| Duration::from_millis(r.lease_ms as u64)),
+            epoch: r.epoch,
+        })
+    }
+}
+
+/// A stored block (id, payload as received) for the wire, without a copy.
+impl From<(u32, bytes::Bytes)> for v1::Block {
+    fn from((id, data): (u32, bytes::Bytes)) -> Self {
+        v1::Block { id, data }
+    }
+}
+
+impl From<PairLease> for v1::TakePairsReply {
+    fn from(l: PairLease) -> Self {
+        v1::TakePairsReply { pairs: l.pairs, exhausted: l.exhausted, epoch: l.epoch, remaining: l.remaining }
+    }
+}
+
+impl From<v1::TakePairsReply> for PairLease {
+    fn from(r: v1::TakePairsReply) -> Self {
+        PairLease { pairs: r.pairs, exhausted: r.exhausted, epoch: r.epoch, remaining: r.remaining }
+    }
+}
+
+/// A `Deposit` request's pairs, once its packed arrays are checked to fit together
+/// (see [`crate::deposits::read`]); borrows the request.
+impl<'a> TryFrom<&'a v1::DepositRequest> for DepositBatch<Pairs<'a>> {
+    type Error = DepositError;
+    fn try_from(r: &'a v1::DepositRequest) -> Result<Self, DepositError> {
+        let pairs = crate::deposits::read(r)?;
+        Ok(DepositBatch { complete: r.complete, epoch: r.epoch, deposits: r.elements.len(), pairs })
+    }
+}
+
+/// A fork's report as a `GetEnergies` reply (the busy times of its emulated hardware
+/// are the service's to fill in).
+impl From<ForkReport> for v1::GetEnergiesReply {
+    fn from(r: ForkReport) -> Self {
+        v1::GetEnergiesReply {
+            elements: r.elements,
+            energy: r.energy.iter().flatten().copied().collect(),
+            pairs_total: r.pairs_total,
+            pairs_done: r.pairs_done,
+            dma_bytes: r.dma_bytes,
+            gbus_bytes: r.gbus_bytes,
+            rpcs: r.rpcs,
+            link_bytes: r.link_bytes,
+            pairs_returned: r.pairs_returned,
+            ..Default::default()
+        }
+    }
+}
+
+impl From<&NodeReport> for v1::NodeReport {
+    fn from(r: &NodeReport) -> Self {
+        let rgb = |c| Some(rgb_to_wire(c));
+        v1::NodeReport {
+            cache_hits: r.cache.hits,
+            cache_misses: r.cache.misses,
+            cache_remote_misses: r.cache.remote_misses,
+            grid_steps: r.ops.grid_steps,
+            patch_tests: r.ops.patch_tests,
+            light_rays: r.ops.light_rays,
+            view_rays: r.ops.view_rays,
+            shades: r.ops.shades,
+            pairs: r.pairs,
+            tiles: r.tiles,
+            reached: rgb(r.tally.reached),
+            occluded: rgb(r.tally.occluded),
+            absorbed: rgb(r.tally.absorbed),
+            diffuse_end: rgb(r.tally.diffuse_end),
+            escaped: rgb(r.tally.escaped),
+            cut: rgb(r.tally.cut),
+            link_busy_s: r.link_busy_s,
+            cpu_busy_s: r.cpu_busy_s,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::deposits::DepositWriter;
+
+    #[test]
+    fn pair_leases_round_trip() {
+        let l = PairLease { pairs: vec![3, 9], epoch: 2, exhausted: false, remaining: 40 };
+        assert_eq!(PairLease::from(v1::TakePairsReply::from(l.clone())), l);
+    }
+
+    #[test]
+    fn a_deposit_batch_borrows_the_requests_arrays() {
+        let mut w = DepositWriter::new(true, 5);
+        w.pair(4);
+        w.deposit(1, [1, 2, 3]);
+        w.deposit(2, [4, 5, 6]);
+        let req = w.finish();
+        let batch = DepositBatch::try_from(&req).unwrap();
+        assert_eq!((batch.complete, batch.epoch, batch.deposits, batch.pairs.len()), (true, 5, 2, 1));
+        let p = batch.pairs.clone().next().unwrap();
+        assert!(std::ptr::eq(p.energy.as_ptr(), req.energy.as_ptr()), "the energy was copied");
+        let bad = v1::DepositRequest { counts: vec![], ..req.clone() };
+        assert!(DepositBatch::try_from(&bad).is_err());
+    }
+
+    #[test]
+    fn a_shard_load_needs_a_header_and_2_kb_blocks() {
+        let missing = ShardLoad::try_from(v1::LoadShardRequest::default()).unwrap_err();
+        assert_eq!(missing.to_string(), "header is missing");
+    }
+
+    #[test]
+    fn fork_reports_flatten_the_energies() {
+        let r = ForkReport { elements: vec![1, 4], energy: vec![[1, 2, 3], [4, 5, 6]], rpcs: 7, ..Default::default() };
+        let w = v1::GetEnergiesReply::from(r);
+        assert_eq!((w.energy, w.rpcs), (vec![1, 2, 3, 4, 5, 6], 7));
+    }
+}
