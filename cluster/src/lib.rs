@@ -25,6 +25,7 @@
 //! ```
 
 pub mod emulation;
+mod error;
 pub mod events;
 mod faults;
 mod figures;
@@ -34,5 +35,6 @@ mod passes;
 pub mod schedule;
 pub mod service;
 
+pub use error::HostError;
 pub use faults::FaultPolicy;
 pub use machine::{ClusterMachine, DriveOptions};

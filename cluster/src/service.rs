@@ -1,5 +1,6 @@
 //! The host's gRPC service: node registration, work hand-out, pixel rows.
 
+use super::error::{HostError, MAX_NODES, MAX_NODE_NAME};
 use super::events::{ClusterEvent, EventSender};
 use super::schedule::{Next, Scheduler};
 use magg_proto::v1::host_server::Host;
@@ -114,10 +115,7 @@ impl HostState {
     fn count_request(&mut self, node: u32, len: usize) -> Result<&mut NodeEntry, Status> {
         self.rpcs += 1;
         self.link_bytes += len as u64;
-        let entry = self
-            .nodes
-            .get_mut(node as usize)
-            .ok_or_else(|| Status::invalid_argument(format!("node {node} is not registered")))?;
+        let entry = self.nodes.get_mut(node as usize).ok_or(HostError::UnknownNode(node))?;
         entry.link_bytes += len as u64;
         Ok(entry)
     }
@@ -235,20 +233,17 @@ impl Host for HostService {
     async fn register(&self, req: Request<RegisterRequest>) -> Result<Response<RegisterReply>, Status> {
         let r = req.into_inner();
         if r.protocol_version != PROTOCOL_VERSION {
-            return Err(Status::failed_precondition(format!(
-                "protocol version {} refused: this host speaks version {PROTOCOL_VERSION}",
-                r.protocol_version
-            )));
+            return Err(HostError::ProtocolVersion(r.protocol_version).into());
         }
-        if r.name.len() > 256 {
-            return Err(Status::invalid_argument("node name longer than 256 bytes"));
+        if r.name.len() > MAX_NODE_NAME {
+            return Err(HostError::NameTooLong.into());
         }
         let mut s = self.lock();
         if s.phase == Phase::Done {
-            return Err(Status::unavailable(magg_proto::RENDER_OVER));
+            return Err(HostError::RenderOver.into());
         }
-        if s.nodes.len() >= 65_536 {
-            return Err(Status::resource_exhausted("too many nodes registered"));
+        if s.nodes.len() >= MAX_NODES {
+            return Err(HostError::TooManyNodes.into());
         }
         let node = s.nodes.len() as u32;
         s.nodes.push(NodeEntry {
@@ -326,10 +321,10 @@ impl Host for HostService {
         let mut s = self.lock();
         s.count_request(r.node, prost::Message::encoded_len(&r))?.last_seen = Some(Instant::now());
         let Some(schedule) = s.schedule.as_mut() else {
-            return Err(Status::failed_precondition("no viewing ray tracing in progress"));
+            return Err(HostError::NoViewPass.into());
         };
         let rows: Vec<(u32, &[u8])> = r.rows.iter().map(|row| (row.y, &row.rgb[..])).collect();
-        let give_back = schedule.submit(r.subscreen, &rows).map_err(|e| Status::invalid_argument(e.to_string()))?;
+        let give_back = schedule.submit(r.subscreen, &rows).map_err(HostError::from)?;
         if schedule.is_done() {
             self.changed.notify_one();
         }
