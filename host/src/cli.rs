@@ -137,7 +137,7 @@ pub struct RenderArgs {
     /// 1 pixel sample; good: the scene's own settings; final: elements x0.5, 128 light
     /// rays, 16 pixel samples. See docs/ACCURACY.md.
     #[arg(long, value_enum)]
-    pub quality: Option<crate::accuracy::preset::Quality>,
+    pub quality: Option<magg_study::accuracy::preset::Quality>,
     /// Serve a live view of the render on this address (HOST:PORT, port 0 picks a free
     /// one; the URL is printed): the frame filling in, the subscreens by node, the stage
     /// and a table per node, and the finished image as PNG and EXR.
@@ -238,7 +238,7 @@ pub struct RenderConfig {
     /// No bars or summary.
     pub quiet: bool,
     /// Accuracy preset, applied before `knobs`.
-    pub quality: Option<crate::accuracy::preset::Quality>,
+    pub quality: Option<magg_study::accuracy::preset::Quality>,
     /// Scene overrides.
     pub knobs: Knobs,
     /// Live view: address, wait for a page, seconds to linger.
@@ -437,5 +437,16 @@ mod tests {
         assert_eq!(ImageFormat::of("x.exr".as_ref()).unwrap(), ImageFormat::Exr);
         assert_eq!(ImageFormat::of("x.jpg".as_ref()).unwrap(), ImageFormat::Jpeg);
         assert!(ImageFormat::of("x.bmp".as_ref()).is_err());
+    }
+
+    #[test]
+    fn explicit_knobs_override_the_preset() {
+        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/cornell.toml");
+        let mut s = crate::scene_file::load(&path).unwrap();
+        magg_study::accuracy::preset::Quality::Final.apply(&mut s);
+        let knobs = Knobs { light_rays: Some(4), ..Default::default() };
+        knobs.apply(&mut s.settings).unwrap();
+        assert_eq!(s.settings.light_rays, 4);
+        assert_eq!(s.settings.pixel_samples, 16);
     }
 }

@@ -6,7 +6,6 @@
 //! command renders a scene with no set-up ([`harness`]); the host library
 //! (`magg-cluster`) also drives separate processes.
 
-pub mod accuracy;
 pub mod cli;
 pub mod commands;
 pub mod energy_csv;
@@ -20,7 +19,6 @@ pub mod memory;
 pub mod progress;
 pub mod saved_energy;
 pub mod scene_file;
-pub mod sweep;
 
 /// Runs a parsed command line.
 pub fn run(cli: cli::Cli) -> anyhow::Result<()> {

@@ -1,23 +1,17 @@
-//! `magg-host sweep`: the paper's experiments (paper §5, DESIGN.md §4): renders a scene
-//! on the cluster under a hardware profile over nodes x cache blocks x forks x schedule,
-//! writes `sweep.csv` (one row per run, from its stats) and the figures of
-//! [`crate::sweep::figures`], and prints a table.
+//! `magg-host sweep`: the paper's experiments (paper §5, DESIGN.md §4). Parses the flags,
+//! runs the grid of `magg_study::sweep::study` (the scene on the cluster under a hardware
+//! profile over nodes x cache blocks x forks x schedule; `sweep.csv` and the figures),
+//! and prints a table.
 //!
 //! ```text
 //! magg-host sweep scenes/magg-paper.toml --out-dir sweep            # the paper's grid
 //! magg-host sweep scenes/magg-paper.toml --nodes 5,20 --cache-blocks 20,40 -- --width 100 --height 100
 //! ```
-//!
-//! The dilation of each run (real seconds per modelled second) grows with the node count,
-//! so that the emulating machine's own work (gRPC, threads) stays small beside the
-//! modelled work; a run whose real CPU share comes out above `--max-cpu-share` is run
-//! again with a larger dilation, and the table says which dilation each row used.
 
-use crate::sweep::figures;
-use crate::sweep::run::{run_one, write_csv, Row, Runner, Shape};
 use anyhow::{bail, Context};
 use clap::Args;
-use std::fmt::Write as _;
+use magg_study::sweep::run::Runner;
+use magg_study::sweep::study::{self, table, Event};
 use std::path::PathBuf;
 
 /// Arguments of `sweep`.
@@ -78,100 +72,42 @@ pub fn run(args: &SweepArgs) -> anyhow::Result<()> {
     if !(base.is_finite() && base > 0.0) {
         bail!("--dilation {base}: must be a positive number");
     }
+    // Every run is this binary's `render`.
+    let host = std::env::current_exe().context("locating magg-host")?;
     let runner = match &args.multi_process {
-        Some(script) => Runner::MultiProcess(script.clone()),
-        None => Runner::InProcess,
+        Some(script) => Runner::MultiProcess { script: script.clone(), host },
+        None => Runner::InProcess { host },
     };
-    let runs_dir = args.out_dir.join("runs");
-    std::fs::create_dir_all(&runs_dir).with_context(|| format!("creating {}", runs_dir.display()))?;
-    let total = args.schemes.len() * args.forks.len() * args.cache_blocks.len() * args.nodes.len();
-    let mut rows = Vec::with_capacity(total);
-    let mut k = 0;
-    for scheme in &args.schemes {
-        for &forks in &args.forks {
-            for &cache in &args.cache_blocks {
-                for &nodes in &args.nodes {
-                    k += 1;
-                    let mut shape = Shape {
-                        scheme: scheme.clone(),
-                        forks,
-                        nodes,
-                        cache_blocks: cache,
-                        dilation: base * (nodes as f64 / 10.0).max(1.0),
-                    };
-                    let name = format!("{scheme}-f{forks}-c{cache}-n{nodes}");
-                    let (image, stats) = (runs_dir.join(format!("{name}.png")), runs_dir.join(format!("{name}.json")));
-                    let mut row =
-                        run_one(&runner, &args.scene, &args.profile, &shape, &image, &stats, &args.render_flags)?;
-                    // Faithful only while the emulating machine is mostly idle: else again,
-                    // slower.
-                    for _ in 0..2 {
-                        let share = row.num("real_cpu_share");
-                        if !(share > args.max_cpu_share) {
-                            break;
-                        }
-                        shape.dilation *= share / (0.8 * args.max_cpu_share);
-                        eprintln!("  {name}: real CPU share {share:.2}, again with dilation {:.1}", shape.dilation);
-                        row = run_one(&runner, &args.scene, &args.profile, &shape, &image, &stats, &args.render_flags)?;
-                    }
-                    eprintln!(
-                        "[{k}/{total}] {name}: total {:.3} s (LRT {:.3}, VRT {:.3}), hit ratio {:.4}, dilation {:.1}, real CPU share {:.2}",
-                        row.num("total_s"),
-                        row.num("lrt_s"),
-                        row.num("vrt_s"),
-                        row.num("hit_ratio"),
-                        shape.dilation,
-                        row.num("real_cpu_share"),
-                    );
-                    rows.push(row);
-                }
-            }
+    let config = study::Config {
+        scene: args.scene.clone(),
+        out_dir: args.out_dir.clone(),
+        nodes: args.nodes.clone(),
+        cache_blocks: args.cache_blocks.clone(),
+        forks: args.forks.clone(),
+        schemes: args.schemes.clone(),
+        profile: args.profile.clone(),
+        dilation: Some(base),
+        max_cpu_share: args.max_cpu_share,
+        runner,
+        render_flags: args.render_flags.clone(),
+    };
+    let done = study::run(&config, &mut |event| {
+        match event {
+        Event::Again { name, share, dilation } => {
+            eprintln!("  {name}: real CPU share {share:.2}, again with dilation {dilation:.1}")
         }
+        Event::Done { k, total, name, row } => eprintln!(
+            "[{k}/{total}] {name}: total {:.3} s (LRT {:.3}, VRT {:.3}), hit ratio {:.4}, dilation {:.1}, real CPU share {:.2}",
+            row.num("total_s"),
+            row.num("lrt_s"),
+            row.num("vrt_s"),
+            row.num("hit_ratio"),
+            row.shape.dilation,
+            row.num("real_cpu_share"),
+        ),
     }
-    let csv_path = args.out_dir.join("sweep.csv");
-    write_csv(&csv_path, &rows)?;
-    let figs = figures::write_all(&rows, &args.out_dir)?;
-    print!("{}", table(&rows));
-    eprintln!("wrote {} and {} figures in {}", csv_path.display(), figs.len(), args.out_dir.display());
+    })?;
+    print!("{}", table(&done.rows));
+    eprintln!("wrote {} and {} figures in {}", done.csv.display(), done.figures.len(), args.out_dir.display());
     Ok(())
-}
-
-/// A markdown table of the runs, with the speed-up against the fewest nodes of the same
-/// schedule, forks and cache.
-pub fn table(rows: &[Row]) -> String {
-    let mut s = String::from(
-        "| scheme | forks | cache | nodes | preprocess s | LRT s | VRT s | total s | speed-up total | LRT | VRT | hit ratio | dilation | real CPU |\n\
-         | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |\n",
-    );
-    for r in rows {
-        let base = rows
-            .iter()
-            .filter(|b| {
-                b.shape.scheme == r.shape.scheme
-                    && b.shape.forks == r.shape.forks
-                    && b.shape.cache_blocks == r.shape.cache_blocks
-            })
-            .min_by_key(|b| b.shape.nodes)
-            .unwrap_or(r);
-        let sp = |c: &str| base.num(c) / r.num(c);
-        let _ = writeln!(
-            s,
-            "| {} | {} | {} | {} | {:.3} | {:.3} | {:.3} | {:.3} | {:.2} | {:.2} | {:.2} | {:.4} | {:.1} | {:.2} |",
-            r.shape.scheme,
-            r.shape.forks,
-            r.shape.cache_blocks,
-            r.shape.nodes,
-            r.num("preprocess_s"),
-            r.num("lrt_s"),
-            r.num("vrt_s"),
-            r.num("total_s"),
-            sp("total_s"),
-            sp("lrt_s"),
-            sp("vrt_s"),
-            r.num("hit_ratio"),
-            r.shape.dilation,
-            r.num("real_cpu_share"),
-        );
-    }
-    s
 }

@@ -122,14 +122,4 @@ mod tests {
         assert_eq!(s.patches[0].subdivisions, Some(32));
         assert_eq!(s.patches[2].subdivisions, Some(2));
     }
-
-    #[test]
-    fn explicit_knobs_override_the_preset() {
-        let mut s = scene();
-        Quality::Final.apply(&mut s);
-        let knobs = crate::cli::Knobs { light_rays: Some(4), ..Default::default() };
-        knobs.apply(&mut s.settings).unwrap();
-        assert_eq!(s.settings.light_rays, 4);
-        assert_eq!(s.settings.pixel_samples, 16);
-    }
 }

@@ -1,18 +1,28 @@
 //! One run of the sweep: a `magg-host render` child process (in-process cluster) or a
 //! `deploy/local-cluster.sh` multi-process cluster, with its stats read back into a row.
 
-use anyhow::{bail, Context};
+use crate::error::{Result, StudyError};
 use serde_json::Value;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-/// Where one run happens.
+/// Where one run happens; `host` is the `magg-host` binary (the application passes its
+/// own path).
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub enum Runner {
-    /// `magg-host render` as a child process: forks and nodes in its process.
-    InProcess,
-    /// `deploy/local-cluster.sh` at this path: forks and nodes as separate processes.
-    MultiProcess(PathBuf),
+    /// `host render` as a child process: forks and nodes in its process.
+    InProcess {
+        /// The `magg-host` binary.
+        host: PathBuf,
+    },
+    /// `deploy/local-cluster.sh` at `script`: forks and nodes as separate processes, with
+    /// the binaries next to `host` (`MAGG_BIN`).
+    MultiProcess {
+        /// The cluster script.
+        script: PathBuf,
+        /// The `magg-host` binary.
+        host: PathBuf,
+    },
 }
 
 /// The shape of one run.
@@ -119,8 +129,8 @@ impl Row {
 }
 
 /// Writes `rows` to `path` as CSV: the header [`COLUMNS`], then one record per run.
-pub fn write_csv(path: &Path, rows: &[Row]) -> anyhow::Result<()> {
-    let write = || -> anyhow::Result<()> {
+pub fn write_csv(path: &Path, rows: &[Row]) -> Result<()> {
+    let write = || -> csv::Result<()> {
         let mut out = csv::Writer::from_path(path)?;
         out.write_record(COLUMNS)?;
         for r in rows {
@@ -129,7 +139,7 @@ pub fn write_csv(path: &Path, rows: &[Row]) -> anyhow::Result<()> {
         out.flush()?;
         Ok(())
     };
-    write().with_context(|| format!("writing {}", path.display()))
+    write().map_err(|reason| StudyError::Csv { path: path.to_path_buf(), reason })
 }
 
 /// Runs one render of `scene` with `shape`, writing its stats to `stats` and its image
@@ -142,7 +152,7 @@ pub fn run_one(
     image: &Path,
     stats: &Path,
     extra: &[String],
-) -> anyhow::Result<Row> {
+) -> Result<Row> {
     let flags: Vec<String> = [
         "--stats".to_string(),
         stats.display().to_string(),
@@ -160,36 +170,35 @@ pub fn run_one(
     .chain(extra.iter().cloned())
     .collect();
     let mut cmd = match runner {
-        Runner::InProcess => {
-            let mut c = Command::new(std::env::current_exe().context("locating magg-host")?);
+        Runner::InProcess { host } => {
+            let mut c = Command::new(host);
             c.arg("render").arg(scene).arg("--out").arg(image);
             c.args(["--nodes", &shape.nodes.to_string(), "--forks", &shape.forks.to_string()]);
             c.args(&flags);
             c
         }
-        Runner::MultiProcess(script) => {
+        Runner::MultiProcess { script, host } => {
             let mut c = Command::new("bash");
             c.arg(script).arg(scene).arg(image);
             c.args(["--forks", &shape.forks.to_string(), "--nodes", &shape.nodes.to_string(), "--"]);
             c.args(&flags);
-            if let Some(dir) = std::env::current_exe().ok().and_then(|p| p.parent().map(Path::to_path_buf)) {
+            if let Some(dir) = host.parent() {
                 c.env("MAGG_BIN", dir);
             }
             c
         }
     };
-    let out = cmd.output().context("starting a sweep run")?;
+    let failed = |reason: String| StudyError::Run { run: format!("{shape:?}"), reason };
+    let out = cmd.output().map_err(|e| failed(format!("cannot start: {e}")))?;
     if !out.status.success() {
-        bail!(
-            "run {shape:?} failed ({}): {}",
-            out.status,
-            String::from_utf8_lossy(&out.stderr).lines().last().unwrap_or("")
-        );
+        let last = String::from_utf8_lossy(&out.stderr).lines().last().unwrap_or("").to_string();
+        return Err(failed(format!("failed ({}): {last}", out.status)));
     }
-    let text = std::fs::read_to_string(stats).with_context(|| format!("reading {}", stats.display()))?;
-    let json: Value = serde_json::from_str(&text).with_context(|| format!("parsing {}", stats.display()))?;
+    let text = std::fs::read_to_string(stats).map_err(StudyError::io("read", stats))?;
+    let json: Value =
+        serde_json::from_str(&text).map_err(|e| failed(format!("cannot parse {}: {e}", stats.display())))?;
     let mut row = Row::from_stats(shape.clone(), &json);
-    let mode = if matches!(runner, Runner::InProcess) { "in-process" } else { "multi-process" };
+    let mode = if matches!(runner, Runner::InProcess { .. }) { "in-process" } else { "multi-process" };
     for (k, v) in row.values.iter_mut() {
         if k == "mode" {
             *v = mode.to_string();

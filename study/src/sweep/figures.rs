@@ -4,7 +4,8 @@
 //! total, LRT and VRT with the linear line (figs. 9-11), one set per schedule.
 
 use super::run::Row;
-use crate::accuracy::plot::{Plot, Series, PALETTE};
+use crate::error::Result;
+use crate::plot::{Plot, Series, PALETTE};
 use std::collections::BTreeSet;
 use std::path::{Path, PathBuf};
 
@@ -27,14 +28,14 @@ fn line<'a>(rows: &'a [Row], scheme: &str, forks: u32, cache: u32) -> Vec<&'a Ro
 }
 
 /// Writes every figure into `dir`; returns the files written.
-pub fn write_all(rows: &[Row], dir: &Path) -> anyhow::Result<Vec<PathBuf>> {
+pub fn write_all(rows: &[Row], dir: &Path) -> Result<Vec<PathBuf>> {
     let mut written = Vec::new();
     let schemes: Vec<String> =
         rows.iter().map(|r| r.shape.scheme.clone()).collect::<BTreeSet<_>>().into_iter().collect();
     let caches = distinct(rows, |r| r.shape.cache_blocks);
     let forks_all = distinct(rows, |r| r.shape.forks);
     let Some(&forks) = forks_all.iter().max() else { return Ok(written) };
-    let mut save = |plot: Plot, name: String| -> anyhow::Result<()> {
+    let mut save = |plot: Plot, name: String| -> Result<()> {
         let path = dir.join(name);
         plot.write(&path)?;
         written.push(path);

@@ -9,14 +9,14 @@
 //! them); a plot without points still draws its axes over one decade.
 //!
 //! ```no_run
-//! use magg_host::accuracy::plot::{Plot, Series, PALETTE};
+//! use magg_study::plot::{Plot, Series, PALETTE};
 //! let mut p = Plot::new("Error against time", "Seconds", "Relative MSE");
 //! p.series.push(Series::new("light rays", vec![(0.5, 1e-2), (2.0, 3e-3)], PALETTE[0]));
 //! p.write(std::path::Path::new("error.png"))?;
-//! # Ok::<(), anyhow::Error>(())
+//! # Ok::<(), magg_study::StudyError>(())
 //! ```
 
-use anyhow::Context;
+use crate::error::{Result, StudyError};
 use plotters::coord::Shift;
 use plotters::prelude::*;
 use std::path::Path;
@@ -125,12 +125,22 @@ fn tick_label(v: f64) -> String {
 }
 
 /// Registers the embedded font with plotters, once per process.
-fn font() -> anyhow::Result<()> {
+fn font() -> Result<()> {
     static REGISTERED: OnceLock<bool> = OnceLock::new();
     let ok = *REGISTERED
         .get_or_init(|| plotters::style::register_font(FONT, FontStyle::Normal, ttf_noto_sans::REGULAR).is_ok());
-    anyhow::ensure!(ok, "the embedded Noto Sans font does not load");
+    if !ok {
+        return Err(StudyError::Plot("the embedded Noto Sans font does not load".into()));
+    }
     Ok(())
+}
+
+/// What drawing on the bitmap can fail with (plotters' errors, generic in the backend).
+type DrawResult = std::result::Result<(), Box<dyn std::error::Error>>;
+
+/// A plotters or encoder error as a study error.
+fn drawing(e: impl std::fmt::Display) -> StudyError {
+    StudyError::Plot(e.to_string())
 }
 
 fn rgb(c: [u8; 3]) -> RGBColor {
@@ -158,27 +168,24 @@ impl Plot {
     }
 
     /// RGB8 pixels, row-major.
-    pub fn render(&self) -> anyhow::Result<Vec<u8>> {
-        anyhow::ensure!(
-            self.width > LEGEND + 100 && self.height > 100,
-            "plot {}x{} is too small",
-            self.width,
-            self.height
-        );
+    pub fn render(&self) -> Result<Vec<u8>> {
+        if !(self.width > LEGEND + 100 && self.height > 100) {
+            return Err(StudyError::Plot(format!("plot {}x{} is too small", self.width, self.height)));
+        }
         font()?;
         let mut px = vec![255; self.width as usize * self.height as usize * 3];
         {
             let root = BitMapBackend::with_buffer(&mut px, (self.width, self.height)).into_drawing_area();
-            let area = root.titled(&self.title, (FONT, 22).into_font().color(&BLACK))?;
+            let area = root.titled(&self.title, (FONT, 22).into_font().color(&BLACK)).map_err(drawing)?;
             let (chart_area, legend_area) = area.split_horizontally(self.width - LEGEND);
-            self.draw_chart(&chart_area)?;
-            self.draw_legend(&legend_area)?;
-            root.present()?;
+            self.draw_chart(&chart_area).map_err(drawing)?;
+            self.draw_legend(&legend_area).map_err(drawing)?;
+            root.present().map_err(drawing)?;
         }
         Ok(px)
     }
 
-    fn draw_chart(&self, area: &DrawingArea<BitMapBackend<'_>, Shift>) -> anyhow::Result<()> {
+    fn draw_chart(&self, area: &DrawingArea<BitMapBackend<'_>, Shift>) -> DrawResult {
         let ((x0, x1), (y0, y1)) = self.ranges();
         let mut chart = ChartBuilder::on(area)
             .margin(12)
@@ -213,7 +220,7 @@ impl Plot {
     }
 
     /// One row per series: its line and marker, then its label.
-    fn draw_legend(&self, area: &DrawingArea<BitMapBackend<'_>, Shift>) -> anyhow::Result<()> {
+    fn draw_legend(&self, area: &DrawingArea<BitMapBackend<'_>, Shift>) -> DrawResult {
         let style = (FONT, 14).into_font().color(&BLACK);
         for (i, s) in self.series.iter().enumerate() {
             let y = 24 + 20 * i as i32;
@@ -231,16 +238,17 @@ impl Plot {
     }
 
     /// PNG file bytes (RGB8).
-    pub fn png(&self) -> anyhow::Result<Vec<u8>> {
-        let img = image::RgbImage::from_raw(self.width, self.height, self.render()?).context("plot buffer size")?;
+    pub fn png(&self) -> Result<Vec<u8>> {
+        let img = image::RgbImage::from_raw(self.width, self.height, self.render()?)
+            .ok_or_else(|| StudyError::Plot("plot buffer size".into()))?;
         let mut out = std::io::Cursor::new(Vec::new());
-        img.write_to(&mut out, image::ImageFormat::Png)?;
+        img.write_to(&mut out, image::ImageFormat::Png).map_err(drawing)?;
         Ok(out.into_inner())
     }
 
     /// Writes the PNG to `path`.
-    pub fn write(&self, path: &Path) -> anyhow::Result<()> {
-        std::fs::write(path, self.png()?).with_context(|| format!("cannot write {}", path.display()))
+    pub fn write(&self, path: &Path) -> Result<()> {
+        std::fs::write(path, self.png()?).map_err(StudyError::io("write", path))
     }
 }
 

@@ -76,8 +76,7 @@ mod tests {
     use magg_core::{preprocess, render};
 
     fn scene(name: &str) -> magg_core::scene::Scene {
-        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes").join(name);
-        crate::scene_file::load(&path).unwrap()
+        crate::test_scene(name)
     }
 
     fn vertex_error(mut s: magg_core::scene::Scene, element_size: f64, light_rays: u32) -> Option<f64> {

@@ -164,8 +164,7 @@ mod tests {
 
     #[test]
     fn small_grid_varies_one_knob_at_a_time_without_duplicates() {
-        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/magg-paper.toml");
-        let scene = crate::scene_file::load(&path).unwrap();
+        let scene = crate::test_scene("magg-paper.toml");
         let small = settings(&scene, GridSize::Small);
         assert_eq!(small[0].knob, "base");
         for (i, a) in small.iter().enumerate() {
