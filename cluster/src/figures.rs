@@ -4,10 +4,10 @@
 use super::emulation::{cpu_share, process_cpu_s};
 use super::machine::{mark, ClusterMachine};
 use super::service::Phase;
-use magg_core::blocks::CacheStats;
+use magg_core::blocks::{home_fork_of_node, CacheStats};
+use magg_core::color::Rgb;
 use magg_core::lrt::LrtTally;
 use magg_core::machine::{MachineFigures, PhaseTimes};
-use magg_core::math::Rgb;
 use magg_core::stats::{Emulation, NodeStats, Stages, Traffic};
 use magg_core::view::OpCounters;
 use magg_proto::v1;
@@ -31,7 +31,7 @@ fn node_figures(node: u32, forks: u32, r: &v1::NodeReport) -> (NodeStats, CacheS
     };
     let stats = NodeStats {
         node,
-        home_fork: node % forks,
+        home_fork: home_fork_of_node(node, forks),
         pairs: r.pairs,
         tiles: r.tiles,
         cache: cache.into(),

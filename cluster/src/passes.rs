@@ -7,9 +7,10 @@ use super::machine::{mark, ClusterMachine};
 use super::schedule::Scheduler;
 use super::service::Phase;
 use anyhow::{bail, Context};
+use magg_core::blocks::fork_of_block;
+use magg_core::color::Rgb;
 use magg_core::energy::{vertex_energy_blocks, Fixed};
 use magg_core::machine::{LightPass, ViewPass, ViewedFrame};
-use magg_core::math::Rgb;
 use magg_core::progress::Progress;
 use magg_proto::convert::{block_to_wire, element_energies};
 use magg_proto::v1;
@@ -111,7 +112,7 @@ impl ClusterMachine {
         let f = self.forks.len();
         let mut per_fork: Vec<Vec<v1::Block>> = vec![Vec::new(); f];
         for (id, block) in vertex_energy_blocks(vertex_irradiance, &self.prepared.header.layout) {
-            per_fork[id as usize % f].push(block_to_wire(id, &block));
+            per_fork[fork_of_block(id, f as u32) as usize].push(block_to_wire(id, &block));
         }
         mark(self.opts.started, "light pass done, energies gathered and interpolated");
         self.forks.put_vertex_blocks(per_fork).await?;

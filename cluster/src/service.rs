@@ -3,6 +3,7 @@
 use super::error::{HostError, MAX_NODES, MAX_NODE_NAME};
 use super::events::{ClusterEvent, EventSender};
 use super::schedule::{Next, Scheduler};
+use magg_core::blocks::home_fork_of_node;
 use magg_proto::v1::host_server::Host;
 use magg_proto::v1::next_work_reply::Kind;
 use magg_proto::v1::{
@@ -259,7 +260,7 @@ impl Host for HostService {
         tracing::info!(node, name = %r.name, "node registered");
         Ok(Response::new(RegisterReply {
             node,
-            home_fork: node % forks,
+            home_fork: home_fork_of_node(node, forks),
             fork_addrs: s.fork_addrs.clone(),
             header: Some(s.header.clone()),
             cache_blocks: s.cache_blocks,

@@ -1,16 +1,17 @@
 //! The pinhole camera: viewing rays through the pixels.
 
 use crate::geometry::Ray;
-use crate::math::Vec3;
+use crate::math::Normalized;
 use crate::scene::Camera;
+use glam::DVec3;
 
 /// Precomputed camera frame for a given image size.
 #[derive(Clone, Copy, Debug)]
 pub struct CameraRig {
-    eye: Vec3,
-    forward: Vec3,
-    right: Vec3,
-    up: Vec3,
+    eye: DVec3,
+    forward: DVec3,
+    right: DVec3,
+    up: DVec3,
     half_w: f64,
     half_h: f64,
     width: f64,
@@ -23,7 +24,7 @@ impl CameraRig {
         let forward = (c.look_at - c.eye).normalized();
         let mut right = forward.cross(c.up).normalized();
         if right.length_squared() == 0.0 {
-            right = crate::math::orthonormal_basis(forward).0;
+            right = forward.any_orthonormal_pair().0;
         }
         let up = right.cross(forward);
         let half_h = (c.fov_y_deg.to_radians() * 0.5).tan();

@@ -7,7 +7,7 @@
 //! most `(1 + lrt_depth + diffuse_bounces)` times the emitted flux, far inside `i64`.
 
 use crate::blocks::{encode_vertex_energy, Block, BlockLayout, BLOCK_SIZE, VERTICES_PER_BLOCK};
-use crate::math::Rgb;
+use crate::color::Rgb;
 use crate::preprocess::ElementInfo;
 use crate::scene::Light;
 
@@ -96,7 +96,7 @@ pub fn vertex_energy_blocks(irradiance: &[Rgb], layout: &BlockLayout) -> Vec<(u3
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::math::Vec3;
+    use glam::DVec3;
 
     #[test]
     fn fixed_point_round_trips_to_quantum() {
@@ -110,7 +110,7 @@ mod tests {
 
     #[test]
     fn interpolation_is_area_weighted() {
-        let e = |v: [u32; 3], area: f64| ElementInfo { patch: 0, vertices: v, area, centroid: Vec3::ZERO };
+        let e = |v: [u32; 3], area: f64| ElementInfo { patch: 0, vertices: v, area, centroid: DVec3::ZERO };
         let elements = [e([0, 1, 2], 1.0), e([1, 2, 3], 3.0)];
         let flux = [[10, 10, 10], [60, 60, 60]]; // irradiance 10 and 20
         let v = interpolate(&elements, &flux, 4, 1.0);

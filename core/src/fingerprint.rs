@@ -20,8 +20,9 @@
 //! ```
 
 use crate::blocks::BlockKind;
-use crate::math::{Rgb, Vec3};
+use crate::color::Rgb;
 use crate::preprocess::PreparedScene;
+use glam::DVec3;
 use serde::{Deserialize, Serialize};
 
 /// 64-bit FNV-1a, fed with explicit little-endian encodings.
@@ -58,7 +59,7 @@ impl Fnv64 {
         self.u64(v.to_bits());
     }
     /// Feeds a point or direction.
-    pub fn vec3(&mut self, v: Vec3) {
+    pub fn vec3(&mut self, v: DVec3) {
         for c in [v.x, v.y, v.z] {
             self.f64(c);
         }

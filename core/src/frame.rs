@@ -1,6 +1,6 @@
 //! The rendered frame (linear radiance) and its tone mapping to 8-bit sRGB.
 
-use crate::math::Rgb;
+use crate::color::Rgb;
 use crate::scene::Exposure;
 
 /// A linear-radiance image, row-major from the top-left pixel.

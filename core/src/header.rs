@@ -2,17 +2,17 @@
 //! and never expire (lights, materials, camera, settings, grid header, block layout).
 
 use crate::blocks::BlockLayout;
-use crate::math::Vec3;
 use crate::plan::EffectsPlan;
 use crate::scene::{Camera, Light, Material, RenderSettings};
+use glam::{DVec3, UVec3};
 
 /// The uniform grid of subspaces.
 #[derive(Clone, Debug, PartialEq)]
 pub struct GridHeader {
     /// Lower corner of the grid.
-    pub min: Vec3,
+    pub min: DVec3,
     /// Upper corner of the grid.
-    pub max: Vec3,
+    pub max: DVec3,
     /// Subspaces along x, y, z.
     pub dims: [u32; 3],
     /// First subspace block of each cell (x fastest, then y, then z), or `NO_BLOCK` when
@@ -22,9 +22,8 @@ pub struct GridHeader {
 
 impl GridHeader {
     /// Size of one subspace.
-    pub fn cell_size(&self) -> Vec3 {
-        let e = self.max - self.min;
-        Vec3::new(e.x / self.dims[0] as f64, e.y / self.dims[1] as f64, e.z / self.dims[2] as f64)
+    pub fn cell_size(&self) -> DVec3 {
+        (self.max - self.min) / UVec3::from_array(self.dims).as_dvec3()
     }
     /// Number of subspaces.
     pub fn cells(&self) -> usize {

@@ -13,15 +13,16 @@
 //! another node deposits exactly the same values.
 
 use crate::blocks::BlockError;
+use crate::color::Rgb;
 use crate::energy::{to_fixed, Fixed};
-use crate::geometry::{cosine_hemisphere, sample_spherical_triangle, solid_angle, Ray};
-use crate::math::{Rgb, Vec3};
-use crate::optics::{fresnel_dielectric, reflect, refract};
+use crate::geometry::{cosine_hemisphere, sample_spherical_triangle, solid_angle, triangle_normal, Ray};
 use crate::rng::{hammersley, Rng};
+use crate::scatter::{offset_scale, Arrival, Dielectric};
 use crate::scene::Light;
 use crate::subdivision::{element_triangle, locate};
 use crate::trace::{cast, TraceScratch};
 use crate::view::SceneView;
+use glam::DVec3;
 
 /// Secondary rays whose flux falls below this fraction of their primary ray's flux are
 /// cut off (and counted as such in the tally).
@@ -69,7 +70,7 @@ pub struct PairResult {
 }
 
 /// Radiant intensity of `light` in unit direction `w`.
-pub fn intensity_towards(light: &Light, w: Vec3) -> Rgb {
+pub fn intensity_towards(light: &Light, w: DVec3) -> Rgb {
     match &light.spot {
         None => light.intensity,
         Some(s) => {
@@ -89,7 +90,7 @@ pub fn intensity_towards(light: &Light, w: Vec3) -> Rgb {
 
 /// True when no direction from `light` towards triangle `tri` can carry light (outside
 /// a spot cone, with a margin for the triangle's angular size).
-fn outside_cone(light: &Light, tri: &[Vec3; 3]) -> bool {
+fn outside_cone(light: &Light, tri: &[DVec3; 3]) -> bool {
     let Some(s) = &light.spot else { return false };
     let c = (tri[0] + tri[1] + tri[2]) / 3.0 - light.position;
     let dist = c.length();
@@ -103,11 +104,6 @@ fn outside_cone(light: &Light, tri: &[Vec3; 3]) -> bool {
     let spread = (radius / dist).asin().to_degrees();
     let angle = (c / dist).dot(s.direction).clamp(-1.0, 1.0).acos().to_degrees();
     angle - spread > s.half_angle_deg + s.falloff_deg
-}
-
-/// Offset from a surface point for a new ray, scaled to the coordinates' magnitude.
-pub(crate) fn offset_scale(p: Vec3) -> f64 {
-    1e-9 * (1.0 + p.abs().max_component())
 }
 
 struct Pending {
@@ -142,7 +138,7 @@ pub fn trace_pair(
     if !(omega > 0.0) || outside_cone(l, &tri) {
         return Ok(out);
     }
-    let normal = (prec.v[1] - prec.v[0]).cross(prec.v[2] - prec.v[0]).normalized();
+    let normal = triangle_normal(&prec.v);
     let n = header.settings.light_rays.max(1);
     let seed = header.settings.seed;
     let mut rng = Rng::from_words(&[seed, 0x4c5254, light as u64, element as u64]);
@@ -189,7 +185,7 @@ pub fn trace_pair(
             let hp = view.patch(hit.patch)?;
             let (local, _) = locate(hp.subdivisions, hit.bary);
             deposits.push((hp.first_element + local, s.flux));
-            let hn = (hp.v[1] - hp.v[0]).cross(hp.v[2] - hp.v[0]).normalized();
+            let hn = triangle_normal(&hp.v);
             let at = s.ray.at(hit.t);
             scatter(
                 view,
@@ -230,9 +226,9 @@ fn scatter(
     rng: &mut Rng,
     stack: &mut Vec<Pending>,
     tally: &mut LrtTally,
-    p: Vec3,
-    d: Vec3,
-    normal: Vec3,
+    p: DVec3,
+    d: DVec3,
+    normal: DVec3,
     material: u32,
     patch: u32,
     flux: Rgb,
@@ -246,8 +242,7 @@ fn scatter(
         tally.absorbed = tally.absorbed.add(flux);
         return;
     };
-    let front = d.dot(normal) < 0.0;
-    let nf = if front { normal } else { -normal };
+    let at = Arrival::new(p, d, normal);
     let absorbed = Rgb([
         (1.0 - m.diffuse.0[0] - m.mirror.0[0] - m.transmit.0[0]).max(0.0),
         (1.0 - m.diffuse.0[1] - m.mirror.0[1] - m.transmit.0[1]).max(0.0),
@@ -255,7 +250,7 @@ fn scatter(
     ]);
     tally.absorbed = tally.absorbed.add(flux.mul(absorbed));
 
-    let mut push = |tally: &mut LrtTally, dir: Vec3, f: Rgb, spec: u32, diff: u32| {
+    let mut push = |tally: &mut LrtTally, dir: DVec3, f: Rgb, spec: u32, diff: u32| {
         if f.is_black() {
             return;
         }
@@ -263,16 +258,7 @@ fn scatter(
             tally.cut = tally.cut.add(f);
             return;
         }
-        let side = if dir.dot(nf) >= 0.0 { nf } else { -nf };
-        let origin = p + side * offset_scale(p);
-        stack.push(Pending {
-            ray: Ray::new(origin, dir),
-            flux: f,
-            from_patch: patch,
-            specular: spec,
-            diffuse: diff,
-            floor,
-        });
+        stack.push(Pending { ray: at.spawn(dir), flux: f, from_patch: patch, specular: spec, diffuse: diff, floor });
     };
 
     // Specular parts.
@@ -280,19 +266,15 @@ fn scatter(
     let spec_flux_transmit = flux.mul(m.transmit);
     if specular < plan.lrt_depth {
         if !spec_flux_mirror.is_black() {
-            push(tally, reflect(d, nf), spec_flux_mirror, specular + 1, diffuse);
+            push(tally, at.reflected(), spec_flux_mirror, specular + 1, diffuse);
         }
         if !spec_flux_transmit.is_black() {
-            let eta = if front { 1.0 / m.ior } else { m.ior };
-            let cos_i = -d.dot(nf);
-            let f = fresnel_dielectric(cos_i, eta);
-            let refracted = if plan.refraction { refract(d, nf, eta) } else { None };
-            match refracted {
-                Some(t) if f < 1.0 => {
-                    push(tally, reflect(d, nf), spec_flux_transmit.scale(f), specular + 1, diffuse);
-                    push(tally, t, spec_flux_transmit.scale(1.0 - f), specular + 1, diffuse);
+            match at.dielectric(m.ior, plan.refraction) {
+                Dielectric::Split { fresnel, refracted } => {
+                    push(tally, at.reflected(), spec_flux_transmit.scale(fresnel), specular + 1, diffuse);
+                    push(tally, refracted, spec_flux_transmit.scale(1.0 - fresnel), specular + 1, diffuse);
                 }
-                _ => push(tally, reflect(d, nf), spec_flux_transmit, specular + 1, diffuse),
+                Dielectric::Reflected => push(tally, at.reflected(), spec_flux_transmit, specular + 1, diffuse),
             }
         }
     } else {
@@ -306,7 +288,7 @@ fn scatter(
     }
     if diffuse < plan.diffuse_bounces {
         let (u0, u1) = (rng.next_f64(), rng.next_f64());
-        let dir = cosine_hemisphere(nf, u0, u1);
+        let dir = cosine_hemisphere(at.normal, u0, u1);
         push(tally, dir, diff_flux, specular, diffuse + 1);
     } else {
         tally.diffuse_end = tally.diffuse_end.add(diff_flux);

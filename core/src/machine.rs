@@ -17,10 +17,10 @@
 //! ```
 
 use crate::blocks::{BlockError, CacheStats};
+use crate::color::Rgb;
 use crate::energy::Fixed;
 use crate::frame::Frame;
 use crate::lrt::LrtTally;
-use crate::math::Rgb;
 use crate::scene::Camera;
 use crate::stats::{Emulation, NodeStats, Stages, Traffic};
 use std::sync::Arc;

@@ -1,53 +1,33 @@
-//! Small fixed-size vector types used throughout the core.
+//! Vector math on glam's `f64` types, and the one operation whose rounding stays ours.
 //!
-//! Geometry is computed in `f64`: scenes far from the origin (coordinates around
-//! 1e5) keep sub-micrometre precision, and watertight intersection stays exact on
-//! shared edges. Colours are `Rgb` in `f64` while computed and `f32` when stored.
+//! Geometry is computed in `f64` ([`glam::DVec3`], [`glam::DMat3`]): scenes far from the
+//! origin (coordinates around 1e5) keep sub-micrometre precision, and watertight
+//! intersection stays exact on shared edges. Colours are [`crate::color::Rgb`].
+//!
+//! ```
+//! use glam::DVec3;
+//! use magg_core::math::Normalized;
+//! assert_eq!(DVec3::new(0.0, 3.0, 4.0).normalized(), DVec3::new(0.0, 0.6, 0.8));
+//! assert_eq!(DVec3::ZERO.normalized(), DVec3::ZERO);
+//! ```
 
-use std::ops::{Add, AddAssign, Div, Index, Mul, Neg, Sub};
+use glam::DVec3;
 
-/// A 3-vector of `f64` (points, directions, normals).
-#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
-pub struct Vec3 {
-    pub x: f64,
-    pub y: f64,
-    pub z: f64,
+/// Normalisation by division by the length, for bitwise-stable renders.
+///
+/// glam's [`DVec3::normalize`] multiplies by the reciprocal of the length, which rounds
+/// twice; the renderer divides each component by the length, and every shipped scene's
+/// image and energies depend on those bits (a direction one unit in the last place off
+/// can hit a neighbouring element). The zero vector stays zero (glam's `normalize` gives
+/// NaN), so a degenerate triangle keeps a zero normal.
+pub trait Normalized {
+    /// Unit vector in the same direction, each component divided by the length; the zero
+    /// vector stays zero.
+    fn normalized(self) -> Self;
 }
 
-impl Vec3 {
-    /// The zero vector.
-    pub const ZERO: Vec3 = Vec3 { x: 0.0, y: 0.0, z: 0.0 };
-
-    /// Builds a vector from its components.
-    pub const fn new(x: f64, y: f64, z: f64) -> Self {
-        Vec3 { x, y, z }
-    }
-    /// Builds a vector from an array.
-    pub const fn from_array(a: [f64; 3]) -> Self {
-        Vec3 { x: a[0], y: a[1], z: a[2] }
-    }
-    /// The components as an array.
-    pub const fn to_array(self) -> [f64; 3] {
-        [self.x, self.y, self.z]
-    }
-    /// Dot product.
-    pub fn dot(self, o: Vec3) -> f64 {
-        self.x * o.x + self.y * o.y + self.z * o.z
-    }
-    /// Cross product.
-    pub fn cross(self, o: Vec3) -> Vec3 {
-        Vec3::new(self.y * o.z - self.z * o.y, self.z * o.x - self.x * o.z, self.x * o.y - self.y * o.x)
-    }
-    /// Euclidean length.
-    pub fn length(self) -> f64 {
-        self.dot(self).sqrt()
-    }
-    /// Squared length.
-    pub fn length_squared(self) -> f64 {
-        self.dot(self)
-    }
-    /// Unit vector in the same direction (the zero vector stays zero).
-    pub fn normalized(self) -> Vec3 {
+impl Normalized for DVec3 {
+    fn normalized(self) -> DVec3 {
         let l = self.length();
         if l > 0.0 {
             self / l
@@ -55,133 +35,6 @@ impl Vec3 {
             self
         }
     }
-    /// Component-wise minimum.
-    pub fn min(self, o: Vec3) -> Vec3 {
-        Vec3::new(self.x.min(o.x), self.y.min(o.y), self.z.min(o.z))
-    }
-    /// Component-wise maximum.
-    pub fn max(self, o: Vec3) -> Vec3 {
-        Vec3::new(self.x.max(o.x), self.y.max(o.y), self.z.max(o.z))
-    }
-    /// Component-wise absolute value.
-    pub fn abs(self) -> Vec3 {
-        Vec3::new(self.x.abs(), self.y.abs(), self.z.abs())
-    }
-    /// Largest component.
-    pub fn max_component(self) -> f64 {
-        self.x.max(self.y).max(self.z)
-    }
-    /// True when every component is finite.
-    pub fn is_finite(self) -> bool {
-        self.x.is_finite() && self.y.is_finite() && self.z.is_finite()
-    }
-    /// Linear interpolation `self + (o - self) * t`.
-    pub fn lerp(self, o: Vec3, t: f64) -> Vec3 {
-        self + (o - self) * t
-    }
-}
-
-impl Add for Vec3 {
-    type Output = Vec3;
-    fn add(self, o: Vec3) -> Vec3 {
-        Vec3::new(self.x + o.x, self.y + o.y, self.z + o.z)
-    }
-}
-impl AddAssign for Vec3 {
-    fn add_assign(&mut self, o: Vec3) {
-        *self = *self + o;
-    }
-}
-impl Sub for Vec3 {
-    type Output = Vec3;
-    fn sub(self, o: Vec3) -> Vec3 {
-        Vec3::new(self.x - o.x, self.y - o.y, self.z - o.z)
-    }
-}
-impl Mul<f64> for Vec3 {
-    type Output = Vec3;
-    fn mul(self, s: f64) -> Vec3 {
-        Vec3::new(self.x * s, self.y * s, self.z * s)
-    }
-}
-impl Div<f64> for Vec3 {
-    type Output = Vec3;
-    fn div(self, s: f64) -> Vec3 {
-        Vec3::new(self.x / s, self.y / s, self.z / s)
-    }
-}
-impl Neg for Vec3 {
-    type Output = Vec3;
-    fn neg(self) -> Vec3 {
-        Vec3::new(-self.x, -self.y, -self.z)
-    }
-}
-impl Index<usize> for Vec3 {
-    type Output = f64;
-    fn index(&self, i: usize) -> &f64 {
-        match i {
-            0 => &self.x,
-            1 => &self.y,
-            _ => &self.z,
-        }
-    }
-}
-
-/// An RGB triple (radiometric quantity per colour channel).
-#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
-pub struct Rgb(pub [f64; 3]);
-
-impl Rgb {
-    /// Black.
-    pub const BLACK: Rgb = Rgb([0.0; 3]);
-    /// Builds a colour from its channels.
-    pub const fn new(r: f64, g: f64, b: f64) -> Self {
-        Rgb([r, g, b])
-    }
-    /// The same value in every channel.
-    pub const fn splat(v: f64) -> Self {
-        Rgb([v, v, v])
-    }
-    /// Largest channel.
-    pub fn max_channel(self) -> f64 {
-        self.0[0].max(self.0[1]).max(self.0[2])
-    }
-    /// True when every channel is zero.
-    pub fn is_black(self) -> bool {
-        self.0 == [0.0; 3]
-    }
-    /// Mean of the channels.
-    pub fn mean(self) -> f64 {
-        (self.0[0] + self.0[1] + self.0[2]) / 3.0
-    }
-    /// Rec. 709 luminance.
-    pub fn luminance(self) -> f64 {
-        0.2126 * self.0[0] + 0.7152 * self.0[1] + 0.0722 * self.0[2]
-    }
-    /// Channel-wise product.
-    pub fn mul(self, o: Rgb) -> Rgb {
-        Rgb([self.0[0] * o.0[0], self.0[1] * o.0[1], self.0[2] * o.0[2]])
-    }
-    /// Scale every channel.
-    pub fn scale(self, s: f64) -> Rgb {
-        Rgb([self.0[0] * s, self.0[1] * s, self.0[2] * s])
-    }
-    /// Channel-wise sum.
-    pub fn add(self, o: Rgb) -> Rgb {
-        Rgb([self.0[0] + o.0[0], self.0[1] + o.0[1], self.0[2] + o.0[2]])
-    }
-    /// True when every channel is finite.
-    pub fn is_finite(self) -> bool {
-        self.0.iter().all(|c| c.is_finite())
-    }
-}
-
-/// Builds an orthonormal basis (t, b) around the unit vector `n` (Duff et al. 2017).
-pub fn orthonormal_basis(n: Vec3) -> (Vec3, Vec3) {
-    let sign = 1.0f64.copysign(n.z);
-    let a = -1.0 / (sign + n.z);
-    let b = n.x * n.y * a;
-    (Vec3::new(1.0 + sign * n.x * n.x * a, sign * b, -sign * n.x), Vec3::new(b, sign + n.y * n.y * a, -n.y))
 }
 
 #[cfg(test)]
@@ -189,17 +42,23 @@ mod tests {
     use super::*;
 
     #[test]
-    fn basis_is_orthonormal() {
-        for n in [Vec3::new(0.0, 0.0, 1.0), Vec3::new(0.0, 0.0, -1.0), Vec3::new(1.0, 2.0, -3.0).normalized()] {
-            let (t, b) = orthonormal_basis(n);
-            assert!(t.dot(n).abs() < 1e-12 && b.dot(n).abs() < 1e-12 && t.dot(b).abs() < 1e-12);
-            assert!((t.length() - 1.0).abs() < 1e-12 && (b.length() - 1.0).abs() < 1e-12);
-        }
+    fn normalized_divides_where_glam_multiplies_by_the_reciprocal() {
+        // A vector whose two roundings differ from one: the division is the exact
+        // rounding of x / l, which the reciprocal product need not be.
+        let v = DVec3::new(0.1, 0.7, 3.0);
+        let l = v.length();
+        let n = v.normalized();
+        assert_eq!(n.to_array(), [0.1 / l, 0.7 / l, 3.0 / l]);
+        assert!((n.length() - 1.0).abs() < 1e-15);
+        assert!(DVec3::new(f64::NAN, 0.0, 0.0).normalized().is_nan());
     }
 
     #[test]
-    fn cross_follows_right_hand_rule() {
-        let z = Vec3::new(1.0, 0.0, 0.0).cross(Vec3::new(0.0, 1.0, 0.0));
-        assert_eq!(z, Vec3::new(0.0, 0.0, 1.0));
+    fn orthonormal_pair_is_orthonormal() {
+        for n in [DVec3::new(0.0, 0.0, 1.0), DVec3::new(0.0, 0.0, -1.0), DVec3::new(1.0, 2.0, -3.0).normalized()] {
+            let (t, b) = n.any_orthonormal_pair();
+            assert!(t.dot(n).abs() < 1e-12 && b.dot(n).abs() < 1e-12 && t.dot(b).abs() < 1e-12);
+            assert!((t.length() - 1.0).abs() < 1e-12 && (b.length() - 1.0).abs() < 1e-12);
+        }
     }
 }

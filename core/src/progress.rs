@@ -11,7 +11,7 @@ pub trait Progress: Sync {
     /// Frame `index` of `count` starts its viewing pass (more than one frame: a camera path).
     fn frame_begins(&self, _index: usize, _count: usize) {}
     /// Node `node` finished subscreen `t`; `px` holds its pixels row by row (for live views).
-    fn subscreen_done(&self, _node: u32, _t: crate::vrt::Subscreen, _px: &[crate::math::Rgb]) {}
+    fn subscreen_done(&self, _node: u32, _t: crate::vrt::Subscreen, _px: &[crate::color::Rgb]) {}
 }
 
 /// Reports nothing.

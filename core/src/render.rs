@@ -10,15 +10,15 @@
 //! phases themselves are sequenced by [`crate::phases::run`]; [`render`] and
 //! [`render_sequence`] run them on an embedded machine.
 
-use crate::blocks::{BlockCache, BlockError, BlockSource, MemStore};
+use crate::blocks::{home_fork_of_node, BlockCache, BlockError, BlockSource, MemStore};
 use crate::camera::CameraRig;
+use crate::color::Rgb;
 use crate::energy::{vertex_energy_blocks, Fixed};
 use crate::frame::Frame;
 use crate::lrt::{trace_pair, LrtTally};
 use crate::machine::{
     self, FrameSink, Machine, MachineFigures, PhaseTimes, RenderError, RenderOutput, Sequence, ViewPass, ViewedFrame,
 };
-use crate::math::Rgb;
 use crate::phases::subscreens;
 use crate::preprocess::PreparedScene;
 use crate::progress::Progress;
@@ -238,8 +238,8 @@ impl EmbeddedMachine {
         let views = (0..nodes)
             .map(|node| {
                 let source: Arc<dyn BlockSource> = store.clone();
-                let cache =
-                    BlockCache::new(source, opts.cache_blocks.map(|c| c as usize)).with_home(node % forks, forks);
+                let cache = BlockCache::new(source, opts.cache_blocks.map(|c| c as usize))
+                    .with_home(home_fork_of_node(node, forks), forks);
                 SceneView::new(header.clone(), cache)
             })
             .collect();
@@ -297,7 +297,7 @@ impl Machine for EmbeddedMachine {
             .enumerate()
             .map(|(node, view)| NodeStats {
                 node: node as u32,
-                home_fork: node as u32 % self.forks,
+                home_fork: home_fork_of_node(node as u32, self.forks),
                 pairs: self.node_pairs.get(node).copied().unwrap_or(0),
                 tiles: self.node_tiles[node],
                 cache: view.cache_stats().into(),

@@ -7,7 +7,7 @@
 //! a canonical order, so two patches sharing an edge with the same n produce bitwise
 //! identical points there (which is what lets preprocessing weld them).
 
-use crate::math::Vec3;
+use glam::DVec3;
 use std::cmp::Ordering;
 
 /// Number of elements of a patch subdivided n times per edge.
@@ -25,13 +25,13 @@ pub fn lattice_index(n: u32, i: u32, j: u32) -> u32 {
     j * (n + 1) - j * j.saturating_sub(1) / 2 + i
 }
 
-fn lex(a: Vec3, b: Vec3) -> Ordering {
+fn lex(a: DVec3, b: DVec3) -> Ordering {
     a.x.total_cmp(&b.x).then(a.y.total_cmp(&b.y)).then(a.z.total_cmp(&b.z))
 }
 
 /// Point `m / n` of the way along the edge (a, b), computed from the lexicographically
 /// smaller endpoint so that both patches sharing the edge get the same bits.
-fn edge_point(a: Vec3, b: Vec3, m: u32, n: u32) -> Vec3 {
+fn edge_point(a: DVec3, b: DVec3, m: u32, n: u32) -> DVec3 {
     if m == 0 {
         return a;
     }
@@ -45,7 +45,7 @@ fn edge_point(a: Vec3, b: Vec3, m: u32, n: u32) -> Vec3 {
 }
 
 /// Position of lattice point (i, j) of the patch `v` subdivided n times.
-pub fn lattice_point(v: &[Vec3; 3], n: u32, i: u32, j: u32) -> Vec3 {
+pub fn lattice_point(v: &[DVec3; 3], n: u32, i: u32, j: u32) -> DVec3 {
     let k = n - i - j;
     if j == 0 {
         edge_point(v[0], v[1], i, n)
@@ -101,7 +101,7 @@ fn isqrt(x: u64) -> u64 {
 }
 
 /// Corner positions of element `local` of patch `v` subdivided n times.
-pub fn element_triangle(v: &[Vec3; 3], n: u32, local: u32) -> [Vec3; 3] {
+pub fn element_triangle(v: &[DVec3; 3], n: u32, local: u32) -> [DVec3; 3] {
     let c = element_corners(n, local);
     [lattice_point(v, n, c[0].0, c[0].1), lattice_point(v, n, c[1].0, c[1].1), lattice_point(v, n, c[2].0, c[2].1)]
 }
@@ -181,10 +181,10 @@ mod tests {
 
     #[test]
     fn shared_edge_points_are_bitwise_equal() {
-        let a = Vec3::new(0.1, 0.2, 0.3);
-        let b = Vec3::new(1.7, -0.3, 0.9);
-        let c = Vec3::new(0.4, 1.1, -0.2);
-        let d = Vec3::new(2.0, 1.0, 0.0);
+        let a = DVec3::new(0.1, 0.2, 0.3);
+        let b = DVec3::new(1.7, -0.3, 0.9);
+        let c = DVec3::new(0.4, 1.1, -0.2);
+        let d = DVec3::new(2.0, 1.0, 0.0);
         // Triangles (a, b, c) and (b, d, c) share edge b-c in opposite directions.
         let t1 = [a, b, c];
         let t2 = [b, d, c];

@@ -3,8 +3,8 @@
 //! hit ratio is the real one.
 
 use crate::blocks::*;
+use crate::color::Rgb;
 use crate::header::SceneHeader;
-use crate::math::Rgb;
 use std::sync::Arc;
 
 /// Operation counts of the kernels (the basis of the compute cost model).

@@ -8,11 +8,10 @@
 
 use crate::blocks::BlockError;
 use crate::camera::CameraRig;
-use crate::geometry::Ray;
-use crate::lrt::offset_scale;
-use crate::math::{Rgb, Vec3};
-use crate::optics::{fresnel_dielectric, reflect, refract};
+use crate::color::Rgb;
+use crate::geometry::{triangle_normal, Ray};
 use crate::rng::{hammersley, Rng};
+use crate::scatter::{offset_scale, Arrival, Dielectric};
 use crate::subdivision::locate;
 use crate::trace::{cast, TraceScratch, NO_PATCH};
 use crate::view::SceneView;
@@ -99,29 +98,21 @@ fn radiance(
         return Ok(l);
     }
     let p = ray.at(hit.t);
-    let normal = (prec.v[1] - prec.v[0]).cross(prec.v[2] - prec.v[0]).normalized();
-    let d = ray.direction;
-    let front = d.dot(normal) < 0.0;
-    let nf = if front { normal } else { -normal };
-    let spawn = |dir: Vec3| {
-        let side = if dir.dot(nf) >= 0.0 { nf } else { -nf };
-        Ray::new(p + side * offset_scale(p), dir)
-    };
+    let normal = triangle_normal(&prec.v);
+    let at = Arrival::new(p, ray.direction, normal);
     if m.is_mirror() {
-        let r = radiance(view, scratch, &spawn(reflect(d, nf)), depth + 1, hit.patch)?;
+        let r = radiance(view, scratch, &at.spawn(at.reflected()), depth + 1, hit.patch)?;
         l = l.add(m.mirror.mul(r));
     }
     if m.is_transmissive() {
-        let eta = if front { 1.0 / m.ior } else { m.ior };
-        let f = fresnel_dielectric(-d.dot(nf), eta);
-        let refracted = if m.refraction { refract(d, nf, eta) } else { None };
-        let reflected = radiance(view, scratch, &spawn(reflect(d, nf)), depth + 1, hit.patch)?;
-        match refracted {
-            Some(t) if f < 1.0 => {
-                let through = radiance(view, scratch, &spawn(t), depth + 1, hit.patch)?;
-                l = l.add(m.transmit.mul(reflected.scale(f).add(through.scale(1.0 - f))));
+        let split = at.dielectric(m.ior, m.refraction);
+        let reflected = radiance(view, scratch, &at.spawn(at.reflected()), depth + 1, hit.patch)?;
+        match split {
+            Dielectric::Split { fresnel, refracted } => {
+                let through = radiance(view, scratch, &at.spawn(refracted), depth + 1, hit.patch)?;
+                l = l.add(m.transmit.mul(reflected.scale(fresnel).add(through.scale(1.0 - fresnel))));
             }
-            _ => l = l.add(m.transmit.mul(reflected)),
+            Dielectric::Reflected => l = l.add(m.transmit.mul(reflected)),
         }
     }
     Ok(l)

@@ -13,7 +13,7 @@ fn diffuse_scene() -> magg_core::scene::Scene {
         vec![material("white", 0.7, 0.0, 0.0), material("grey", 0.4, 0.0, 0.0)],
         vec![light(v(0.1, 1.7, 0.2), 1.0)],
     );
-    s.settings.ambient = magg_core::math::Rgb::splat(0.05);
+    s.settings.ambient = magg_core::color::Rgb::splat(0.05);
     s
 }
 

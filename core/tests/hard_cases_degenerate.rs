@@ -7,15 +7,15 @@ mod common;
 mod hard;
 
 use common::*;
+use glam::DVec3;
 use hard::*;
 use magg_core::geometry::{intersect_watertight, sample_spherical_triangle, solid_angle, triangle_area, Ray};
-use magg_core::math::Vec3;
 use magg_core::preprocess::prepare;
 use magg_core::scene::Scene;
 use std::f64::consts::PI;
 
 /// Zero-area triangles: a point, a segment (collinear), one with a repeated corner.
-fn degenerate_triangles() -> Vec<[Vec3; 3]> {
+fn degenerate_triangles() -> Vec<[DVec3; 3]> {
     let p = v(0.3, 0.4, 0.1);
     vec![
         [p, p, p],
@@ -27,7 +27,7 @@ fn degenerate_triangles() -> Vec<[Vec3; 3]> {
 
 /// Thin but not degenerate triangles: width 1e-9, 1e-15, 1e-300 and subnormal 1e-310
 /// across a unit length, and a needle of tiny area away from the origin.
-fn sliver_triangles() -> Vec<[Vec3; 3]> {
+fn sliver_triangles() -> Vec<[DVec3; 3]> {
     let mut out = Vec::new();
     for w in [1e-9, 1e-15, 1e-300, 1e-310] {
         out.push([v(-0.5, 0.25, 0.0), v(0.5, 0.25, 0.0), v(0.1, 0.25 + w, w)]);
@@ -155,7 +155,7 @@ fn a_scene_with_degenerate_and_sliver_patches_renders_finite() {
 
 /// A floor at y = 0 (two patches, 4 x 4 elements each) and a ceiling at y = 1 facing
 /// down, with the light at `lp`.
-fn floor_and_ceiling(lp: Vec3) -> Scene {
+fn floor_and_ceiling(lp: DVec3) -> Scene {
     let mut patches = quad(v(-1.0, 0.0, -1.0), v(-1.0, 0.0, 1.0), v(1.0, 0.0, 1.0), v(1.0, 0.0, -1.0), 0, 4);
     patches.extend(quad(v(-1.0, 1.0, -1.0), v(1.0, 1.0, -1.0), v(1.0, 1.0, 1.0), v(-1.0, 1.0, 1.0), 0, 4));
     let mut s = scene(patches, vec![material("white", 0.5, 0.0, 0.0)], vec![light(lp, 1.0)]);

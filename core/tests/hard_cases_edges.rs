@@ -7,9 +7,9 @@ mod common;
 mod hard;
 
 use common::*;
+use glam::DVec3;
 use hard::*;
 use magg_core::geometry::{intersect_watertight, Ray};
-use magg_core::math::Vec3;
 use magg_core::preprocess::prepare;
 use magg_core::scene::{GridSpec, Scene};
 use magg_core::subdivision::{element_corners, element_triangle, lattice_point, locate};
@@ -85,7 +85,7 @@ fn closed_mesh_vertices_and_edges_are_hit_by_the_brute_force_winner() {
     let mut view = view_of(&p);
     // Every lattice point of every patch (patch corners, points on patch edges shared
     // with a neighbour, points on element edges inside a patch).
-    let mut targets: Vec<Vec3> = Vec::new();
+    let mut targets: Vec<DVec3> = Vec::new();
     for pid in 0..8 {
         let rec = view.patch(pid).unwrap();
         for j in 0..=n {

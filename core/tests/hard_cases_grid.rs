@@ -9,9 +9,9 @@ mod common;
 mod hard;
 
 use common::*;
+use glam::DVec3;
 use hard::*;
 use magg_core::geometry::Ray;
-use magg_core::math::Vec3;
 use magg_core::preprocess::{prepare, PreparedScene};
 use magg_core::trace::{cast, TraceScratch, NO_PATCH};
 use magg_core::view::SceneView;
@@ -41,7 +41,7 @@ fn signed_zero_subnormal_and_huge_direction_components_agree_with_brute_force() 
             for &y in &comps {
                 for &z in &comps {
                     let d = v(x, y, z);
-                    if d.abs().max_component() == 0.0 {
+                    if d.abs().max_element() == 0.0 {
                         // All-zero (either sign): hits nothing.
                         assert_eq!(nearest(&mut view, &Ray::new(o, d), 0.0), None);
                         continue;
@@ -113,7 +113,7 @@ fn rays_lying_in_subspace_boundary_planes_and_grid_faces_agree_with_brute_force(
             for _ in 0..60 {
                 let mut o = v(rng.next_f64() * 3.8 - 1.9, rng.next_f64() * 3.8 - 1.9, rng.next_f64() * 3.8 - 1.9);
                 let mut d = v(rng.next_f64() - 0.5, rng.next_f64() - 0.5, rng.next_f64() - 0.5);
-                let set = |w: &mut Vec3, a: usize, val: f64| match a {
+                let set = |w: &mut DVec3, a: usize, val: f64| match a {
                     0 => w.x = val,
                     1 => w.y = val,
                     _ => w.z = val,

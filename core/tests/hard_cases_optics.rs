@@ -8,15 +8,16 @@ mod common;
 mod hard;
 
 use common::*;
+use glam::DVec3;
 use hard::*;
 use magg_core::geometry::solid_angle;
-use magg_core::math::Vec3;
-use magg_core::optics::{fresnel_dielectric, reflect, refract};
+use magg_core::math::Normalized;
+use magg_core::scatter::{fresnel_dielectric, reflect, refract};
 use magg_core::scene::Scene;
 use magg_core::subdivision::element_triangle;
 use std::f64::consts::PI;
 
-fn dir_at(theta: f64) -> Vec3 {
+fn dir_at(theta: f64) -> DVec3 {
     // Incident direction at angle theta to the normal +y, travelling down.
     v(theta.sin(), -theta.cos(), 0.0)
 }

@@ -12,9 +12,10 @@ mod common;
 mod hard;
 
 use common::view_of;
+use glam::DVec3;
 use hard::*;
 use magg_core::geometry::{intersect_watertight, Ray};
-use magg_core::math::Vec3;
+use magg_core::math::Normalized;
 use magg_core::preprocess::{prepare, PreparedScene};
 use magg_core::trace::{cast, TraceScratch, NO_PATCH};
 use proptest::prelude::*;
@@ -34,8 +35,8 @@ fn runner(seed: u8) -> TestRunner {
     TestRunner::new_with_rng(config, TestRng::from_seed(RngAlgorithm::ChaCha, &[seed; 32]))
 }
 
-fn point(r: f64) -> impl Strategy<Value = Vec3> {
-    (-r..r, -r..r, -r..r).prop_map(|(x, y, z)| Vec3::new(x, y, z))
+fn point(r: f64) -> impl Strategy<Value = DVec3> {
+    (-r..r, -r..r, -r..r).prop_map(|(x, y, z)| DVec3::new(x, y, z))
 }
 
 #[test]
@@ -58,7 +59,7 @@ fn a_ray_through_a_shared_edge_hits_one_of_the_two_triangles() {
             prop_assume!(n.dot(c - a).abs() > 1e-6 && n.dot(d - a).abs() > 1e-6);
             // The shared edge runs a -> b in one triangle and b -> a in the other; the
             // corners are rotated so that the edge sits at any position.
-            let rot = |t: [Vec3; 3], k: usize| [t[k % 3], t[(k + 1) % 3], t[(k + 2) % 3]];
+            let rot = |t: [DVec3; 3], k: usize| [t[k % 3], t[(k + 1) % 3], t[(k + 2) % 3]];
             let t1 = rot([a, b, c], rot1);
             let t2 = rot([b, a, d], rot2);
             let target = a + (b - a) * s;
@@ -143,7 +144,7 @@ fn cast_agrees_with_brute_force_on_random_rays() {
                     }
                 }
             }
-            let d = Vec3::new(dx, dy, dz);
+            let d = DVec3::new(dx, dy, dz);
             prop_assume!(d.length_squared() > 0.0);
             let ray = Ray::new(o, d);
             let mut view = view_of(p);

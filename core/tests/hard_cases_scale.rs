@@ -8,11 +8,12 @@ mod common;
 mod hard;
 
 use common::*;
+use glam::DVec3;
 use hard::*;
 use magg_core::geometry::Ray;
-use magg_core::math::Vec3;
-use magg_core::optics::reflect;
+use magg_core::math::Normalized;
 use magg_core::preprocess::prepare;
+use magg_core::scatter::reflect;
 use magg_core::scene::Scene;
 use std::f64::consts::PI;
 
@@ -127,7 +128,7 @@ fn where_scale_and_translation_stop_working() {
 }
 
 /// A mirror quad (two patches sharing a diagonal) at `offset`, light above it.
-fn mirror_at(offset: Vec3, light_height: f64, n: u32) -> Scene {
+fn mirror_at(offset: DVec3, light_height: f64, n: u32) -> Scene {
     let f = |x: f64, y: f64, z: f64| v(x, y, z) + offset;
     let patches = quad(f(-1.0, 0.0, -1.0), f(-1.0, 0.0, 1.0), f(1.0, 0.0, 1.0), f(1.0, 0.0, -1.0), 0, n);
     let mut s = scene(patches, vec![material("mirror", 0.0, 1.0, 0.0)], vec![light(f(0.13, light_height, -0.07), 1.0)]);
@@ -224,7 +225,7 @@ fn transmitted_rays_leave_from_the_far_side() {
             let incoming = Ray::new(f(0.0, 2.0, 0.0), d);
             let hit = nearest(&mut view, &incoming, 0.0).expect("glass");
             assert!(hit.patch < 2);
-            let t = magg_core::optics::refract(d, normal, 1.0 / 1.5).expect("no TIR from air");
+            let t = magg_core::scatter::refract(d, normal, 1.0 / 1.5).expect("no TIR from air");
             let spawned = Ray::new(spawn_origin(incoming.at(hit.t), -normal), t);
             let next = nearest(&mut view, &spawned, offset_rule(spawned.origin)).expect("the floor");
             assert!(next.patch >= 2, "offset {offset}: the refracted ray re-hit the glass (patch {})", next.patch);

@@ -9,11 +9,7 @@ use magg_core::subdivision::element_triangle;
 use std::f64::consts::PI;
 
 /// Triangle of element `e` of a prepared scene.
-fn element_tri(
-    s: &magg_core::scene::Scene,
-    p: &magg_core::preprocess::PreparedScene,
-    e: usize,
-) -> [magg_core::math::Vec3; 3] {
+fn element_tri(s: &magg_core::scene::Scene, p: &magg_core::preprocess::PreparedScene, e: usize) -> [glam::DVec3; 3] {
     let info = p.elements[e];
     let patch = &s.patches[info.patch as usize];
     let first = p.elements.iter().position(|x| x.patch == info.patch).unwrap();

@@ -3,7 +3,8 @@
 
 use std::path::{Path, PathBuf};
 
-use magg_core::math::Vec3;
+use glam::DVec3;
+use magg_core::math::Normalized;
 use magg_core::scene::{parse_scene_str, GridSpec, PatchDef, Scene};
 
 fn scenes_dir() -> PathBuf {
@@ -17,12 +18,12 @@ fn load(name: &str) -> Scene {
     parse_scene_str(name, &text, &dir, &|p: &Path| std::fs::read_to_string(p)).unwrap_or_else(|e| panic!("{e}"))
 }
 
-fn normal(p: &PatchDef) -> Vec3 {
+fn normal(p: &PatchDef) -> DVec3 {
     let [a, b, c] = p.vertices;
     (b - a).cross(c - a).normalized()
 }
 
-fn centroid(p: &PatchDef) -> Vec3 {
+fn centroid(p: &PatchDef) -> DVec3 {
     let [a, b, c] = p.vertices;
     (a + b + c) / 3.0
 }
@@ -64,9 +65,9 @@ fn cornell_has_mirror_glass_and_inward_walls() {
     let s = load("cornell.toml");
     assert!(s.materials.iter().any(|m| m.is_mirror()), "no mirror material");
     assert!(s.materials.iter().any(|m| m.is_transmissive()), "no transmissive material");
-    let centre = Vec3::new(0.0, 1.0, 0.0);
+    let centre = DVec3::new(0.0, 1.0, 0.0);
     let glass = s.materials.iter().position(|m| m.name == "glass").unwrap() as u32;
-    let sphere_centre = Vec3::new(0.45, 0.351, 0.35);
+    let sphere_centre = DVec3::new(0.45, 0.351, 0.35);
     let mut sphere_faces = 0;
     for p in &s.patches {
         let name = &s.materials[p.material as usize].name;

@@ -3,8 +3,9 @@
 
 mod common;
 use common::*;
+use glam::DVec3;
 use magg_core::geometry::Ray;
-use magg_core::math::Vec3;
+use magg_core::math::Normalized;
 use magg_core::preprocess::prepare;
 use magg_core::scene::GridSpec;
 use magg_core::trace::{cast, TraceScratch, NO_PATCH};
@@ -23,7 +24,7 @@ fn rays_aimed_exactly_at_shared_edges_and_vertices_never_miss() {
     // Targets: the 6 vertices, and points along every one of the 12 edges.
     let verts =
         [v(1.0, 0.0, 0.0), v(-1.0, 0.0, 0.0), v(0.0, 1.0, 0.0), v(0.0, -1.0, 0.0), v(0.0, 0.0, 1.0), v(0.0, 0.0, -1.0)];
-    let mut targets: Vec<Vec3> = verts.to_vec();
+    let mut targets: Vec<DVec3> = verts.to_vec();
     for i in 0..6 {
         for j in i + 1..6 {
             if verts[i].dot(verts[j]) == 0.0 {

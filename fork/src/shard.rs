@@ -15,7 +15,7 @@ use crate::state::ledger::Ledger;
 use crate::state::pairs::{guided_batch, PairBook, PairQueue};
 use crate::state::store::BlockStore;
 use bytes::Bytes;
-use magg_core::blocks::BLOCK_SIZE;
+use magg_core::blocks::{fork_of_block, BLOCK_SIZE};
 use magg_core::cluster::{DepositBatch, ForkReport, PairDeposit, ShardLoad};
 use magg_core::header::SceneHeader;
 use magg_proto::auth::Token;
@@ -117,15 +117,16 @@ impl Shard {
         let header = load.header;
         let place = Placement { index: load.fork_index, addrs: load.fork_addrs };
         let (index, f) = (place.index, place.forks());
-        let owned: Vec<u32> =
-            (0..header.counts.elements).filter(|&e| header.layout.element_slot(e).0 % f == index).collect();
+        let owned: Vec<u32> = (0..header.counts.elements)
+            .filter(|&e| fork_of_block(header.layout.element_slot(e).0, f) == index)
+            .collect();
         let lights = header.lights.len() as u32;
         let pair_count = lights as u64 * header.counts.elements as u64;
         let own_pairs = lights as u64 * owned.len() as u64;
         let mut left_elsewhere = vec![0u64; forks];
         if header.plan.lrt {
             for e in 0..header.counts.elements {
-                left_elsewhere[(header.layout.element_slot(e).0 % f) as usize] += lights as u64;
+                left_elsewhere[fork_of_block(header.layout.element_slot(e).0, f) as usize] += lights as u64;
             }
         }
         let work = Work {

@@ -2,8 +2,8 @@
 //! one per vertex (id, position, irradiance RGB), written with the `csv` crate. Values
 //! print in Rust's shortest round-trip form, so equal energies give byte-identical files.
 
+use magg_core::color::Rgb;
 use magg_core::energy::element_irradiance;
-use magg_core::math::Rgb;
 use magg_core::preprocess::PreparedScene;
 
 /// The header row; a vertex leaves `patch` and `area` empty.

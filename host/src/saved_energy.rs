@@ -9,9 +9,9 @@
 //! render from a loaded file is bitwise identical to the render that saved it.
 
 use anyhow::{bail, Context};
+use magg_core::color::Rgb;
 use magg_core::fingerprint::{EnergyInputs, Fnv64};
 use magg_core::machine::Energies;
-use magg_core::math::Rgb;
 use serde::{Deserialize, Serialize};
 use std::path::Path;
 

@@ -18,12 +18,12 @@
 //! assert_eq!((round1[0].len(), round2[1].len()), (1, 1)); // element 4 on fork 0
 //! ```
 
-use magg_core::blocks::BlockLayout;
+use magg_core::blocks::{fork_of_block, BlockLayout};
 use magg_proto::deposits::DepositWriter;
 
 /// The fork (of `forks`, at least 1) that accumulates element `e`'s energy.
 pub fn element_owner(layout: &BlockLayout, forks: usize, e: u32) -> usize {
-    (layout.element_slot(e).0 % forks.max(1) as u32) as usize
+    fork_of_block(layout.element_slot(e).0, forks as u32) as usize
 }
 
 /// A batch's deposits split by fork: the messages of round 1 and of round 2, indexed by

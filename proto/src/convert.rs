@@ -19,11 +19,13 @@
 //! ```
 
 use crate::v1;
+use glam::DVec3;
 use magg_core::blocks::{
     Block, BlockLayout, BLOCK_SIZE, ELEMENTS_PER_BLOCK, NO_BLOCK, PATCHES_PER_BLOCK, VERTICES_PER_BLOCK,
 };
+use magg_core::color::Rgb;
 use magg_core::header::{Counts, GridHeader, SceneHeader};
-use magg_core::math::{Rgb, Vec3};
+use magg_core::math::Normalized;
 use magg_core::plan::EffectsPlan;
 use magg_core::scene::{Camera, Exposure, GridSpec, Light, Material, RenderSettings, SourceLoc, Spot};
 
@@ -117,16 +119,16 @@ fn wire_loc() -> SourceLoc {
 
 // ------------------------------------------------------------------ small values
 
-fn vec3_to_wire(v: Vec3) -> v1::Vec3 {
+fn vec3_to_wire(v: DVec3) -> v1::Vec3 {
     v1::Vec3 { x: v.x, y: v.y, z: v.z }
 }
 
-fn vec3_from_wire(v: Option<v1::Vec3>, field: &str) -> Result<Vec3, ConvertError> {
+fn vec3_from_wire(v: Option<v1::Vec3>, field: &str) -> Result<DVec3, ConvertError> {
     let v = require(v, field)?;
     for (x, axis) in [(v.x, "x"), (v.y, "y"), (v.z, "z")] {
         finite(x, &format!("{field}.{axis}"))?;
     }
-    Ok(Vec3::new(v.x, v.y, v.z))
+    Ok(DVec3::new(v.x, v.y, v.z))
 }
 
 fn rgb_to_wire(c: Rgb) -> v1::Rgb {
@@ -652,7 +654,8 @@ mod tests {
         let mut h = (*paper_header()).clone();
         h.settings.exposure = Exposure::Fixed(2.5);
         h.settings.grid = GridSpec::Auto;
-        h.lights[0].spot = Some(Spot { direction: Vec3::new(0.0, -1.0, 0.0), half_angle_deg: 30.0, falloff_deg: 10.0 });
+        h.lights[0].spot =
+            Some(Spot { direction: DVec3::new(0.0, -1.0, 0.0), half_angle_deg: 30.0, falloff_deg: 10.0 });
         let wire = v1::SceneHeader::from(&h);
         assert!(wire.settings.as_ref().unwrap().grid.is_empty());
         assert_eq!(SceneHeader::try_from(wire).unwrap(), as_received(&h));

@@ -2,6 +2,7 @@
 //! (paper §4.3), counting hits and misses.
 
 use super::layout::{Block, BLOCK_SIZE};
+use super::owner::fork_of_block;
 use super::store::{BlockError, BlockSource};
 use lru::LruCache;
 use std::num::NonZeroUsize;
@@ -85,7 +86,7 @@ impl BlockCache {
         self
     }
 
-    /// Declares the node's home fork among `forks` (block `b` lives on fork `b mod forks`),
+    /// Declares the node's home fork among `forks` (block `b` lives on fork [`fork_of_block`]`(b, forks)`),
     /// so that misses of blocks owned by another fork are counted as remote.
     pub fn with_home(mut self, home_fork: u32, forks: u32) -> Self {
         self.home = (home_fork, forks.max(1));
@@ -95,7 +96,7 @@ impl BlockCache {
     /// Block `id`, from the cache or fetched from the source (evicting the least
     /// recently used block when full).
     pub fn get(&mut self, id: u32) -> Result<&Block, BlockError> {
-        let remote = id % self.home.1 != self.home.0;
+        let remote = fork_of_block(id, self.home.1) != self.home.0;
         match &mut self.slots {
             Slots::Bounded(lru) => {
                 if lru.contains(&id) {

@@ -1,6 +1,7 @@
 //! Byte layout of the four block kinds. Little-endian, fixed-size records.
 
-use crate::math::{Rgb, Vec3};
+use crate::color::Rgb;
+use glam::DVec3;
 
 /// Bytes per block (paper §4.3: "packed in 2KB blocks").
 pub const BLOCK_SIZE: usize = 2048;
@@ -94,7 +95,7 @@ impl BlockLayout {
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct PatchRecord {
     /// Corners.
-    pub v: [Vec3; 3],
+    pub v: [DVec3; 3],
     /// Material index.
     pub material: u32,
     /// Subdivision count n (n*n elements).
@@ -153,7 +154,7 @@ impl PatchRecord {
     /// Reads the record at byte offset `at`.
     pub fn decode(b: &Block, at: usize) -> PatchRecord {
         let p =
-            |i: usize| Vec3::new(get_f64(b, at + 24 * i), get_f64(b, at + 24 * i + 8), get_f64(b, at + 24 * i + 16));
+            |i: usize| DVec3::new(get_f64(b, at + 24 * i), get_f64(b, at + 24 * i + 8), get_f64(b, at + 24 * i + 16));
         PatchRecord {
             v: [p(0), p(1), p(2)],
             material: get_u32(b, at + 72),
@@ -223,7 +224,7 @@ mod tests {
     fn records_round_trip() {
         let mut b = [0u8; BLOCK_SIZE];
         let p = PatchRecord {
-            v: [Vec3::new(1.0, 2.0, 3.0), Vec3::new(-4.0, 5.5, 6.0), Vec3::new(1e5, 0.1, -0.0)],
+            v: [DVec3::new(1.0, 2.0, 3.0), DVec3::new(-4.0, 5.5, 6.0), DVec3::new(1e5, 0.1, -0.0)],
             material: 7,
             subdivisions: 20,
             first_element: 12345,

@@ -2,14 +2,17 @@
 //!
 //! Four kinds of block: subspace blocks (the patch ids a grid cell overlaps; a long list
 //! chains over several blocks), patch blocks, element blocks and vertex-energy blocks.
-//! Block ids are global; block `b` lives on fork `b mod F`. A node reads them through an
-//! LRU [`BlockCache`] of C blocks in front of a [`BlockSource`] (an in-memory store for
-//! the embedded renderer, a fork over gRPC in the cluster).
+//! Block ids are global; block `b` lives on fork `b mod F` ([`fork_of_block`]), and node
+//! `i`'s home fork is fork `i mod F` ([`home_fork_of_node`]). A node reads blocks through
+//! an LRU [`BlockCache`] of C blocks in front of a [`BlockSource`] (an in-memory store
+//! for the embedded renderer, a fork over gRPC in the cluster).
 
 mod cache;
 mod layout;
+mod owner;
 mod store;
 
 pub use cache::{BlockCache, CacheStats};
 pub use layout::*;
+pub use owner::{fork_of_block, home_fork_of_node};
 pub use store::{BlockError, BlockSource, MemStore};

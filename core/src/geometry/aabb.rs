@@ -1,24 +1,24 @@
 //! Axis-aligned boxes and the exact triangle/box overlap test used to fill subspaces.
 
-use crate::math::Vec3;
+use glam::DVec3;
 
 /// An axis-aligned box.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Aabb {
     /// Lower corner.
-    pub min: Vec3,
+    pub min: DVec3,
     /// Upper corner.
-    pub max: Vec3,
+    pub max: DVec3,
 }
 
 impl Aabb {
     /// The empty box (min = +inf, max = -inf).
     pub const EMPTY: Aabb = Aabb {
-        min: Vec3::new(f64::INFINITY, f64::INFINITY, f64::INFINITY),
-        max: Vec3::new(f64::NEG_INFINITY, f64::NEG_INFINITY, f64::NEG_INFINITY),
+        min: DVec3::new(f64::INFINITY, f64::INFINITY, f64::INFINITY),
+        max: DVec3::new(f64::NEG_INFINITY, f64::NEG_INFINITY, f64::NEG_INFINITY),
     };
     /// Smallest box holding `self` and `p`.
-    pub fn grow(self, p: Vec3) -> Aabb {
+    pub fn grow(self, p: DVec3) -> Aabb {
         Aabb { min: self.min.min(p), max: self.max.max(p) }
     }
     /// Smallest box holding both.
@@ -26,11 +26,11 @@ impl Aabb {
         Aabb { min: self.min.min(o.min), max: self.max.max(o.max) }
     }
     /// Box of a triangle.
-    pub fn of_triangle(v: &[Vec3; 3]) -> Aabb {
+    pub fn of_triangle(v: &[DVec3; 3]) -> Aabb {
         Aabb::EMPTY.grow(v[0]).grow(v[1]).grow(v[2])
     }
     /// Edge lengths.
-    pub fn extent(self) -> Vec3 {
+    pub fn extent(self) -> DVec3 {
         self.max - self.min
     }
 }
@@ -38,7 +38,7 @@ impl Aabb {
 /// Exact triangle/box overlap by the separating axis theorem (Akenine-Moller 2001):
 /// the 3 box normals, the triangle normal and the 9 edge cross products. Touching
 /// counts as overlap, so a patch on a subspace face is listed in both subspaces.
-pub fn triangle_overlaps_box(tri: &[Vec3; 3], bmin: Vec3, bmax: Vec3) -> bool {
+pub fn triangle_overlaps_box(tri: &[DVec3; 3], bmin: DVec3, bmax: DVec3) -> bool {
     let c = (bmin + bmax) * 0.5;
     let h = (bmax - bmin) * 0.5;
     let v0 = tri[0] - c;
@@ -60,10 +60,11 @@ pub fn triangle_overlaps_box(tri: &[Vec3; 3], bmin: Vec3, bmax: Vec3) -> bool {
         return false;
     }
     // Nine edge axes.
-    let axes_of = |ed: Vec3| [Vec3::new(0.0, -ed.z, ed.y), Vec3::new(ed.z, 0.0, -ed.x), Vec3::new(-ed.y, ed.x, 0.0)];
+    let axes_of =
+        |ed: DVec3| [DVec3::new(0.0, -ed.z, ed.y), DVec3::new(ed.z, 0.0, -ed.x), DVec3::new(-ed.y, ed.x, 0.0)];
     for ed in e {
         for a in axes_of(ed) {
-            if a == Vec3::ZERO {
+            if a == DVec3::ZERO {
                 continue;
             }
             let p0 = a.dot(v0);
@@ -86,16 +87,16 @@ mod tests {
     fn diagonal_triangle_skips_corner_box_its_bbox_covers() {
         // Triangle near the x+y=2 plane corner; its bbox covers box [0,0.5]^3 but the
         // triangle does not.
-        let tri = [Vec3::new(2.0, 0.0, 0.0), Vec3::new(0.0, 2.0, 0.0), Vec3::new(0.0, 0.0, 2.0)];
-        assert!(!triangle_overlaps_box(&tri, Vec3::ZERO, Vec3::new(0.5, 0.5, 0.5)));
-        assert!(triangle_overlaps_box(&tri, Vec3::new(0.5, 0.5, 0.5), Vec3::new(1.0, 1.0, 1.0)));
+        let tri = [DVec3::new(2.0, 0.0, 0.0), DVec3::new(0.0, 2.0, 0.0), DVec3::new(0.0, 0.0, 2.0)];
+        assert!(!triangle_overlaps_box(&tri, DVec3::ZERO, DVec3::new(0.5, 0.5, 0.5)));
+        assert!(triangle_overlaps_box(&tri, DVec3::new(0.5, 0.5, 0.5), DVec3::new(1.0, 1.0, 1.0)));
     }
 
     #[test]
     fn touching_face_counts() {
-        let tri = [Vec3::new(0.0, 0.0, 1.0), Vec3::new(1.0, 0.0, 1.0), Vec3::new(0.0, 1.0, 1.0)];
-        assert!(triangle_overlaps_box(&tri, Vec3::ZERO, Vec3::new(1.0, 1.0, 1.0)));
-        assert!(triangle_overlaps_box(&tri, Vec3::new(0.0, 0.0, 1.0), Vec3::new(1.0, 1.0, 2.0)));
-        assert!(!triangle_overlaps_box(&tri, Vec3::new(0.0, 0.0, 1.1), Vec3::new(1.0, 1.0, 2.0)));
+        let tri = [DVec3::new(0.0, 0.0, 1.0), DVec3::new(1.0, 0.0, 1.0), DVec3::new(0.0, 1.0, 1.0)];
+        assert!(triangle_overlaps_box(&tri, DVec3::ZERO, DVec3::new(1.0, 1.0, 1.0)));
+        assert!(triangle_overlaps_box(&tri, DVec3::new(0.0, 0.0, 1.0), DVec3::new(1.0, 1.0, 2.0)));
+        assert!(!triangle_overlaps_box(&tri, DVec3::new(0.0, 0.0, 1.1), DVec3::new(1.0, 1.0, 2.0)));
     }
 }

@@ -2,11 +2,12 @@
 //! that every ray of a pair carries the same flux, as in the paper) and cosine-weighted
 //! over a hemisphere (diffuse bounces).
 
-use crate::math::{orthonormal_basis, Vec3};
+use crate::math::Normalized;
+use glam::DVec3;
 use std::f64::consts::PI;
 
 /// Angle between two unit vectors, accurate near 0 and pi.
-fn angle_between(a: Vec3, b: Vec3) -> f64 {
+fn angle_between(a: DVec3, b: DVec3) -> f64 {
     if a.dot(b) < 0.0 {
         PI - 2.0 * ((a + b).length() / 2.0).min(1.0).asin()
     } else {
@@ -15,7 +16,7 @@ fn angle_between(a: Vec3, b: Vec3) -> f64 {
 }
 
 /// Component of `v` orthogonal to unit `w`, normalised.
-fn gram_schmidt(v: Vec3, w: Vec3) -> Vec3 {
+fn gram_schmidt(v: DVec3, w: DVec3) -> DVec3 {
     (v - w * v.dot(w)).normalized()
 }
 
@@ -23,7 +24,7 @@ fn gram_schmidt(v: Vec3, w: Vec3) -> Vec3 {
 /// subtends from `p` (Arvo 1995, in the numerically careful form of pbrt-v4), for
 /// `(u0, u1)` in the unit square; stratified inputs give stratified directions.
 /// Returns `None` for degenerate configurations (zero solid angle).
-pub fn sample_spherical_triangle(p: Vec3, v: &[Vec3; 3], u0: f64, u1: f64) -> Option<Vec3> {
+pub fn sample_spherical_triangle(p: DVec3, v: &[DVec3; 3], u0: f64, u1: f64) -> Option<DVec3> {
     let a = (v[0] - p).normalized();
     let b = (v[1] - p).normalized();
     let c = (v[2] - p).normalized();
@@ -68,10 +69,10 @@ pub fn sample_spherical_triangle(p: Vec3, v: &[Vec3; 3], u0: f64, u1: f64) -> Op
 }
 
 /// A cosine-distributed unit direction about the unit normal `n` (Malley's method).
-pub fn cosine_hemisphere(n: Vec3, u0: f64, u1: f64) -> Vec3 {
+pub fn cosine_hemisphere(n: DVec3, u0: f64, u1: f64) -> DVec3 {
     let r = u0.sqrt();
     let phi = 2.0 * PI * u1;
-    let (t, b) = orthonormal_basis(n);
+    let (t, b) = n.any_orthonormal_pair();
     let z = (1.0 - u0).max(0.0).sqrt();
     (t * (r * phi.cos()) + b * (r * phi.sin()) + n * z).normalized()
 }
@@ -83,8 +84,8 @@ mod tests {
 
     #[test]
     fn spherical_samples_land_on_the_triangle_and_are_uniform_in_solid_angle() {
-        let tri = [Vec3::new(-1.0, -0.5, -2.0), Vec3::new(2.0, -0.3, -1.0), Vec3::new(0.2, 1.5, -3.0)];
-        let p = Vec3::new(0.1, 0.2, 0.3);
+        let tri = [DVec3::new(-1.0, -0.5, -2.0), DVec3::new(2.0, -0.3, -1.0), DVec3::new(0.2, 1.5, -3.0)];
+        let p = DVec3::new(0.1, 0.2, 0.3);
         // Split the triangle in two halves by a median; the share of samples in each half
         // must match the share of solid angle.
         let m = (tri[1] + tri[2]) * 0.5;
@@ -108,7 +109,7 @@ mod tests {
 
     #[test]
     fn cosine_samples_are_in_the_hemisphere() {
-        let n = Vec3::new(0.0, 1.0, 0.0);
+        let n = DVec3::new(0.0, 1.0, 0.0);
         let mut mean_cos = 0.0;
         let k = 32;
         for i in 0..k * k {

@@ -1,7 +1,8 @@
 //! Triangles: watertight ray intersection, area and exact solid angle.
 
 use super::Ray;
-use crate::math::Vec3;
+use crate::math::Normalized;
+use glam::DVec3;
 
 /// A ray/triangle hit: distance and barycentric weights of the three corners.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -20,7 +21,7 @@ pub struct TriHit {
 /// least one of them: no ray passes between neighbouring triangles. Values of exactly
 /// zero (on an edge or vertex) count as a hit. Returns a hit with `tmin < t < tmax`.
 /// Degenerate triangles (zero determinant) and non-finite rays never hit.
-pub fn intersect_watertight(ray: &Ray, v: &[Vec3; 3], tmin: f64, tmax: f64) -> Option<TriHit> {
+pub fn intersect_watertight(ray: &Ray, v: &[DVec3; 3], tmin: f64, tmax: f64) -> Option<TriHit> {
     let d = ray.direction;
     let ad = d.abs();
     // Axis of the largest direction component becomes z.
@@ -77,15 +78,21 @@ pub fn intersect_watertight(ray: &Ray, v: &[Vec3; 3], tmin: f64, tmax: f64) -> O
     Some(TriHit { t, bary: [u / det, vv / det, w / det] })
 }
 
+/// Unit geometric normal of a triangle, by its winding (right hand, `v0 -> v1 -> v2`);
+/// zero for a degenerate one. Both passes scatter about it.
+pub fn triangle_normal(v: &[DVec3; 3]) -> DVec3 {
+    (v[1] - v[0]).cross(v[2] - v[0]).normalized()
+}
+
 /// Area of a triangle.
-pub fn triangle_area(v: &[Vec3; 3]) -> f64 {
+pub fn triangle_area(v: &[DVec3; 3]) -> f64 {
     0.5 * (v[1] - v[0]).cross(v[2] - v[0]).length()
 }
 
 /// Exact solid angle of a triangle seen from `p` (Van Oosterom and Strackee, 1983):
 /// `tan(Omega / 2) = |a . (b x c)| / (abc + (a.b)c + (a.c)b + (b.c)a)`.
 /// Zero when `p` lies in the triangle's plane.
-pub fn solid_angle(p: Vec3, v: &[Vec3; 3]) -> f64 {
+pub fn solid_angle(p: DVec3, v: &[DVec3; 3]) -> f64 {
     let a = v[0] - p;
     let b = v[1] - p;
     let c = v[2] - p;
@@ -111,30 +118,30 @@ pub fn solid_angle(p: Vec3, v: &[Vec3; 3]) -> f64 {
 mod tests {
     use super::*;
 
-    fn tri() -> [Vec3; 3] {
-        [Vec3::new(0.0, 0.0, 0.0), Vec3::new(1.0, 0.0, 0.0), Vec3::new(0.0, 1.0, 0.0)]
+    fn tri() -> [DVec3; 3] {
+        [DVec3::new(0.0, 0.0, 0.0), DVec3::new(1.0, 0.0, 0.0), DVec3::new(0.0, 1.0, 0.0)]
     }
 
     #[test]
     fn hits_inside_misses_outside() {
-        let r = Ray::new(Vec3::new(0.25, 0.25, 1.0), Vec3::new(0.0, 0.0, -1.0));
+        let r = Ray::new(DVec3::new(0.25, 0.25, 1.0), DVec3::new(0.0, 0.0, -1.0));
         let h = intersect_watertight(&r, &tri(), 0.0, f64::INFINITY).unwrap();
         assert!((h.t - 1.0).abs() < 1e-15);
         assert!((h.bary[1] - 0.25).abs() < 1e-15 && (h.bary[2] - 0.25).abs() < 1e-15);
-        let r = Ray::new(Vec3::new(0.75, 0.75, 1.0), Vec3::new(0.0, 0.0, -1.0));
+        let r = Ray::new(DVec3::new(0.75, 0.75, 1.0), DVec3::new(0.0, 0.0, -1.0));
         assert!(intersect_watertight(&r, &tri(), 0.0, f64::INFINITY).is_none());
     }
 
     #[test]
     fn shared_edge_is_hit_by_one_of_two_triangles() {
         // Square split along its diagonal; rays aimed exactly at points of the diagonal.
-        let t1 = [Vec3::new(0.0, 0.0, 0.0), Vec3::new(1.0, 0.0, 0.0), Vec3::new(1.0, 1.0, 0.0)];
-        let t2 = [Vec3::new(0.0, 0.0, 0.0), Vec3::new(1.0, 1.0, 0.0), Vec3::new(0.0, 1.0, 0.0)];
-        let o = Vec3::new(0.3, -0.7, 2.0);
+        let t1 = [DVec3::new(0.0, 0.0, 0.0), DVec3::new(1.0, 0.0, 0.0), DVec3::new(1.0, 1.0, 0.0)];
+        let t2 = [DVec3::new(0.0, 0.0, 0.0), DVec3::new(1.0, 1.0, 0.0), DVec3::new(0.0, 1.0, 0.0)];
+        let o = DVec3::new(0.3, -0.7, 2.0);
         // Interior points of the diagonal (its ends are corners of the square's outline).
         for i in 1..1000 {
             let s = i as f64 / 1000.0;
-            let target = Vec3::new(s, s, 0.0);
+            let target = DVec3::new(s, s, 0.0);
             let r = Ray::new(o, (target - o).normalized());
             let h1 = intersect_watertight(&r, &t1, 0.0, f64::INFINITY);
             let h2 = intersect_watertight(&r, &t2, 0.0, f64::INFINITY);
@@ -144,15 +151,15 @@ mod tests {
 
     #[test]
     fn degenerate_triangle_never_hits() {
-        let t = [Vec3::new(0.0, 0.0, 0.0), Vec3::new(1.0, 0.0, 0.0), Vec3::new(2.0, 0.0, 0.0)];
-        let r = Ray::new(Vec3::new(1.0, 0.0, 1.0), Vec3::new(0.0, 0.0, -1.0));
+        let t = [DVec3::new(0.0, 0.0, 0.0), DVec3::new(1.0, 0.0, 0.0), DVec3::new(2.0, 0.0, 0.0)];
+        let r = Ray::new(DVec3::new(1.0, 0.0, 1.0), DVec3::new(0.0, 0.0, -1.0));
         assert!(intersect_watertight(&r, &t, 0.0, f64::INFINITY).is_none());
     }
 
     #[test]
     fn non_finite_rays_never_hit() {
-        for d in [Vec3::new(f64::NAN, 0.0, -1.0), Vec3::new(0.0, 0.0, 0.0), Vec3::new(0.0, 0.0, f64::INFINITY)] {
-            let r = Ray::new(Vec3::new(0.25, 0.25, 1.0), d);
+        for d in [DVec3::new(f64::NAN, 0.0, -1.0), DVec3::new(0.0, 0.0, 0.0), DVec3::new(0.0, 0.0, f64::INFINITY)] {
+            let r = Ray::new(DVec3::new(0.25, 0.25, 1.0), d);
             assert!(intersect_watertight(&r, &tri(), 0.0, f64::INFINITY).is_none());
         }
     }
@@ -160,7 +167,7 @@ mod tests {
     #[test]
     fn solid_angle_of_cube_faces_sums_to_four_pi() {
         // A unit cube around the origin: 12 triangles, total 4 pi.
-        let c = |x: f64, y: f64, z: f64| Vec3::new(x, y, z);
+        let c = |x: f64, y: f64, z: f64| DVec3::new(x, y, z);
         let faces = [
             [c(-1., -1., -1.), c(1., -1., -1.), c(1., 1., -1.), c(-1., 1., -1.)],
             [c(-1., -1., 1.), c(1., -1., 1.), c(1., 1., 1.), c(-1., 1., 1.)],
@@ -177,6 +184,6 @@ mod tests {
 
     #[test]
     fn solid_angle_is_zero_in_plane() {
-        assert_eq!(solid_angle(Vec3::new(5.0, 5.0, 0.0), &tri()), 0.0);
+        assert_eq!(solid_angle(DVec3::new(5.0, 5.0, 0.0), &tri()), 0.0);
     }
 }

@@ -3,16 +3,16 @@
 
 use super::mesh::Mesh;
 use crate::geometry::{triangle_overlaps_box, Aabb};
-use crate::math::Vec3;
 use crate::scene::{GridSpec, Scene};
+use glam::{DVec3, UVec3};
 use rayon::prelude::*;
 
 /// Grid geometry and per-cell patch lists.
 pub(super) struct Grid {
     /// Lower corner.
-    pub min: Vec3,
+    pub min: DVec3,
     /// Upper corner.
-    pub max: Vec3,
+    pub max: DVec3,
     /// Cells per axis.
     pub dims: [u32; 3],
     /// Patch ids of each cell, ascending.
@@ -24,7 +24,7 @@ pub(super) struct Grid {
 /// Padded scene bounds: a little margin everywhere, and some thickness on flat axes.
 fn bounds(mesh: &Mesh) -> Aabb {
     let b = mesh.patches.iter().fold(Aabb::EMPTY, |acc, v| acc.union(Aabb::of_triangle(v)));
-    let scale = b.min.abs().max(b.max.abs()).max_component().max(b.extent().max_component()).max(1e-30);
+    let scale = b.min.abs().max(b.max.abs()).max_element().max(b.extent().max_element()).max(1e-30);
     let ext = b.extent();
     let pad = |e: f64| {
         if e < 1e-6 * scale {
@@ -33,18 +33,18 @@ fn bounds(mesh: &Mesh) -> Aabb {
             1e-7 * scale
         }
     };
-    let p = Vec3::new(pad(ext.x), pad(ext.y), pad(ext.z));
+    let p = DVec3::new(pad(ext.x), pad(ext.y), pad(ext.z));
     Aabb { min: b.min - p, max: b.max + p }
 }
 
 /// Cells per axis: the scene's choice, or about two patches' worth of near-cubic cells.
-fn dims_for(spec: GridSpec, patches: usize, ext: Vec3) -> [u32; 3] {
+fn dims_for(spec: GridSpec, patches: usize, ext: DVec3) -> [u32; 3] {
     if let GridSpec::Fixed(d) = spec {
         return d;
     }
     let target = (2 * patches).clamp(64, 1 << 21) as f64;
     let e = [ext.x, ext.y, ext.z];
-    let longest = ext.max_component();
+    let longest = ext.max_element();
     let flat: Vec<bool> = e.iter().map(|&x| x < 1e-3 * longest).collect();
     let k = flat.iter().filter(|f| !**f).count().max(1) as f64;
     let measure: f64 = e.iter().zip(&flat).filter(|(_, f)| !**f).map(|(x, _)| *x).product();
@@ -61,10 +61,7 @@ fn dims_for(spec: GridSpec, patches: usize, ext: Vec3) -> [u32; 3] {
 pub(super) fn build(scene: &Scene, mesh: &Mesh) -> Grid {
     let b = bounds(mesh);
     let dims = dims_for(scene.settings.grid, mesh.patches.len(), b.extent());
-    let cs = {
-        let e = b.extent();
-        Vec3::new(e.x / dims[0] as f64, e.y / dims[1] as f64, e.z / dims[2] as f64)
-    };
+    let cs = b.extent() / UVec3::from_array(dims).as_dvec3();
     let cell_of = |x: f64, a: usize| -> u32 {
         let c = ((x - b.min[a]) / cs[a]).floor();
         if c.is_finite() {
@@ -83,7 +80,7 @@ pub(super) fn build(scene: &Scene, mesh: &Mesh) -> Grid {
             // A zero-area patch can carry no light and must never be hit; rounding in
             // the watertight test can report a hit through one of its corners, so it
             // is listed in no subspace.
-            if (v[1] - v[0]).cross(v[2] - v[0]) == Vec3::ZERO {
+            if (v[1] - v[0]).cross(v[2] - v[0]) == DVec3::ZERO {
                 return Vec::new();
             }
             let bb = Aabb::of_triangle(v);
@@ -99,8 +96,7 @@ pub(super) fn build(scene: &Scene, mesh: &Mesh) -> Grid {
             for z in lo[2]..=hi[2] {
                 for y in lo[1]..=hi[1] {
                     for x in lo[0]..=hi[0] {
-                        let cmin =
-                            Vec3::new(b.min.x + cs.x * x as f64, b.min.y + cs.y * y as f64, b.min.z + cs.z * z as f64);
+                        let cmin = b.min + cs * UVec3::new(x, y, z).as_dvec3();
                         // Grow the cell by a hair so that patches lying exactly on a cell
                         // face are listed on both sides despite rounding.
                         if triangle_overlaps_box(v, cmin - eps, cmin + cs + eps) {

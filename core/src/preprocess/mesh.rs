@@ -3,15 +3,15 @@
 use super::weld::weld;
 use super::{ElementInfo, PrepareError};
 use crate::geometry::triangle_area;
-use crate::math::Vec3;
 use crate::scene::Scene;
 use crate::subdivision::{element_corners, element_count, lattice_count, lattice_index, lattice_point};
+use glam::DVec3;
 use rayon::prelude::*;
 
 /// Patches subdivided into elements.
 pub(super) struct Mesh {
     /// Corners of each patch.
-    pub patches: Vec<[Vec3; 3]>,
+    pub patches: Vec<[DVec3; 3]>,
     /// Material of each patch.
     pub materials: Vec<u32>,
     /// Subdivision count n of each patch.
@@ -21,13 +21,13 @@ pub(super) struct Mesh {
     /// Elements by id.
     pub elements: Vec<ElementInfo>,
     /// Welded vertex positions.
-    pub vertex_positions: Vec<Vec3>,
+    pub vertex_positions: Vec<DVec3>,
 }
 
 /// The subdivision count n of a patch: its own, or `ceil(length / element_size)` with
 /// length its size hint or longest edge; at least 1. Returned as `f64` so that absurd
 /// counts can be refused rather than wrapped or clamped.
-pub fn subdivisions_of(v: &[Vec3; 3], fixed: Option<u32>, size_hint: Option<f64>, element_size: f64) -> f64 {
+pub fn subdivisions_of(v: &[DVec3; 3], fixed: Option<u32>, size_hint: Option<f64>, element_size: f64) -> f64 {
     if let Some(n) = fixed {
         return n.max(1) as f64;
     }
@@ -42,7 +42,7 @@ pub fn subdivisions_of(v: &[Vec3; 3], fixed: Option<u32>, size_hint: Option<f64>
 
 pub(super) fn build(scene: &Scene) -> Result<Mesh, PrepareError> {
     let s = &scene.settings;
-    let patches: Vec<[Vec3; 3]> = scene.patches.iter().map(|p| p.vertices).collect();
+    let patches: Vec<[DVec3; 3]> = scene.patches.iter().map(|p| p.vertices).collect();
     let counts: Vec<f64> = scene
         .patches
         .par_iter()
@@ -112,7 +112,7 @@ mod tests {
 
     #[test]
     fn subdivision_count_follows_element_size() {
-        let v = [Vec3::ZERO, Vec3::new(1.0, 0.0, 0.0), Vec3::new(0.0, 1.0, 0.0)];
+        let v = [DVec3::ZERO, DVec3::new(1.0, 0.0, 0.0), DVec3::new(0.0, 1.0, 0.0)];
         assert_eq!(subdivisions_of(&v, None, None, 0.1), 15.0); // diagonal 1.414
         assert_eq!(subdivisions_of(&v, Some(20), None, 0.1), 20.0);
         assert_eq!(subdivisions_of(&v, None, None, 10.0), 1.0);

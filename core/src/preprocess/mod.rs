@@ -12,9 +12,9 @@ mod weld;
 
 use crate::blocks::Block;
 use crate::header::SceneHeader;
-use crate::math::Vec3;
 use crate::plan::EffectsPlan;
 use crate::scene::Scene;
+use glam::DVec3;
 use std::sync::Arc;
 use std::time::Instant;
 
@@ -61,7 +61,7 @@ pub struct ElementInfo {
     /// Area.
     pub area: f64,
     /// Centroid.
-    pub centroid: Vec3,
+    pub centroid: DVec3,
 }
 
 /// A scene ready to render: the resident header, every block, and the host-side tables.
@@ -76,7 +76,7 @@ pub struct PreparedScene {
     /// Elements by id.
     pub elements: Vec<ElementInfo>,
     /// Welded vertex positions by id.
-    pub vertex_positions: Vec<Vec3>,
+    pub vertex_positions: Vec<DVec3>,
     /// Wall-clock seconds spent preparing.
     pub preprocess_s: f64,
     /// Operations preprocessing did (for the throttling layer's cost model).

@@ -3,8 +3,9 @@
 //! (same facing), so a wall made of two triangles shows no seam while a corner between
 //! two walls keeps separate vertices.
 
-use crate::math::Vec3;
+use crate::geometry::triangle_normal;
 use crate::subdivision::{lattice_count, lattice_index, lattice_point, on_boundary};
+use glam::DVec3;
 use rayon::prelude::*;
 
 /// Result of welding.
@@ -14,10 +15,10 @@ pub(super) struct Welded {
     /// Welded vertex id of every lattice point of every patch.
     pub ids: Vec<u32>,
     /// Position of each welded vertex.
-    pub positions: Vec<Vec3>,
+    pub positions: Vec<DVec3>,
 }
 
-fn key(p: Vec3) -> [u64; 3] {
+fn key(p: DVec3) -> [u64; 3] {
     // +0.0 and -0.0 must weld: normalise the sign of zero.
     let b = |x: f64| if x == 0.0 { 0u64 } else { x.to_bits() };
     [b(p.x), b(p.y), b(p.z)]
@@ -32,17 +33,17 @@ fn find(parent: &mut [u64], mut x: u64) -> u64 {
     x
 }
 
-pub(super) fn weld(patches: &[[Vec3; 3]], subdivisions: &[u32]) -> Welded {
+pub(super) fn weld(patches: &[[DVec3; 3]], subdivisions: &[u32]) -> Welded {
     let mut lattice_offset = Vec::with_capacity(patches.len());
     let mut total = 0u64;
     for &n in subdivisions {
         lattice_offset.push(total);
         total += lattice_count(n);
     }
-    let normals: Vec<Vec3> = patches.par_iter().map(|v| (v[1] - v[0]).cross(v[2] - v[0]).normalized()).collect();
+    let normals: Vec<DVec3> = patches.par_iter().map(triangle_normal).collect();
 
     // Positions of every lattice point, patch by patch.
-    let positions: Vec<Vec3> = (0..patches.len())
+    let positions: Vec<DVec3> = (0..patches.len())
         .into_par_iter()
         .flat_map_iter(|p| {
             let n = subdivisions[p];
@@ -109,10 +110,10 @@ mod tests {
 
     #[test]
     fn two_coplanar_triangles_weld_along_the_diagonal() {
-        let a = Vec3::new(0.0, 0.0, 0.0);
-        let b = Vec3::new(1.0, 0.0, 0.0);
-        let c = Vec3::new(1.0, 1.0, 0.0);
-        let d = Vec3::new(0.0, 1.0, 0.0);
+        let a = DVec3::new(0.0, 0.0, 0.0);
+        let b = DVec3::new(1.0, 0.0, 0.0);
+        let c = DVec3::new(1.0, 1.0, 0.0);
+        let d = DVec3::new(0.0, 1.0, 0.0);
         let w = weld(&[[a, b, c], [a, c, d]], &[4, 4]);
         // A 4x4 quad lattice has 25 points.
         assert_eq!(w.positions.len(), 25);
@@ -120,17 +121,17 @@ mod tests {
 
     #[test]
     fn a_corner_between_walls_keeps_separate_vertices() {
-        let floor = [Vec3::new(0.0, 0.0, 0.0), Vec3::new(1.0, 0.0, 0.0), Vec3::new(0.0, 0.0, -1.0)];
-        let wall = [Vec3::new(0.0, 0.0, 0.0), Vec3::new(0.0, 1.0, 0.0), Vec3::new(1.0, 0.0, 0.0)];
+        let floor = [DVec3::new(0.0, 0.0, 0.0), DVec3::new(1.0, 0.0, 0.0), DVec3::new(0.0, 0.0, -1.0)];
+        let wall = [DVec3::new(0.0, 0.0, 0.0), DVec3::new(0.0, 1.0, 0.0), DVec3::new(1.0, 0.0, 0.0)];
         let w = weld(&[floor, wall], &[2, 2]);
         assert_eq!(w.positions.len(), 12);
     }
 
     #[test]
     fn opposite_facing_triangles_do_not_weld() {
-        let a = Vec3::new(0.0, 0.0, 0.0);
-        let b = Vec3::new(1.0, 0.0, 0.0);
-        let c = Vec3::new(0.0, 1.0, 0.0);
+        let a = DVec3::new(0.0, 0.0, 0.0);
+        let b = DVec3::new(1.0, 0.0, 0.0);
+        let c = DVec3::new(0.0, 1.0, 0.0);
         let w = weld(&[[a, b, c], [a, c, b]], &[1, 1]);
         assert_eq!(w.positions.len(), 6);
     }

@@ -4,7 +4,8 @@
 //! in code) produces and preprocessing consumes. All values here have been validated:
 //! finite, in range, references resolved.
 
-use crate::math::{Rgb, Vec3};
+use crate::color::Rgb;
+use glam::DVec3;
 
 /// Where an entity came from, so that later errors can name the file and line.
 #[derive(Clone, Debug, Default, PartialEq, Eq)]
@@ -29,11 +30,11 @@ impl std::fmt::Display for SourceLoc {
 #[derive(Clone, Debug, PartialEq)]
 pub struct Camera {
     /// Eye position.
-    pub eye: Vec3,
+    pub eye: DVec3,
     /// Point the camera looks at.
-    pub look_at: Vec3,
+    pub look_at: DVec3,
     /// Up direction (need not be orthogonal to the view direction).
-    pub up: Vec3,
+    pub up: DVec3,
     /// Vertical field of view in degrees.
     pub fov_y_deg: f64,
 }
@@ -58,9 +59,9 @@ impl CameraPath {
     pub fn camera_at(&self, frame: u32) -> Camera {
         let Some(first) = self.keys.first() else {
             return Camera {
-                eye: Vec3::ZERO,
-                look_at: Vec3::new(0.0, 0.0, -1.0),
-                up: Vec3::new(0.0, 1.0, 0.0),
+                eye: DVec3::ZERO,
+                look_at: DVec3::new(0.0, 0.0, -1.0),
+                up: DVec3::new(0.0, 1.0, 0.0),
                 fov_y_deg: 45.0,
             };
         };
@@ -78,11 +79,10 @@ impl CameraPath {
         }
         let b = &self.keys[(seg + 1).min(self.keys.len() - 1)];
         let t = rem as f64 / n as f64;
-        let lerp = |x: Vec3, y: Vec3| x * (1.0 - t) + y * t;
         Camera {
-            eye: lerp(a.eye, b.eye),
-            look_at: lerp(a.look_at, b.look_at),
-            up: lerp(a.up, b.up),
+            eye: a.eye.lerp(b.eye, t),
+            look_at: a.look_at.lerp(b.look_at, t),
+            up: a.up.lerp(b.up, t),
             fov_y_deg: a.fov_y_deg * (1.0 - t) + b.fov_y_deg * t,
         }
     }
@@ -171,7 +171,7 @@ impl Default for RenderSettings {
 #[derive(Clone, Debug, PartialEq)]
 pub struct Spot {
     /// Unit axis of the cone.
-    pub direction: Vec3,
+    pub direction: DVec3,
     /// Half-angle of the fully lit cone, degrees.
     pub half_angle_deg: f64,
     /// Width of the smooth edge, degrees (0 = hard edge).
@@ -182,7 +182,7 @@ pub struct Spot {
 #[derive(Clone, Debug, PartialEq)]
 pub struct Light {
     /// Position.
-    pub position: Vec3,
+    pub position: DVec3,
     /// Radiant intensity per channel, W/sr.
     pub intensity: Rgb,
     /// Optional cone; `None` is isotropic.
@@ -230,7 +230,7 @@ impl Material {
 #[derive(Clone, Debug, PartialEq)]
 pub struct PatchDef {
     /// Corner positions.
-    pub vertices: [Vec3; 3],
+    pub vertices: [DVec3; 3],
     /// Index into `Scene::materials`.
     pub material: u32,
     /// Fixed subdivision count n (n*n elements), overriding `element_size`.

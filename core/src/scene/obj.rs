@@ -18,7 +18,8 @@ use std::path::{Path, PathBuf};
 use super::error::SceneError;
 use super::model::{Material, SourceLoc};
 use super::parse::is_degenerate;
-use crate::math::{Rgb, Vec3};
+use crate::color::Rgb;
+use glam::{DMat3, DVec3};
 
 /// The scene's materials, which meshes extend with the MTL materials they use.
 pub(super) struct MaterialTable {
@@ -56,7 +57,7 @@ pub(super) fn load_mesh(
     base_dir: &Path,
     read: &dyn Fn(&Path) -> std::io::Result<String>,
     materials: &mut MaterialTable,
-) -> Result<Vec<([Vec3; 3], u32)>, SceneError> {
+) -> Result<Vec<([DVec3; 3], u32)>, SceneError> {
     let scene_err = |name: &str, msg: String| SceneError::new(entry.at.clone(), format!("{}.{name}", entry.field), msg);
     let obj_path = base_dir.join(entry.obj);
     let obj_label = obj_path.display().to_string();
@@ -100,7 +101,7 @@ pub(super) fn load_mesh(
                 return Err(scene_err("material", msg));
             }
         };
-        let mut v = [Vec3::ZERO; 3];
+        let mut v = [DVec3::ZERO; 3];
         for (o, &k) in v.iter_mut().zip(&face.corners) {
             // parse_obj checked every index; stay safe anyway.
             let p = mesh.positions.get(k).copied().ok_or_else(|| scene_err("obj", "face index out of range".into()))?;
@@ -178,7 +179,7 @@ fn load_mtllibs(
 #[derive(Clone, Debug, Default, PartialEq)]
 pub(super) struct ObjMesh {
     /// `v` positions, in file order.
-    pub positions: Vec<Vec3>,
+    pub positions: Vec<DVec3>,
     /// Triangles, in file order.
     pub faces: Vec<ObjFace>,
     /// `mtllib` files, in file order.
@@ -259,7 +260,7 @@ pub(super) fn parse_obj(label: &str, text: &str) -> Result<ObjMesh, SceneError> 
                 if !(3..=7).contains(&count) {
                     return Err(err(format!("v needs 3 coordinates, found {count} numbers")));
                 }
-                mesh.positions.push(Vec3::from_array(xyz));
+                mesh.positions.push(DVec3::from_array(xyz));
             }
             "f" => {
                 let corners = tokens
@@ -495,32 +496,30 @@ fn parse_colour(args: &[&str]) -> Result<Rgb, String> {
 
 /// A mesh placement: scale, then rotate (Euler degrees about X, then Y, then Z), then
 /// translate.
+///
+/// Kept as three steps rather than one affine matrix: folding the scale into the
+/// rotation (glam's `DAffine3::from_scale_rotation_translation`) would round
+/// `(r * s) * p` where the loader has always rounded `r * (s * p)`, and the welded
+/// vertices of every shipped mesh depend on those bits.
 #[derive(Clone, Debug, PartialEq)]
 pub(super) struct Transform {
-    scale: Vec3,
-    /// Rows of the rotation matrix `Rz * Ry * Rx`.
-    rotation: [Vec3; 3],
-    translate: Vec3,
+    scale: DVec3,
+    /// The rotation `Rz * Ry * Rx`.
+    rotation: DMat3,
+    translate: DVec3,
 }
 
 impl Transform {
     /// Builds a transform from scale factors, Euler angles in degrees and a translation.
-    pub(super) fn new(scale: Vec3, rotate_deg: Vec3, translate: Vec3) -> Self {
-        let (sx, cx) = rotate_deg.x.to_radians().sin_cos();
-        let (sy, cy) = rotate_deg.y.to_radians().sin_cos();
-        let (sz, cz) = rotate_deg.z.to_radians().sin_cos();
-        let rx = [Vec3::new(1.0, 0.0, 0.0), Vec3::new(0.0, cx, -sx), Vec3::new(0.0, sx, cx)];
-        let ry = [Vec3::new(cy, 0.0, sy), Vec3::new(0.0, 1.0, 0.0), Vec3::new(-sy, 0.0, cy)];
-        let rz = [Vec3::new(cz, -sz, 0.0), Vec3::new(sz, cz, 0.0), Vec3::new(0.0, 0.0, 1.0)];
-        let rotation = mat_mul(&rz, &mat_mul(&ry, &rx));
+    pub(super) fn new(scale: DVec3, rotate_deg: DVec3, translate: DVec3) -> Self {
+        let [x, y, z] = rotate_deg.to_array().map(f64::to_radians);
+        let rotation = DMat3::from_rotation_z(z) * (DMat3::from_rotation_y(y) * DMat3::from_rotation_x(x));
         Transform { scale, rotation, translate }
     }
 
     /// Applies the transform to a point.
-    pub(super) fn apply(&self, p: Vec3) -> Vec3 {
-        let s = Vec3::new(p.x * self.scale.x, p.y * self.scale.y, p.z * self.scale.z);
-        let [r0, r1, r2] = &self.rotation;
-        Vec3::new(r0.dot(s), r1.dot(s), r2.dot(s)) + self.translate
+    pub(super) fn apply(&self, p: DVec3) -> DVec3 {
+        self.rotation * (p * self.scale) + self.translate
     }
 
     /// True when the transform mirrors space (negative determinant), so that triangles
@@ -528,13 +527,6 @@ impl Transform {
     pub(super) fn flips_winding(&self) -> bool {
         self.scale.x * self.scale.y * self.scale.z < 0.0
     }
-}
-
-/// Product of two 3x3 matrices given as rows.
-fn mat_mul(a: &[Vec3; 3], b: &[Vec3; 3]) -> [Vec3; 3] {
-    let col = |j: usize| Vec3::new(b[0][j], b[1][j], b[2][j]);
-    let row = |r: &Vec3| Vec3::new(r.dot(col(0)), r.dot(col(1)), r.dot(col(2)));
-    [row(&a[0]), row(&a[1]), row(&a[2])]
 }
 
 #[cfg(test)]
@@ -663,16 +655,16 @@ mod tests {
 
     #[test]
     fn rotation_is_x_then_y_then_z() {
-        let t = Transform::new(Vec3::new(1.0, 1.0, 1.0), Vec3::new(90.0, 90.0, 0.0), Vec3::ZERO);
+        let t = Transform::new(DVec3::new(1.0, 1.0, 1.0), DVec3::new(90.0, 90.0, 0.0), DVec3::ZERO);
         // (0,1,0) --X 90--> (0,0,1) --Y 90--> (1,0,0).
-        let p = t.apply(Vec3::new(0.0, 1.0, 0.0));
-        assert!((p - Vec3::new(1.0, 0.0, 0.0)).length() < 1e-12, "{p:?}");
-        let t = Transform::new(Vec3::new(2.0, 3.0, 4.0), Vec3::new(0.0, 0.0, 90.0), Vec3::new(1.0, 1.0, 1.0));
+        let p = t.apply(DVec3::new(0.0, 1.0, 0.0));
+        assert!((p - DVec3::new(1.0, 0.0, 0.0)).length() < 1e-12, "{p:?}");
+        let t = Transform::new(DVec3::new(2.0, 3.0, 4.0), DVec3::new(0.0, 0.0, 90.0), DVec3::new(1.0, 1.0, 1.0));
         // (1,1,1) --scale--> (2,3,4) --Z 90--> (-3,2,4) --translate--> (-2,3,5).
-        let p = t.apply(Vec3::new(1.0, 1.0, 1.0));
-        assert!((p - Vec3::new(-2.0, 3.0, 5.0)).length() < 1e-12, "{p:?}");
+        let p = t.apply(DVec3::new(1.0, 1.0, 1.0));
+        assert!((p - DVec3::new(-2.0, 3.0, 5.0)).length() < 1e-12, "{p:?}");
         assert!(!t.flips_winding());
-        assert!(Transform::new(Vec3::new(-1.0, 1.0, 1.0), Vec3::ZERO, Vec3::ZERO).flips_winding());
-        assert!(!Transform::new(Vec3::new(-1.0, -1.0, 1.0), Vec3::ZERO, Vec3::ZERO).flips_winding());
+        assert!(Transform::new(DVec3::new(-1.0, 1.0, 1.0), DVec3::ZERO, DVec3::ZERO).flips_winding());
+        assert!(!Transform::new(DVec3::new(-1.0, -1.0, 1.0), DVec3::ZERO, DVec3::ZERO).flips_winding());
     }
 }

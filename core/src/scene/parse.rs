@@ -18,7 +18,9 @@ use super::model::{
     Camera, CameraPath, Exposure, GridSpec, Light, Material, PatchDef, RenderSettings, Scene, SourceLoc, Spot,
 };
 use super::obj::{self, MaterialTable, MeshEntry, Transform};
-use crate::math::{Rgb, Vec3};
+use crate::color::Rgb;
+use crate::math::Normalized;
+use glam::DVec3;
 
 /// A spanned list of numbers (a point, a direction or a colour before checking).
 type SVec = Spanned<Vec<f64>>;
@@ -294,8 +296,8 @@ impl<'a> Ctx<'a> {
         Ok(out)
     }
 
-    fn vec3(&self, v: &SVec, field: &str) -> Result<Vec3, SceneError> {
-        self.triple(v, field, XYZ_NAMES).map(Vec3::from_array)
+    fn vec3(&self, v: &SVec, field: &str) -> Result<DVec3, SceneError> {
+        self.triple(v, field, XYZ_NAMES).map(DVec3::from_array)
     }
 
     /// A colour whose channels lie in `[0, hi]`.
@@ -318,14 +320,14 @@ impl<'a> Ctx<'a> {
         let look_at = self.vec3(&raw.look_at, &f("look_at"))?;
         let up = match &raw.up {
             Some(u) => self.vec3(u, &f("up"))?,
-            None => Vec3::new(0.0, 1.0, 0.0),
+            None => DVec3::new(0.0, 1.0, 0.0),
         };
         let fov_y_deg = self.float_in(&raw.fov, &f("fov"), 0.0, true, 180.0)?;
         if fov_y_deg >= 180.0 {
             return Err(self.err(&raw.fov, f("fov"), format!("{fov_y_deg} is out of range (0, 180)")));
         }
         let view = look_at - eye;
-        if view.length() <= 1e-12 * (1.0 + eye.abs().max_component()) {
+        if view.length() <= 1e-12 * (1.0 + eye.abs().max_element()) {
             return Err(self.err(&raw.look_at, f("look_at"), "look_at is the eye position: no view direction"));
         }
         if view.normalized().cross(up.normalized()).length() < 1e-9 {
@@ -507,12 +509,12 @@ impl PatchBuilder<'_, '_> {
     }
 
     /// The corners of a `[[triangle]]`/`[[quad]]`, exactly `N` points.
-    fn corners<const N: usize>(&self, p: &RawPolygon, field: &str) -> Result<[Vec3; N], SceneError> {
+    fn corners<const N: usize>(&self, p: &RawPolygon, field: &str) -> Result<[DVec3; N], SceneError> {
         let pts = p.vertices.get_ref();
         if pts.len() != N {
             return Err(self.cx.err(&p.vertices, field, format!("expected {N} vertices, found {}", pts.len())));
         }
-        let mut out = [Vec3::ZERO; N];
+        let mut out = [DVec3::ZERO; N];
         for (k, (o, v)) in out.iter_mut().zip(pts).enumerate() {
             let [x, y, z] = v.as_slice() else {
                 return Err(self.cx.err(
@@ -521,7 +523,7 @@ impl PatchBuilder<'_, '_> {
                     format!("vertex {k} has {} coordinates, expected 3", v.len()),
                 ));
             };
-            *o = Vec3::new(*x, *y, *z);
+            *o = DVec3::new(*x, *y, *z);
             if !o.is_finite() {
                 return Err(self.cx.err(&p.vertices, field, format!("vertex {k} = {:?} is not finite", v)));
             }
@@ -531,7 +533,7 @@ impl PatchBuilder<'_, '_> {
 
     fn triangle(&mut self, i: usize, t: &RawPolygon) -> Result<(), SceneError> {
         let field = format!("triangle[{i}].vertices");
-        let v: [Vec3; 3] = self.corners(t, &field)?;
+        let v: [DVec3; 3] = self.corners(t, &field)?;
         if is_degenerate(&v) {
             return Err(self.cx.err(&t.vertices, field, format!("triangle[{i}] is degenerate (zero area)")));
         }
@@ -549,7 +551,7 @@ impl PatchBuilder<'_, '_> {
 
     fn quad(&mut self, i: usize, q: &RawPolygon) -> Result<(), SceneError> {
         let field = format!("quad[{i}].vertices");
-        let v: [Vec3; 4] = self.corners(q, &field)?;
+        let v: [DVec3; 4] = self.corners(q, &field)?;
         check_quad(&v).map_err(|why| self.cx.err(&q.vertices, &field, format!("quad[{i}] {why}")))?;
         let material = self.material_ref(&q.material, &format!("quad[{i}].material"))?;
         let subdivisions = self.subdivisions(&q.subdivisions, &format!("quad[{i}].subdivisions"))?;
@@ -577,11 +579,11 @@ impl PatchBuilder<'_, '_> {
     ) -> Result<(), SceneError> {
         let cx = self.cx;
         let f = |name: &str| format!("mesh[{i}].{name}");
-        let translate = m.translate.as_ref().map(|v| cx.vec3(v, &f("translate"))).transpose()?.unwrap_or(Vec3::ZERO);
-        let rotate = m.rotate.as_ref().map(|v| cx.vec3(v, &f("rotate"))).transpose()?.unwrap_or(Vec3::ZERO);
+        let translate = m.translate.as_ref().map(|v| cx.vec3(v, &f("translate"))).transpose()?.unwrap_or(DVec3::ZERO);
+        let rotate = m.rotate.as_ref().map(|v| cx.vec3(v, &f("rotate"))).transpose()?.unwrap_or(DVec3::ZERO);
         let scale = match &m.scale {
             Some(v) => self.scale(v, &f("scale"))?,
-            None => Vec3::new(1.0, 1.0, 1.0),
+            None => DVec3::new(1.0, 1.0, 1.0),
         };
         let subdivisions = self.subdivisions(&m.subdivisions, &f("subdivisions"))?;
         let material = m.material.as_ref().map(|s| self.material_ref(s, &f("material"))).transpose()?;
@@ -598,7 +600,7 @@ impl PatchBuilder<'_, '_> {
         Ok(())
     }
 
-    fn scale(&self, v: &Spanned<toml::Value>, field: &str) -> Result<Vec3, SceneError> {
+    fn scale(&self, v: &Spanned<toml::Value>, field: &str) -> Result<DVec3, SceneError> {
         let num = |x: &toml::Value| match x {
             toml::Value::Integer(i) => Some(*i as f64),
             toml::Value::Float(f) => Some(*f),
@@ -608,12 +610,12 @@ impl PatchBuilder<'_, '_> {
             toml::Value::Array(a) if a.len() == 3 => {
                 let c: Vec<f64> = a.iter().filter_map(num).collect();
                 match c.as_slice() {
-                    [x, y, z] => Vec3::new(*x, *y, *z),
+                    [x, y, z] => DVec3::new(*x, *y, *z),
                     _ => return Err(self.cx.err(v, field, "expected a number or [sx, sy, sz]")),
                 }
             }
             other => match num(other) {
-                Some(x) => Vec3::new(x, x, x),
+                Some(x) => DVec3::new(x, x, x),
                 None => return Err(self.cx.err(v, field, format!("expected a number or [sx, sy, sz], found {other}"))),
             },
         };
@@ -627,7 +629,7 @@ impl PatchBuilder<'_, '_> {
 }
 
 /// True when a triangle has (numerically) zero area: `|cross| <= 1e-12 * longest_edge^2`.
-pub(super) fn is_degenerate(v: &[Vec3; 3]) -> bool {
+pub(super) fn is_degenerate(v: &[DVec3; 3]) -> bool {
     let (e0, e1, e2) = (v[1] - v[0], v[2] - v[1], v[0] - v[2]);
     let longest2 = e0.length_squared().max(e1.length_squared()).max(e2.length_squared());
     let area2 = e0.cross(v[2] - v[0]).length();
@@ -636,7 +638,7 @@ pub(super) fn is_degenerate(v: &[Vec3; 3]) -> bool {
 
 /// Checks that a quad is planar (within 1e-6 of its longest edge) and strictly convex with
 /// its vertices in order; the error says why not.
-fn check_quad(v: &[Vec3; 4]) -> Result<(), String> {
+fn check_quad(v: &[DVec3; 4]) -> Result<(), String> {
     let longest =
         (0..4).flat_map(|a| (a + 1..4).map(move |b| (a, b))).map(|(a, b)| (v[b] - v[a]).length()).fold(0.0, f64::max);
     let n = (v[2] - v[0]).cross(v[3] - v[1]);
@@ -759,7 +761,7 @@ material = \"white\"
     fn minimal_scene_parses_with_defaults() {
         let s = parse(MINI).unwrap();
         assert_eq!(s.name, "t.toml");
-        assert_eq!(s.camera.up, Vec3::new(0.0, 1.0, 0.0));
+        assert_eq!(s.camera.up, DVec3::new(0.0, 1.0, 0.0));
         assert_eq!(s.settings, RenderSettings::default());
         assert_eq!(s.patches.len(), 1);
         assert_eq!(s.patches[0].loc, SourceLoc { file: "t.toml".into(), line: 15 });
@@ -903,7 +905,7 @@ material = \"white\"
         let spot = "intensity = [1, 1, 1]\ndirection = [0, -2, 0]\ncone = 30\nfalloff = 5";
         let s = parse(&MINI.replace("intensity = [1, 1, 1]", spot)).unwrap();
         let sp = s.lights[0].spot.clone().unwrap();
-        assert_eq!(sp.direction, Vec3::new(0.0, -1.0, 0.0));
+        assert_eq!(sp.direction, DVec3::new(0.0, -1.0, 0.0));
         assert_eq!((sp.half_angle_deg, sp.falloff_deg), (30.0, 5.0));
         let e = err(&MINI.replace("intensity = [1, 1, 1]", "intensity = [1, 1, 1]\ncone = 30"));
         assert!(e.starts_with("t.toml:9: light[0].cone"), "{e}");
@@ -923,7 +925,7 @@ material = \"white\"
         let s = parse(&format!("{MINI}{QUAD}[render]\nelement_size = 0.5\n")).unwrap();
         assert_eq!(s.patches.len(), 3);
         let (a, b) = (&s.patches[1], &s.patches[2]);
-        let v = |x: f64, y: f64| Vec3::new(x, y, 0.0);
+        let v = |x: f64, y: f64| DVec3::new(x, y, 0.0);
         assert_eq!(a.vertices, [v(0.0, 0.0), v(2.0, 0.0), v(2.0, 1.0)]);
         assert_eq!(b.vertices, [v(0.0, 0.0), v(2.0, 1.0), v(0.0, 1.0)]);
         // Both halves carry the quad's longest edge incl. the diagonal: sqrt(5).
@@ -1003,8 +1005,8 @@ material = \"white\"
         let s = parse_with(&text, &[("base/m/cube.obj", obj)]).unwrap();
         let v = s.patches[1].vertices;
         // (1,0,0) -> scale (2,0,0) -> 90 deg about z (0,2,0) -> translate (10,2,0).
-        assert!((v[0] - Vec3::new(10.0, 2.0, 0.0)).length() < 1e-12, "{:?}", v[0]);
-        assert!((v[2] - Vec3::new(10.0, 0.0, 2.0)).length() < 1e-12, "{:?}", v[2]);
+        assert!((v[0] - DVec3::new(10.0, 2.0, 0.0)).length() < 1e-12, "{:?}", v[0]);
+        assert!((v[2] - DVec3::new(10.0, 0.0, 2.0)).length() < 1e-12, "{:?}", v[2]);
     }
 
     #[test]
@@ -1016,12 +1018,12 @@ material = \"white\"
             let v = s.patches[1].vertices;
             (v[1] - v[0]).cross(v[2] - v[0]).normalized()
         };
-        assert_eq!(normal(""), Vec3::new(0.0, 0.0, 1.0));
+        assert_eq!(normal(""), DVec3::new(0.0, 0.0, 1.0));
         // Mirroring x alone maps the +z normal to +z; without the re-flip it would be -z.
-        assert_eq!(normal("scale = [-1, 1, 1]"), Vec3::new(0.0, 0.0, 1.0));
+        assert_eq!(normal("scale = [-1, 1, 1]"), DVec3::new(0.0, 0.0, 1.0));
         // Mirroring z mirrors the surface too: its front now faces -z, like a box's top face
         // becoming its bottom face (normal = M^-T n, as for a closed mesh staying outward).
-        assert_eq!(normal("scale = [1, 1, -3]"), Vec3::new(0.0, 0.0, -1.0));
+        assert_eq!(normal("scale = [1, 1, -3]"), DVec3::new(0.0, 0.0, -1.0));
         let e = err(&mesh_scene("material = \"white\"\nscale = [1, 0, 1]\n"));
         assert!(e.contains("mesh[0].scale"), "{e}");
     }

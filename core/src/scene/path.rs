@@ -21,6 +21,7 @@ use toml::Spanned;
 use super::error::SceneError;
 use super::model::CameraPath;
 use super::parse::{Ctx, RawCamera};
+use crate::math::Normalized;
 
 /// Most frames a path may ask for.
 const MAX_FRAMES: i64 = 100_000;
@@ -53,7 +54,7 @@ impl Ctx<'_> {
         for f in 0..frames {
             let c = path.camera_at(f);
             let view = c.look_at - c.eye;
-            let ok = view.length() > 1e-12 * (1.0 + c.eye.abs().max_component())
+            let ok = view.length() > 1e-12 * (1.0 + c.eye.abs().max_element())
                 && view.normalized().cross(c.up.normalized()).length() >= 1e-9
                 && c.up.normalized().is_finite();
             if !ok {
@@ -67,8 +68,8 @@ impl Ctx<'_> {
 
 #[cfg(test)]
 mod tests {
-    use crate::math::Vec3;
     use crate::scene::parse_scene_with_path;
+    use glam::DVec3;
 
     const BASE: &str = "[[light]]\nposition = [0, 1.9, 0]\nintensity = [1, 1, 1]\n\n[[material]]\nname = \"w\"\n\
                         diffuse = [0.7, 0.7, 0.7]\n\n[[triangle]]\nvertices = [[0, 0, 0], [1, 0, 0], [0, 1, 0]]\n\
@@ -97,13 +98,13 @@ mod tests {
         let p = p.unwrap();
         let cams = p.cameras();
         assert_eq!(cams.len(), 3);
-        assert_eq!(cams[0].eye, Vec3::new(0.0, 1.0, 4.0));
-        assert_eq!(cams[1].eye, Vec3::new(1.0, 1.0, 4.0));
+        assert_eq!(cams[0].eye, DVec3::new(0.0, 1.0, 4.0));
+        assert_eq!(cams[1].eye, DVec3::new(1.0, 1.0, 4.0));
         assert_eq!(cams[1].fov_y_deg, 50.0);
-        assert_eq!(cams[2].eye, Vec3::new(2.0, 1.0, 4.0));
+        assert_eq!(cams[2].eye, DVec3::new(2.0, 1.0, 4.0));
         assert_eq!(scene.camera, cams[0], "no [camera]: the path's first frame");
         let (_, one) = parse(&path("5", &[a])).unwrap();
-        assert!(one.unwrap().cameras().iter().all(|c| c.eye == Vec3::new(0.0, 1.0, 4.0)));
+        assert!(one.unwrap().cameras().iter().all(|c| c.eye == DVec3::new(0.0, 1.0, 4.0)));
     }
 
     #[test]

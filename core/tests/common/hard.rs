@@ -3,11 +3,12 @@
 #![allow(dead_code)]
 
 use crate::common::*;
+use glam::DVec3;
+use magg_core::color::Rgb;
 use magg_core::energy::from_fixed;
 use magg_core::geometry::{intersect_watertight, Ray};
 use magg_core::lrt::LrtTally;
 use magg_core::machine::RenderOutput;
-use magg_core::math::{Rgb, Vec3};
 use magg_core::preprocess::PreparedScene;
 use magg_core::scene::Scene;
 use magg_core::trace::{cast, Hit, TraceScratch};
@@ -18,14 +19,14 @@ pub fn fluxes(p: &PreparedScene, out: &RenderOutput) -> Vec<f64> {
     out.element_flux.iter().map(|f| from_fixed(*f, p.header.energy_quantum).0[0]).collect()
 }
 
-/// The offset rule of the kernels (`lrt::offset_scale`, crate-private), restated: a new
+/// The offset rule of the kernels (`scatter::offset_scale`), restated here: a new
 /// ray starts `1e-9 (1 + max |p|)` off the surface.
-pub fn offset_rule(p: Vec3) -> f64 {
-    1e-9 * (1.0 + p.abs().max_component())
+pub fn offset_rule(p: DVec3) -> f64 {
+    1e-9 * (1.0 + p.abs().max_element())
 }
 
 /// `p` moved by `offset_rule(p)` along `n`.
-pub fn spawn_origin(p: Vec3, n: Vec3) -> Vec3 {
+pub fn spawn_origin(p: DVec3, n: DVec3) -> DVec3 {
     p + n * offset_rule(p)
 }
 
@@ -81,8 +82,8 @@ pub fn assert_render_finite(label: &str, out: &RenderOutput) {
 
 /// Translates and scales every position of a scene (patches, lights, camera):
 /// `p -> p * scale + offset`.
-pub fn transform(s: &Scene, scale: f64, offset: Vec3) -> Scene {
-    let f = |p: Vec3| p * scale + offset;
+pub fn transform(s: &Scene, scale: f64, offset: DVec3) -> Scene {
+    let f = |p: DVec3| p * scale + offset;
     let mut t = s.clone();
     for pd in &mut t.patches {
         pd.vertices = pd.vertices.map(f);

@@ -1,9 +1,10 @@
 //! Scene builders for the core's integration tests.
 #![allow(dead_code)]
 
+use glam::DVec3;
 use magg_core::blocks::{BlockCache, MemStore};
+use magg_core::color::Rgb;
 use magg_core::machine::RenderOutput;
-use magg_core::math::{Rgb, Vec3};
 use magg_core::preprocess::{prepare, PreparedScene};
 use magg_core::progress::NoProgress;
 use magg_core::render::{render, RenderOptions};
@@ -11,8 +12,8 @@ use magg_core::scene::*;
 use magg_core::view::SceneView;
 use std::sync::Arc;
 
-pub fn v(x: f64, y: f64, z: f64) -> Vec3 {
-    Vec3::new(x, y, z)
+pub fn v(x: f64, y: f64, z: f64) -> DVec3 {
+    DVec3::new(x, y, z)
 }
 
 pub fn loc() -> SourceLoc {
@@ -30,12 +31,12 @@ pub fn material(name: &str, diffuse: f64, mirror: f64, transmit: f64) -> Materia
     }
 }
 
-pub fn light(p: Vec3, i: f64) -> Light {
+pub fn light(p: DVec3, i: f64) -> Light {
     Light { position: p, intensity: Rgb::splat(i), spot: None, loc: loc() }
 }
 
 /// A quad (a, b, c, d), counter-clockwise from the front, as two triangles sharing n.
-pub fn quad(a: Vec3, b: Vec3, c: Vec3, d: Vec3, material: u32, n: u32) -> Vec<PatchDef> {
+pub fn quad(a: DVec3, b: DVec3, c: DVec3, d: DVec3, material: u32, n: u32) -> Vec<PatchDef> {
     vec![
         PatchDef { vertices: [a, b, c], material, subdivisions: Some(n), size_hint: None, loc: loc() },
         PatchDef { vertices: [a, c, d], material, subdivisions: Some(n), size_hint: None, loc: loc() },
@@ -43,7 +44,7 @@ pub fn quad(a: Vec3, b: Vec3, c: Vec3, d: Vec3, material: u32, n: u32) -> Vec<Pa
 }
 
 /// An axis-aligned box from `lo` to `hi` with faces facing inward (a room) or outward.
-pub fn boxed(lo: Vec3, hi: Vec3, material: u32, n: u32, inward: bool) -> Vec<PatchDef> {
+pub fn boxed(lo: DVec3, hi: DVec3, material: u32, n: u32, inward: bool) -> Vec<PatchDef> {
     let c = |x: bool, y: bool, z: bool| {
         v(if x { hi.x } else { lo.x }, if y { hi.y } else { lo.y }, if z { hi.z } else { lo.z })
     };
@@ -102,14 +103,14 @@ pub fn view_of(p: &PreparedScene) -> SceneView {
 }
 
 /// A single triangle patch with a fixed subdivision count.
-pub fn tri(a: Vec3, b: Vec3, c: Vec3, material: u32, n: u32) -> PatchDef {
+pub fn tri(a: DVec3, b: DVec3, c: DVec3, material: u32, n: u32) -> PatchDef {
     PatchDef { vertices: [a, b, c], material, subdivisions: Some(n), size_hint: None, loc: loc() }
 }
 
 /// A closed octahedron of 8 patches (vertices at +-1 on each axis, outward winding),
 /// n elements per patch edge, one white material, one light at `light_at`, and a fixed
 /// `grid` of subspaces.
-pub fn octahedron(n: u32, light_at: Vec3, grid: [u32; 3]) -> Scene {
+pub fn octahedron(n: u32, light_at: DVec3, grid: [u32; 3]) -> Scene {
     let (px, nx, py, ny, pz, nz) =
         (v(1.0, 0.0, 0.0), v(-1.0, 0.0, 0.0), v(0.0, 1.0, 0.0), v(0.0, -1.0, 0.0), v(0.0, 0.0, 1.0), v(0.0, 0.0, -1.0));
     let faces = [

@@ -4,6 +4,7 @@
 use crate::error::ForkError;
 use crate::locks::{read, write};
 use bytes::Bytes;
+use magg_core::blocks::fork_of_block;
 use std::sync::RwLock;
 
 /// The owned blocks of fork `index` of `forks`, by local index `id / forks`.
@@ -28,7 +29,7 @@ impl BlockStore {
 
     /// The fork holding block `id`.
     pub fn owner(&self, id: u32) -> u32 {
-        id % self.forks
+        fork_of_block(id, self.forks)
     }
 
     /// Refuses ids past the scene's last block.

@@ -5,8 +5,10 @@
 //! flux is measured against it: the bias that the element size leaves, which more light
 //! rays cannot remove (each element's flux is exactly I x Omega whatever the ray count).
 
+use glam::DVec3;
+use magg_core::color::Rgb;
 use magg_core::lrt::LrtTally;
-use magg_core::math::{Rgb, Vec3};
+use magg_core::math::Normalized;
 use magg_core::preprocess::PreparedScene;
 
 /// True when the closed form holds for a render of `prepared` whose light pass reported
@@ -20,7 +22,7 @@ pub fn applies(prepared: &PreparedScene, tally: &LrtTally) -> bool {
 }
 
 /// Closed-form irradiance at `p` on a surface with unit normal `n`.
-pub fn irradiance_at(prepared: &PreparedScene, p: Vec3, n: Vec3) -> Rgb {
+pub fn irradiance_at(prepared: &PreparedScene, p: DVec3, n: DVec3) -> Rgb {
     prepared.header.lights.iter().fold(Rgb::BLACK, |acc, l| {
         let d = l.position - p;
         let r2 = d.dot(d);
@@ -33,9 +35,9 @@ pub fn irradiance_at(prepared: &PreparedScene, p: Vec3, n: Vec3) -> Rgb {
 }
 
 /// Unit normal of every vertex: the area-weighted mean of its elements' normals.
-fn vertex_normals(prepared: &PreparedScene) -> Vec<Vec3> {
+fn vertex_normals(prepared: &PreparedScene) -> Vec<DVec3> {
     let p = &prepared.vertex_positions;
-    let mut n = vec![Vec3::ZERO; p.len()];
+    let mut n = vec![DVec3::ZERO; p.len()];
     for e in &prepared.elements {
         let [a, b, c] = e.vertices.map(|v| v as usize);
         if a >= p.len() || b >= p.len() || c >= p.len() {
@@ -46,7 +48,7 @@ fn vertex_normals(prepared: &PreparedScene) -> Vec<Vec3> {
             n[v] = n[v] + w;
         }
     }
-    n.into_iter().map(|v| if v == Vec3::ZERO { v } else { v.normalized() }).collect()
+    n.into_iter().map(|v| if v == DVec3::ZERO { v } else { v.normalized() }).collect()
 }
 
 /// Relative RMSE of `vertex_irradiance` against the closed form: the RMSE over vertices

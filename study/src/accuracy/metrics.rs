@@ -3,8 +3,8 @@
 //! of element irradiance. Every function returns a finite number or `None`, never NaN,
 //! so that the CSV has no NaN in it.
 
+use magg_core::color::Rgb;
 use magg_core::frame::Frame;
-use magg_core::math::Rgb;
 
 /// PSNR reported for identical 8-bit images (and the ceiling of any PSNR), in dB.
 pub const PSNR_CAP_DB: f64 = 100.0;

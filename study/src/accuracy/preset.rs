@@ -67,12 +67,12 @@ pub fn scale_elements(scene: &mut Scene, factor: f64) {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use magg_core::math::Vec3;
+    use glam::DVec3;
     use magg_core::scene::{Camera, PatchDef, RenderSettings, SourceLoc};
 
     fn scene() -> Scene {
         let patch = |subdivisions| PatchDef {
-            vertices: [Vec3::ZERO, Vec3::new(1.0, 0.0, 0.0), Vec3::new(0.0, 1.0, 0.0)],
+            vertices: [DVec3::ZERO, DVec3::new(1.0, 0.0, 0.0), DVec3::new(0.0, 1.0, 0.0)],
             material: 0,
             subdivisions,
             size_hint: None,
@@ -81,9 +81,9 @@ mod tests {
         Scene {
             name: "t".into(),
             camera: Camera {
-                eye: Vec3::ZERO,
-                look_at: Vec3::new(0.0, 0.0, -1.0),
-                up: Vec3::new(0.0, 1.0, 0.0),
+                eye: DVec3::ZERO,
+                look_at: DVec3::new(0.0, 0.0, -1.0),
+                up: DVec3::new(0.0, 1.0, 0.0),
                 fov_y_deg: 45.0,
             },
             settings: RenderSettings { element_size: 0.2, light_rays: 16, pixel_samples: 2, ..Default::default() },
