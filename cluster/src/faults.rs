@@ -1,7 +1,7 @@
 //! How the cluster copes with lost processes, and who may join: the host's fault policy
 //! (the `magg-host render` flags that fill it are the application's).
 
-use magg_proto::auth::Token;
+use magg_plumbing::auth::Token;
 use std::time::Duration;
 
 /// How the cluster copes with lost processes, and who may join: [`FaultArgs`] checked.
@@ -14,7 +14,7 @@ pub struct FaultPolicy {
     /// Cluster token: presented to forks, required from nodes (none: no check).
     pub token: Token,
     /// TLS files, installed when the render reaches other processes.
-    pub tls: magg_proto::tls::TlsFiles,
+    pub tls: magg_plumbing::tls::TlsFiles,
 }
 
 impl Default for FaultPolicy {
@@ -34,7 +34,7 @@ impl FaultPolicy {
     /// ignores them, saying so.
     pub fn install_tls(&self, external: bool) -> anyhow::Result<()> {
         if external {
-            magg_proto::tls::install_files(&self.tls)?;
+            magg_plumbing::tls::install_files(&self.tls)?;
         } else if !self.tls.is_empty() {
             tracing::warn!("TLS files ignored: forks and nodes run inside this process");
         }

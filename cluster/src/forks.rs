@@ -21,7 +21,9 @@
 use crate::FaultPolicy;
 use anyhow::{bail, Context};
 use magg_core::preprocess::PreparedScene;
-use magg_proto::auth::{AddToken, Authed, Token};
+use magg_plumbing::auth::{AddToken, Authed, Token};
+use magg_plumbing::retry::{self, Backoff};
+use magg_plumbing::with_message_limits;
 use magg_proto::convert::scene_blocks_to_wire;
 use magg_proto::v1::fork_client::ForkClient;
 use magg_proto::v1::{self, GetEnergiesRequest, LoadShardRequest, PutBlocksRequest};
@@ -61,10 +63,8 @@ pub struct ForkSet {
 }
 
 async fn connect(addr: &str, token: &Token) -> anyhow::Result<ForkClient<Authed>> {
-    let ch = magg_node::connect_with_backoff(addr, magg_node::Backoff::default()).await?;
-    Ok(ForkClient::with_interceptor(ch, AddToken(token.clone()))
-        .max_decoding_message_size(512 << 20)
-        .max_encoding_message_size(512 << 20))
+    let ch = retry::connect_with_backoff(addr, Backoff::default()).await?;
+    Ok(with_message_limits!(ForkClient::with_interceptor(ch, AddToken(token.clone()))))
 }
 
 /// Sends `req` to the fork `name` behind `client`, retrying while it is unavailable
@@ -75,14 +75,14 @@ async fn load_shard(
     timeout: Duration,
     req: LoadShardRequest,
 ) -> anyhow::Result<()> {
-    let backoff = magg_node::Backoff { deadline: timeout, ..Default::default() };
-    magg_node::retry("LoadShard", backoff, || {
+    let backoff = Backoff { deadline: timeout, ..Default::default() };
+    retry::retry("LoadShard", backoff, || {
         let (mut c, req) = (client.clone(), req.clone());
         async move { c.load_shard(req).await }
     })
     .await
     .map_err(|e| {
-        let hint = magg_proto::tls::mismatch_hint(&e.to_string());
+        let hint = magg_plumbing::tls::mismatch_hint(&e.to_string());
         anyhow::Error::new(e).context(format!("loading the shard of {name}{hint}"))
     })?;
     Ok(())
@@ -223,8 +223,7 @@ impl ForkSet {
             Ok(Err(s)) => s,
             Err(_) => tonic::Status::deadline_exceeded(format!("no answer within {POLL_TIMEOUT:?}")),
         };
-        let restarted =
-            status.code() == Code::Unavailable && status.message() == magg_fork::ForkError::NotLoaded.to_string();
+        let restarted = status.code() == Code::Unavailable && status.message() == magg_proto::NOT_LOADED;
         if restarted {
             tracing::warn!("{} restarted: loading its shard again", self.name(i));
             if lrt_pending {
@@ -255,7 +254,7 @@ impl ForkSet {
         for j in (0..self.len()).filter(|&j| j != i) {
             let name = self.name(j);
             let req = v1::ReplayRequest { epoch: self.epoch, lost_fork: Some(i as u32) };
-            magg_node::retry("Replay", magg_node::Backoff { deadline: self.timeout, ..Default::default() }, || {
+            retry::retry("Replay", Backoff { deadline: self.timeout, ..Default::default() }, || {
                 let (mut c, req) = (self.clients[j].clone(), req.clone());
                 async move { c.replay(req).await }
             })

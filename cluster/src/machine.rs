@@ -18,7 +18,8 @@ use magg_core::preprocess::PreparedScene;
 use magg_core::progress::Progress;
 use magg_core::stats::EmulatedBusy;
 use magg_core::vrt::Subscreen;
-use magg_proto::auth::CheckToken;
+use magg_plumbing::auth::CheckToken;
+use magg_plumbing::with_message_limits;
 use magg_proto::v1;
 use magg_proto::v1::host_server::HostServer;
 use magg_throttle::{Profile, Scheme};
@@ -58,17 +59,6 @@ pub struct DriveOptions {
     pub started: Instant,
 }
 
-/// Accepted connections with Nagle's algorithm off: the protocol is many small
-/// request/reply pairs, which Nagle plus delayed ACKs would stall for tens of ms each.
-fn nodelay_incoming(listener: TcpListener) -> impl tokio_stream::Stream<Item = std::io::Result<tokio::net::TcpStream>> {
-    use tokio_stream::StreamExt;
-    tokio_stream::wrappers::TcpListenerStream::new(listener).map(|r| {
-        r.inspect(|s| {
-            let _ = s.set_nodelay(true);
-        })
-    })
-}
-
 /// Sets the phase to [`Phase::Done`] when dropped: a render that fails still lets the
 /// nodes go.
 struct DoneOnDrop(HostService);
@@ -83,7 +73,7 @@ impl Drop for DoneOnDrop {
 pub(super) struct HostServerTask {
     stop_tx: Option<tokio::sync::oneshot::Sender<()>>,
     task: Option<tokio::task::JoinHandle<Result<(), tonic::transport::Error>>>,
-    _in_process: magg_proto::transport::Registration,
+    _in_process: magg_plumbing::transport::Registration,
 }
 
 impl HostServerTask {
@@ -175,22 +165,20 @@ impl ClusterMachine {
             pairs_epoch: 0,
         });
         let (stop_tx, stop_rx) = tokio::sync::oneshot::channel::<()>();
-        let (health, health_service) = magg_proto::lifecycle::health_service();
+        let (health, health_service) = magg_plumbing::health::health_service();
         health.set_serving::<HostServer<HostService>>().await;
         let host_server = InterceptedService::new(
-            HostServer::new(service.clone()).max_decoding_message_size(16 << 20),
+            with_message_limits!(HostServer::new(service.clone())),
             CheckToken { token: opts.faults.token.clone(), server: "host" },
         );
-        // Nodes of this process reach the host without a socket (see magg_proto::transport).
+        // Nodes of this process reach the host without a socket (see magg_plumbing::transport).
         let host_addr = listener.local_addr().context("the host listener's address")?;
-        let in_process = magg_proto::transport::register(&host_addr.to_string(), host_server.clone());
-        let server = magg_proto::tls::server_builder()
+        let in_process = magg_plumbing::transport::register(&host_addr.to_string(), host_server.clone());
+        let server = magg_plumbing::net::server()
             .map_err(|e| anyhow::anyhow!("host server TLS: {e}"))?
-            .initial_stream_window_size(Some(4 << 20))
-            .initial_connection_window_size(Some(16 << 20))
             .add_service(health_service)
             .add_service(host_server)
-            .serve_with_incoming_shutdown(nodelay_incoming(listener), async {
+            .serve_with_incoming_shutdown(magg_plumbing::net::nodelay_incoming(listener), async {
                 let _ = stop_rx.await;
             });
         let server =

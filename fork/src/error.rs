@@ -18,7 +18,7 @@ use tonic::{Code, Status};
 #[derive(Debug, thiserror::Error)]
 pub enum ForkError {
     /// An RPC other than `LoadShard` arrived before any scene was loaded.
-    #[error("no scene loaded")]
+    #[error("{}", magg_proto::NOT_LOADED)]
     NotLoaded,
     /// `LoadShard` with another hardware profile than the one this fork was started with.
     #[error("the host runs hardware profile {host:?} but this fork was started with --profile {fork:?}")]

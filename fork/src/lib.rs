@@ -18,16 +18,16 @@
 //!   request may carry the node's next `TakePairs`, answered once the deposits are in;
 //! - pairs are leased: a node that has not asked a fork for pairs for the lease
 //!   (`LoadShard.lease_ms`) loses its pairs there to the queue;
-//! - every call carries the cluster token when one is set ([`magg_proto::auth`]);
-//! - clients of a fork raise their decoding limit ([`connect`] does): a `GetBlocks` reply
-//!   of 4096 blocks is 8 MiB.
+//! - every call carries the cluster token when one is set ([`magg_plumbing::auth`]);
+//! - clients of a fork use the cluster's message size limits ([`connect`] does,
+//!   [`magg_plumbing::net`]): a `GetBlocks` reply of 4096 blocks is 8 MiB.
 //!
 //! ```no_run
 //! # async fn f() -> Result<(), Box<dyn std::error::Error>> {
 //! let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await?;
 //! let addr = listener.local_addr()?;
 //! let (stop, stopped) = tokio::sync::oneshot::channel::<()>();
-//! let token = magg_proto::auth::Token::default(); // none: fine on 127.0.0.1
+//! let token = magg_plumbing::auth::Token::default(); // none: fine on 127.0.0.1
 //! let server = tokio::spawn(magg_fork::serve(listener, token.clone(), async { stopped.await.ok(); }));
 //! let mut fork = magg_fork::connect(&addr.to_string(), &token).await?;
 //! // fork.load_shard(...), fork.get_blocks(...), fork.take_pairs(...), ...
@@ -50,6 +50,6 @@ pub mod shard;
 pub use error::ForkError;
 pub use hardware::ForkHardware;
 pub use peers::connect;
-pub use server::{fork_server, serve, serve_service, MAX_MESSAGE_BYTES};
+pub use server::{fork_server, serve, serve_service};
 pub use service::ForkService;
 pub use shard::Shard;

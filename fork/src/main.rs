@@ -25,44 +25,30 @@ struct Args {
     listen: SocketAddr,
     /// Profile, token and TLS: the flags every cluster process shares.
     #[command(flatten)]
-    cluster: magg_proto::lifecycle::ClusterArgs,
-    /// More log output (-v: debug, -vv: trace); RUST_LOG overrides.
+    cluster: magg_plumbing::flags::ClusterArgs,
+    /// More log output (-v: info, -vv: debug, -vvv: trace); RUST_LOG overrides.
     #[arg(short, long, action = clap::ArgAction::Count)]
     verbose: u8,
     /// Instead of serving: probe a process.
     #[command(subcommand)]
-    command: Option<magg_proto::lifecycle::ProbeCommand>,
+    command: Option<magg_plumbing::flags::ProbeCommand>,
 }
 
 fn main() -> ExitCode {
     let args = Args::parse();
-    if let Some(code) = magg_proto::lifecycle::start("magg-fork", &args.cluster, &args.command) {
+    if let Some(code) = magg_plumbing::lifecycle::start("magg-fork", &args.cluster, &args.command) {
         return code;
     }
-    init_tracing(args.verbose);
+    magg_plumbing::logging::init("magg-fork", args.verbose);
     match run(args) {
         Ok(()) => ExitCode::SUCCESS,
-        Err(e) => {
-            eprintln!("magg-fork: {e:#}");
-            ExitCode::FAILURE
-        }
+        Err(e) => magg_plumbing::logging::fail("magg-fork", format_args!("{e:#}")),
     }
-}
-
-fn init_tracing(verbose: u8) {
-    let level = match verbose {
-        0 => "info",
-        1 => "debug",
-        _ => "trace",
-    };
-    let filter = tracing_subscriber::EnvFilter::try_from_default_env()
-        .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new(format!("magg_fork={level},warn")));
-    tracing_subscriber::fmt().with_env_filter(filter).with_writer(std::io::stderr).init();
 }
 
 fn run(args: Args) -> anyhow::Result<()> {
-    let token = magg_proto::auth::Token::parse(args.cluster.token).context("--token")?;
-    if let Some(w) = magg_proto::auth::exposure_warning(args.listen, &token) {
+    let token = magg_plumbing::auth::Token::parse(args.cluster.token).context("--token")?;
+    if let Some(w) = magg_plumbing::auth::exposure_warning(args.listen, &token) {
         tracing::warn!("{w}");
     }
     let runtime = tokio::runtime::Builder::new_multi_thread().enable_all().build().context("starting the runtime")?;
@@ -71,14 +57,16 @@ fn run(args: Args) -> anyhow::Result<()> {
             .await
             .with_context(|| format!("cannot listen on {}", args.listen))?;
         let local = listener.local_addr().context("reading the bound address")?;
-        tracing::info!(%local, "fork listening");
+        // Not a log line: whoever started the fork (port 0 picks a free port) needs its
+        // address at every log level.
+        eprintln!("magg-fork: fork listening on {local}");
         let mut hw = magg_fork::ForkHardware::default();
         if let Some(p) = &args.cluster.profile {
             let profile = magg_throttle::Profile::named(p)?;
             hw = hw.pinned_to(&profile.name);
         }
         let service = magg_fork::ForkService::with_token(token.clone()).on_hardware(hw);
-        magg_fork::serve_service(service, token, listener, magg_proto::lifecycle::shutdown_signal())
+        magg_fork::serve_service(service, token, listener, magg_plumbing::lifecycle::shutdown_signal())
             .await
             .context("serving")?;
         tracing::info!("fork stopped");

@@ -2,12 +2,12 @@
 //!
 //! Connections are made on first use and cached; a connection that fails is dropped
 //! from the cache so that the next call reconnects. [`connect`] is also what nodes and
-//! the host use to reach a fork, with the message size limits a fork's replies need.
+//! the host use to reach a fork, with the cluster's limits ([`magg_plumbing::net`]).
 
 use crate::error::ForkError;
 use crate::locks::lock;
-use crate::server::MAX_MESSAGE_BYTES;
-use magg_proto::auth::{AddToken, Authed, Token};
+use magg_plumbing::auth::{AddToken, Authed, Token};
+use magg_plumbing::{net, retry, with_message_limits};
 use magg_proto::v1;
 use magg_proto::v1::fork_client::ForkClient;
 use std::collections::HashMap;
@@ -21,23 +21,18 @@ pub const CONNECT_TIMEOUT: Duration = Duration::from_secs(5);
 pub const PEER_CALL_TIMEOUT: Duration = Duration::from_secs(60);
 
 /// Connects to the fork at `addr` (`HOST:PORT`), presenting the cluster `token`, with the
-/// size limits of [`MAX_MESSAGE_BYTES`] both ways. Errors are
+/// cluster's limits ([`net::endpoint`], [`net::MAX_MESSAGE_BYTES`] both ways). Errors are
 /// [`ForkError::PeerUnavailable`] naming the address.
 pub async fn connect(addr: &str, token: &Token) -> Result<ForkClient<Authed>, ForkError> {
     let unavailable = |reason: String| ForkError::PeerUnavailable { addr: addr.to_string(), reason };
-    let endpoint = magg_proto::tls::endpoint(addr)
+    let endpoint = net::endpoint(addr)
         .map_err(|e| unavailable(format!("bad address: {e}")))?
         .connect_timeout(CONNECT_TIMEOUT)
-        .timeout(PEER_CALL_TIMEOUT)
-        .tcp_nodelay(true)
-        .initial_stream_window_size(Some(4 << 20))
-        .initial_connection_window_size(Some(16 << 20));
-    let channel = magg_proto::transport::connect(endpoint, Some(PEER_CALL_TIMEOUT))
+        .timeout(PEER_CALL_TIMEOUT);
+    let channel = magg_plumbing::transport::connect(endpoint, Some(PEER_CALL_TIMEOUT))
         .await
-        .map_err(|e| unavailable(magg_proto::error_chain(&e)))?;
-    Ok(ForkClient::with_interceptor(channel, AddToken(token.clone()))
-        .max_decoding_message_size(MAX_MESSAGE_BYTES)
-        .max_encoding_message_size(MAX_MESSAGE_BYTES))
+        .map_err(|e| unavailable(magg_plumbing::error_chain(&e)))?;
+    Ok(with_message_limits!(ForkClient::with_interceptor(channel, AddToken(token.clone()))))
 }
 
 /// Cached clients to the other forks of one render.
@@ -73,11 +68,11 @@ impl Peers {
     /// when the transport failed.
     fn failed(&self, fork: u32, status: tonic::Status) -> ForkError {
         let addr = self.addr(fork).to_string();
-        if matches!(status.code(), Code::Unavailable | Code::Unknown | Code::Cancelled | Code::DeadlineExceeded) {
+        if retry::transient(&status) || status.code() == Code::DeadlineExceeded {
             lock(&self.clients).remove(&fork);
         }
         // A peer unreachable, or whose connection broke under the call: the caller may retry.
-        if matches!(status.code(), Code::Unavailable | Code::Unknown | Code::Cancelled) {
+        if retry::transient(&status) {
             return ForkError::PeerUnavailable { addr, reason: status.message().to_string() };
         }
         ForkError::Peer { fork, addr, status }

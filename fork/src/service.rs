@@ -15,7 +15,7 @@ use crate::locks::{read, write};
 use crate::shard::{Shard, MAX_IDS_PER_REQUEST, MAX_PAIRS_PER_REQUEST};
 use bytes::Bytes;
 use magg_core::cluster::{DepositBatch, PairLease, ShardLoad};
-use magg_proto::auth::Token;
+use magg_plumbing::auth::Token;
 use magg_proto::convert::block_bytes_from_wire;
 use magg_proto::v1;
 use magg_proto::v1::fork_server::Fork;

@@ -18,7 +18,7 @@ use bytes::Bytes;
 use magg_core::blocks::{fork_of_block, BLOCK_SIZE};
 use magg_core::cluster::{DepositBatch, ForkReport, PairDeposit, ShardLoad};
 use magg_core::header::SceneHeader;
-use magg_proto::auth::Token;
+use magg_plumbing::auth::Token;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Mutex;
 use std::time::{Duration, Instant};

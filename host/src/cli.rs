@@ -3,13 +3,14 @@
 
 use anyhow::{bail, Context};
 use clap::{Args, Parser, Subcommand};
+use magg_core::blocks::CacheSize;
 use std::path::PathBuf;
 
 /// magg: a parallel bidirectional ray tracer after the MAGG transputer system (1993).
 #[derive(Debug, Parser)]
 #[command(name = "magg-host", version, about, long_about = None)]
 pub struct Cli {
-    /// More log output (-v info, -vv debug); RUST_LOG overrides.
+    /// More log output (-v: info, -vv: debug, -vvv: trace); RUST_LOG overrides.
     #[arg(short, long, action = clap::ArgAction::Count, global = true)]
     pub verbose: u8,
     /// What to do.
@@ -42,7 +43,7 @@ pub enum Command {
     /// Ask the gRPC health service at ADDR (HOST:PORT: a magg-fork, a magg-node with
     /// --health-listen, or a host while it renders) and exit 0 when it reports SERVING:
     /// the health check of a container image that has no shell.
-    Probe(magg_proto::lifecycle::ProbeArgs),
+    Probe(magg_plumbing::flags::ProbeArgs),
 }
 
 /// Arguments of `render`.
@@ -65,6 +66,7 @@ pub struct RenderArgs {
     #[arg(long, default_value_t = 5)]
     pub forks: u32,
     /// LRU cache size per node, in 2 KB blocks, or "unlimited".
+    // Text until `validate` makes it a `CacheSize`: a bad value is then one error line.
     #[arg(long, default_value = "unlimited")]
     pub cache_blocks: String,
     /// Hardware profile (DESIGN.md §4): a built-in name, "native" (nothing throttled) or
@@ -111,7 +113,7 @@ pub struct RenderArgs {
     /// without sockets, the default) or tcp (every call over 127.0.0.1, as between
     /// processes). The image is the same; see docs/PERFORMANCE.md.
     #[arg(long, value_enum, default_value = "in-process", env = "MAGG_TRANSPORT")]
-    pub transport: magg_proto::transport::Mode,
+    pub transport: magg_plumbing::transport::Mode,
     /// Use these running magg-fork processes (comma-separated HOST:PORT) instead of
     /// starting forks in this process.
     #[arg(long, value_delimiter = ',', env = "MAGG_FORKS_AT")]
@@ -206,7 +208,7 @@ pub use crate::images::ImageFormat;
 #[derive(Debug)]
 pub struct RenderConfig {
     /// How in-process forks, nodes and host call each other.
-    pub transport: magg_proto::transport::Mode,
+    pub transport: magg_plumbing::transport::Mode,
     /// Scene file.
     pub scene: PathBuf,
     /// Main output and its format.
@@ -272,16 +274,10 @@ pub enum Mode {
     },
 }
 
-/// Parses a cache size: a positive block count or "unlimited".
-pub fn parse_cache_blocks(s: &str) -> anyhow::Result<Option<u64>> {
-    if s.eq_ignore_ascii_case("unlimited") {
-        return Ok(None);
-    }
-    let n: u64 = s.parse().with_context(|| format!("--cache-blocks {s:?}: expected a block count or \"unlimited\""))?;
-    if n == 0 {
-        bail!("--cache-blocks 0: a node needs at least one cache block");
-    }
-    Ok(Some(n))
+/// Parses `--cache-blocks` ([`CacheSize`]), naming the flag in the error: a user error
+/// is one line with exit code 1, as for every flag value (clap would print its usage).
+pub fn parse_cache_blocks(s: &str) -> anyhow::Result<CacheSize> {
+    s.parse::<CacheSize>().map_err(|e| anyhow::anyhow!("--cache-blocks {e}"))
 }
 
 impl RenderArgs {
@@ -347,7 +343,7 @@ impl RenderArgs {
             linear,
             nodes: self.nodes,
             forks: self.forks,
-            cache_blocks: parse_cache_blocks(&self.cache_blocks)?,
+            cache_blocks: parse_cache_blocks(&self.cache_blocks)?.blocks(),
             profile,
             scheme,
             stats: self.stats,
@@ -425,8 +421,8 @@ mod tests {
 
     #[test]
     fn cache_blocks_parse() {
-        assert_eq!(parse_cache_blocks("unlimited").unwrap(), None);
-        assert_eq!(parse_cache_blocks("40").unwrap(), Some(40));
+        assert_eq!(parse_cache_blocks("unlimited").unwrap(), CacheSize::Unlimited);
+        assert_eq!(parse_cache_blocks("40").unwrap().blocks(), Some(40));
         assert!(parse_cache_blocks("0").is_err());
         assert!(parse_cache_blocks("-3").is_err());
     }

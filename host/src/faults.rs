@@ -7,7 +7,7 @@
 use anyhow::{bail, Context};
 use clap::Args;
 use magg_cluster::FaultPolicy;
-use magg_proto::auth::Token;
+use magg_plumbing::auth::Token;
 use std::time::Duration;
 
 /// Fault-handling and access flags of `render`.
@@ -36,7 +36,7 @@ pub struct FaultArgs {
     /// wholly inside this process ignores them): the host's certificate and key, served
     /// to nodes, and the CA that forks' certificates chain to.
     #[command(flatten)]
-    pub tls: magg_proto::tls::TlsFiles,
+    pub tls: magg_plumbing::tls::TlsFiles,
 }
 
 impl FaultArgs {

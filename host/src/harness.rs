@@ -1,7 +1,7 @@
 //! The single-process harness: F forks, N nodes and the host in this process, so that
 //! `magg-host render` needs no set-up and exercises exactly the services of a
 //! multi-process run. Each server listens on a 127.0.0.1 port and registers for the
-//! in-process transport ([`magg_proto::transport`]): calls between them are gRPC
+//! in-process transport ([`magg_plumbing::transport`]): calls between them are gRPC
 //! (encoded, intercepted, size-checked) without sockets, unless `--transport tcp`.
 
 use anyhow::Context;
@@ -49,7 +49,7 @@ pub struct ClusterShape {
     /// Address the host serves nodes on (`127.0.0.1:0` picks a free port).
     pub listen: String,
     /// The cluster token of every process.
-    pub token: magg_proto::auth::Token,
+    pub token: magg_plumbing::auth::Token,
 }
 
 /// A harness started ahead of its render: the async runtime, the forks of this process
@@ -62,7 +62,7 @@ pub struct StartedCluster {
     stop_tx: tokio::sync::broadcast::Sender<()>,
     fork_addrs: Vec<String>,
     fork_tasks: Vec<tokio::task::JoinHandle<Result<(), tonic::transport::Error>>>,
-    _registrations: Vec<magg_proto::transport::Registration>,
+    _registrations: Vec<magg_plumbing::transport::Registration>,
     listener: TcpListener,
     host_addr: String,
 }
@@ -89,8 +89,8 @@ impl StartedCluster {
                     magg_fork::ForkService::with_token(shape.token.clone())
                         .on_hardware(magg_fork::ForkHardware::new(gbus.clone(), true)),
                 );
-                // Calls from this process skip the socket (see magg_proto::transport).
-                registrations.push(magg_proto::transport::register(
+                // Calls from this process skip the socket (see magg_plumbing::transport).
+                registrations.push(magg_plumbing::transport::register(
                     fork_addrs.last().expect("just pushed"),
                     magg_fork::fork_server(service.clone(), shape.token.clone()),
                 ));
@@ -108,7 +108,7 @@ impl StartedCluster {
             .block_on(TcpListener::bind(&shape.listen))
             .with_context(|| format!("binding the host address {}", shape.listen))?;
         let host_addr = listener.local_addr()?.to_string();
-        if let Some(w) = magg_proto::auth::exposure_warning(listener.local_addr()?, &shape.token) {
+        if let Some(w) = magg_plumbing::auth::exposure_warning(listener.local_addr()?, &shape.token) {
             tracing::warn!("{w}");
         }
         tracing::info!("host serving nodes on {host_addr}, forks at {}", fork_addrs.join(","));
@@ -139,7 +139,7 @@ impl StartedCluster {
                     threads: 1,
                     cache_blocks: Some(opts.cache_blocks),
                     name: format!("in-process-{i}"),
-                    backoff: magg_node::Backoff::default(),
+                    backoff: magg_plumbing::retry::Backoff::default(),
                     row_delay: Duration::ZERO,
                     profile: None,
                     pair_delay: Duration::ZERO,
@@ -150,7 +150,7 @@ impl StartedCluster {
                 std::thread::Builder::new().name(format!("magg-node-{i}")).spawn(move || {
                     // The host service registers for in-process calls when `drive` starts
                     // serving: connect after that, not over the socket before it.
-                    magg_proto::transport::wait_registered(&cfg.host, Duration::from_secs(10));
+                    magg_plumbing::transport::wait_registered(&cfg.host, Duration::from_secs(10));
                     magg_node::run_with_runtime(handle, &cfg)
                 })
             })

@@ -14,7 +14,6 @@ pub mod frames;
 pub mod harness;
 pub mod images;
 pub mod live;
-pub mod logging;
 pub mod memory;
 pub mod progress;
 pub mod saved_energy;
@@ -28,7 +27,7 @@ pub fn run(cli: cli::Cli) -> anyhow::Result<()> {
         cli::Command::Accuracy(args) => commands::accuracy::run(&args),
         cli::Command::Sweep(args) => commands::sweep::run(&args),
         cli::Command::Probe(p) => {
-            magg_proto::lifecycle::probe_blocking(&p.addr)?;
+            magg_plumbing::health::probe_blocking(&p.addr)?;
             println!("{}: SERVING", p.addr);
             Ok(())
         }

@@ -10,21 +10,18 @@ use clap::Parser;
 use std::process::ExitCode;
 
 fn main() -> ExitCode {
-    magg_proto::allocator::keep_freed_memory();
+    magg_plumbing::allocator::keep_freed_memory();
     let cli = magg_host::cli::Cli::parse();
     if let magg_host::cli::Command::Probe(p) = &cli.command {
-        return magg_proto::lifecycle::probe_command("magg-host", p);
+        return magg_plumbing::health::probe_command("magg-host", p);
     }
-    magg_host::logging::init(cli.verbose);
+    magg_plumbing::logging::init("magg-host", cli.verbose);
     // In a container the host is PID 1, which has no default action for SIGTERM.
-    if let Err(e) = magg_proto::lifecycle::exit_on_signal("magg-host", 130) {
+    if let Err(e) = magg_plumbing::lifecycle::exit_on_signal("magg-host", 130) {
         eprintln!("magg-host: cannot watch for signals: {e}");
     }
     match magg_host::run(cli) {
         Ok(()) => ExitCode::SUCCESS,
-        Err(e) => {
-            eprintln!("magg-host: error: {e:#}");
-            ExitCode::FAILURE
-        }
+        Err(e) => magg_plumbing::logging::fail("magg-host", format_args!("{e:#}")),
     }
 }

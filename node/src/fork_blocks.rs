@@ -1,10 +1,10 @@
 //! The node's block source: its home fork over gRPC (the paper's DMA path).
 
-use crate::connect::Backoff;
 use crate::pace::NodePace;
-use crate::retry::retry;
 use magg_core::blocks::{Block, BlockError, BlockSource, BLOCK_SIZE};
-use magg_proto::auth::Authed;
+use magg_plumbing::auth::Authed;
+use magg_plumbing::retry::retry;
+use magg_plumbing::retry::Backoff;
 use magg_proto::v1::fork_client::ForkClient;
 use magg_proto::v1::GetBlocksRequest;
 use prost::Message;

@@ -6,7 +6,8 @@
 //! send the deposits to the forks that own the elements (LRT), then pull subscreens from
 //! the host and send pixel rows back (VRT), giving back the rows it has not started when
 //! the host redivides. Every scene access goes through an LRU cache of 2 KB blocks filled
-//! from the home fork (the DMA path).
+//! from the home fork (the DMA path). Connections and retries are
+//! [`magg_plumbing::retry`]'s.
 //!
 //! ```no_run
 //! # async fn f() -> anyhow::Result<()> {
@@ -22,14 +23,12 @@ mod fork_blocks;
 mod node;
 mod pace;
 mod report;
-mod retry;
 pub mod route;
 mod timing;
 mod work;
 
-pub use connect::{connect_with_backoff, Backoff, CALL_TIMEOUT};
+pub use connect::connect_with_backoff;
 pub use error::NodeError;
 pub use fork_blocks::ForkBlocks;
 pub use node::{run, run_with_runtime, NodeConfig, NodeSummary};
 pub use pace::{NodePace, Processor};
-pub use retry::{jitter, retry, transient};

@@ -25,7 +25,7 @@ struct Args {
     threads: u32,
     /// Cache size in 2 KB blocks, or "unlimited" (default: what the host says).
     #[arg(long, env = "MAGG_CACHE_BLOCKS")]
-    cache_blocks: Option<String>,
+    cache_blocks: Option<magg_core::blocks::CacheSize>,
     /// Name in the host's logs.
     #[arg(long, default_value = "node", env = "MAGG_NODE_NAME")]
     name: String,
@@ -52,34 +52,24 @@ struct Args {
     slow_pair_ms: u64,
     /// Profile, token and TLS: the flags every cluster process shares.
     #[command(flatten)]
-    cluster: magg_proto::lifecycle::ClusterArgs,
-    /// More log output.
+    cluster: magg_plumbing::flags::ClusterArgs,
+    /// More log output (-v: info, -vv: debug, -vvv: trace); RUST_LOG overrides.
     #[arg(short, long, action = clap::ArgAction::Count)]
     verbose: u8,
     /// Instead of serving: probe a process.
     #[command(subcommand)]
-    command: Option<magg_proto::lifecycle::ProbeCommand>,
+    command: Option<magg_plumbing::flags::ProbeCommand>,
 }
 
 fn main() -> ExitCode {
     let args = Args::parse();
-    if let Some(code) = magg_proto::lifecycle::start("magg-node", &args.cluster, &args.command) {
+    if let Some(code) = magg_plumbing::lifecycle::start("magg-node", &args.cluster, &args.command) {
         return code;
     }
-    let level = match args.verbose {
-        0 => "warn",
-        1 => "info",
-        _ => "debug",
-    };
-    let filter = tracing_subscriber::EnvFilter::try_from_default_env()
-        .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new(level));
-    let _ = tracing_subscriber::fmt().with_env_filter(filter).with_writer(std::io::stderr).try_init();
+    magg_plumbing::logging::init("magg-node", args.verbose);
     match run(args) {
         Ok(()) => ExitCode::SUCCESS,
-        Err(e) => {
-            eprintln!("magg-node: error: {e:#}");
-            ExitCode::FAILURE
-        }
+        Err(e) => magg_plumbing::logging::fail("magg-node", format_args!("{e:#}")),
     }
 }
 
@@ -87,21 +77,16 @@ fn run(args: Args) -> anyhow::Result<()> {
     if args.threads == 0 || args.threads > 1024 {
         anyhow::bail!("--threads {}: must be 1..=1024", args.threads);
     }
-    let cache_blocks = match args.cache_blocks.as_deref() {
-        None => None,
-        Some(s) if s.eq_ignore_ascii_case("unlimited") => Some(None),
-        Some(s) => match s.parse::<u64>() {
-            Ok(n) if n > 0 => Some(Some(n)),
-            _ => anyhow::bail!("--cache-blocks {s:?}: expected a positive block count or \"unlimited\""),
-        },
-    };
-    let token = magg_proto::auth::Token::parse(args.cluster.token).map_err(|e| anyhow::anyhow!("--token: {e}"))?;
+    let token = magg_plumbing::auth::Token::parse(args.cluster.token).map_err(|e| anyhow::anyhow!("--token: {e}"))?;
     let cfg = magg_node::NodeConfig {
         host: args.host,
         threads: args.threads,
-        cache_blocks,
+        cache_blocks: args.cache_blocks.map(magg_core::blocks::CacheSize::blocks),
         name: args.name,
-        backoff: magg_node::Backoff { deadline: Duration::from_secs(args.connect_timeout), ..Default::default() },
+        backoff: magg_plumbing::retry::Backoff {
+            deadline: Duration::from_secs(args.connect_timeout),
+            ..Default::default()
+        },
         row_delay: Duration::from_millis(args.slow_row_ms),
         profile: match &args.cluster.profile {
             Some(p) => Some(magg_throttle::Profile::named(p)?.name),
@@ -115,7 +100,7 @@ fn run(args: Args) -> anyhow::Result<()> {
     };
     // A node keeps no state of its own: on Ctrl-C or SIGTERM it just exits (cleanly: in
     // a container it is PID 1, which has no default action for SIGTERM).
-    magg_proto::lifecycle::exit_on_signal("magg-node", 0).context("watching for signals")?;
+    magg_plumbing::lifecycle::exit_on_signal("magg-node", 0).context("watching for signals")?;
     let rt = tokio::runtime::Builder::new_multi_thread()
         .worker_threads(2)
         .enable_all()
@@ -126,7 +111,7 @@ fn run(args: Args) -> anyhow::Result<()> {
             .block_on(tokio::net::TcpListener::bind(addr))
             .with_context(|| format!("--health-listen {addr}: cannot listen"))?;
         rt.spawn(async move {
-            if let Err(e) = magg_proto::lifecycle::serve_health(listener, std::future::pending()).await {
+            if let Err(e) = magg_plumbing::health::serve_health(listener, std::future::pending()).await {
                 tracing::warn!("health service on {addr} stopped: {e}");
             }
         });

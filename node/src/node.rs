@@ -1,6 +1,6 @@
 //! A node's life: connect, register, run workers until the host says done.
 
-use crate::connect::{connect_with_backoff, Backoff};
+use crate::connect::connect_with_backoff;
 use crate::fork_blocks::ForkBlocks;
 use crate::pace::{NodePace, Processor};
 use crate::report::{Totals, WorkerTotals};
@@ -9,7 +9,8 @@ use crate::NodeError;
 use magg_core::blocks::{BlockCache, BlockSource};
 use magg_core::header::SceneHeader;
 use magg_core::view::SceneView;
-use magg_proto::auth::{AddToken, Token};
+use magg_plumbing::auth::{AddToken, Token};
+use magg_plumbing::retry::Backoff;
 use magg_proto::v1::fork_client::ForkClient;
 use magg_proto::v1::host_client::HostClient;
 use magg_proto::v1::RegisterRequest;
@@ -96,7 +97,7 @@ pub fn run(cfg: &NodeConfig) -> Result<NodeSummary, NodeError> {
 pub fn run_with_runtime(rt: Handle, cfg: &NodeConfig) -> Result<NodeSummary, NodeError> {
     let channel = rt.block_on(connect_with_backoff(&cfg.host, cfg.backoff))?;
     let auth = AddToken(cfg.token.clone());
-    let mut host = HostClient::with_interceptor(channel, auth.clone()).max_decoding_message_size(256 << 20);
+    let mut host = magg_plumbing::with_message_limits!(HostClient::with_interceptor(channel, auth.clone()));
     let req =
         RegisterRequest { protocol_version: PROTOCOL_VERSION, name: cfg.name.clone(), threads: cfg.threads.max(1) };
     let reg = rt.block_on(host.register(req)).map_err(NodeError::rpc("Register"))?.into_inner();
@@ -128,7 +129,7 @@ pub fn run_with_runtime(rt: Handle, cfg: &NodeConfig) -> Result<NodeSummary, Nod
     let mut forks = Vec::with_capacity(reg.fork_addrs.len());
     for addr in &reg.fork_addrs {
         let ch = rt.block_on(connect_with_backoff(addr, cfg.backoff))?;
-        forks.push(ForkClient::with_interceptor(ch, auth.clone()).max_decoding_message_size(64 << 20));
+        forks.push(magg_plumbing::with_message_limits!(ForkClient::with_interceptor(ch, auth.clone())));
     }
     let home = reg.home_fork as usize;
     let cache_blocks = match cfg.cache_blocks {

@@ -3,10 +3,8 @@
 //! The loops work on domain values: pairs arrive as a [`PairLease`] and deposits are
 //! split by fork in [`crate::route`]; the messages are converted at each gRPC call.
 
-use crate::connect::Backoff;
 use crate::pace::{NodePace, Processor};
 use crate::report::{Totals, WorkerTotals};
-use crate::retry::retry;
 use crate::route::{element_owner, Rounds};
 use crate::timing::PassTimes;
 use crate::NodeError;
@@ -16,7 +14,9 @@ use magg_core::lrt::trace_pair;
 use magg_core::trace::TraceScratch;
 use magg_core::view::SceneView;
 use magg_core::vrt::shade_pixel;
-use magg_proto::auth::Authed;
+use magg_plumbing::auth::Authed;
+use magg_plumbing::retry::retry;
+use magg_plumbing::retry::Backoff;
 use magg_proto::deposits::DepositWriter;
 use magg_proto::v1::fork_client::ForkClient;
 use magg_proto::v1::host_client::HostClient;
@@ -92,7 +92,7 @@ pub struct Worker {
 /// emulated (its transfer time is slept, not computed) or some fork is reached over a
 /// socket (a round trip waits on the network).
 pub fn overlap_pays(paced: bool, fork_addrs: &[String]) -> bool {
-    paced || fork_addrs.iter().any(|a| magg_proto::transport::in_process(a).is_none())
+    paced || fork_addrs.iter().any(|a| magg_plumbing::transport::in_process(a).is_none())
 }
 
 impl Worker {

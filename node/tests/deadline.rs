@@ -36,7 +36,7 @@ fn a_host_that_never_answers_fails_the_node_at_the_call_deadline() {
     );
     let cfg = magg_node::NodeConfig {
         host: addr.to_string(),
-        backoff: magg_node::Backoff { call_timeout: Duration::from_millis(300), ..Default::default() },
+        backoff: magg_plumbing::retry::Backoff { call_timeout: Duration::from_millis(300), ..Default::default() },
         ..Default::default()
     };
     let t = Instant::now();

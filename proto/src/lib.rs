@@ -3,7 +3,9 @@
 //! The gRPC services of magg's processes (`Fork`, `Host`) and their messages, generated
 //! from `proto/magg/v1/magg.proto` by tonic and prost at build time (with protox, so no
 //! system `protoc`), plus the one place where protobuf messages are converted to and from
-//! the rendering core's types ([`convert`]). Prost types never enter `magg-core`.
+//! the rendering core's types ([`convert`]). Prost types never enter `magg-core`. How a
+//! process serves and reaches these services (limits, TLS, token, transport) is
+//! `magg-plumbing`'s job.
 //!
 //! ```no_run
 //! use magg_proto::v1::fork_client::ForkClient;
@@ -13,13 +15,8 @@
 //! # Ok(()) }
 //! ```
 
-pub mod allocator;
-pub mod auth;
 pub mod convert;
 pub mod deposits;
-pub mod lifecycle;
-pub mod tls;
-pub mod transport;
 
 /// Generated code of package `magg.v1`.
 #[allow(missing_docs, clippy::all)]
@@ -27,21 +24,13 @@ pub mod v1 {
     tonic::include_proto!("magg.v1");
 }
 
-/// `e` and its sources on one line, `: `-separated (a transport error says little by
-/// itself: the reason, e.g. "connection refused", is in its sources).
-pub fn error_chain(e: &dyn std::error::Error) -> String {
-    let mut text = e.to_string();
-    let mut source = e.source();
-    while let Some(s) = source {
-        text.push_str(": ");
-        text.push_str(&s.to_string());
-        source = s.source();
-    }
-    text
-}
-
 /// The host's answer (`UNAVAILABLE`) to a node that registers after the render ended.
 pub const RENDER_OVER: &str = "the render is over: this host takes no more nodes";
+
+/// A fork's answer (`UNAVAILABLE`) to any call but `LoadShard` before it holds a shard: it
+/// has just started or restarted. Callers retry; the host, seeing it from a fork it had
+/// loaded, knows the fork restarted and loads it again.
+pub const NOT_LOADED: &str = "no scene loaded";
 
 /// Version of the protocol; processes with another version are refused at registration.
 /// 3: a batch's deposits on a fork are packed arrays and may carry the next `TakePairs`

@@ -8,11 +8,13 @@
 //! for the embedded renderer, a fork over gRPC in the cluster).
 
 mod cache;
+mod cache_size;
 mod layout;
 mod owner;
 mod store;
 
 pub use cache::{BlockCache, CacheStats};
+pub use cache_size::{CacheSize, CacheSizeError};
 pub use layout::*;
 pub use owner::{fork_of_block, home_fork_of_node};
 pub use store::{BlockError, BlockSource, MemStore};

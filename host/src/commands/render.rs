@@ -19,7 +19,7 @@ use std::sync::Arc;
 
 /// Renders per `cfg` and writes every requested output.
 pub fn run(cfg: RenderConfig) -> anyhow::Result<()> {
-    magg_proto::transport::set_mode(cfg.transport);
+    magg_plumbing::transport::set_mode(cfg.transport);
     let (mut scene, path) = scene_file::load_with_path(&cfg.scene)?;
     if let Some(q) = cfg.quality {
         q.apply(&mut scene);

@@ -13,10 +13,10 @@
 //!
 //! ```no_run
 //! # async fn f() -> Result<(), Box<dyn std::error::Error>> {
-//! use magg_proto::transport;
+//! use magg_plumbing::transport;
 //! let (_reporter, health) = tonic_health::server::health_reporter();
 //! let _registered = transport::register("127.0.0.1:7100", health); // until dropped
-//! let endpoint = magg_proto::tls::endpoint("127.0.0.1:7100")?;
+//! let endpoint = magg_plumbing::tls::endpoint("127.0.0.1:7100")?;
 //! let channel = transport::connect(endpoint, None).await?; // no socket
 //! # Ok(()) }
 //! ```

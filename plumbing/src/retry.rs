@@ -1,15 +1,16 @@
-//! Retrying a call that failed for a transient reason (the peer is unreachable, its
-//! connection broke, or it is restarting: see [`transient`]), with exponential backoff
-//! and jitter, so that
-//! many nodes retrying at once do not hit a recovering peer in lock-step.
+//! Retrying what failed for a transient reason, with exponential backoff and jitter, so
+//! that many nodes retrying at once do not hit a recovering peer in lock-step:
+//! connections ([`connect_with_backoff`]) and calls ([`retry`]; the peer is unreachable,
+//! its connection broke, or it is restarting: see [`transient`]). One [`Backoff`] policy
+//! serves both, and holds the deadline of every call on the channel.
 //!
-//! Only calls that are safe to repeat go through here: reads (blocks, energies), keyed
-//! writes (deposits, pixel rows: a repeat is acknowledged and ignored), and hand-outs
-//! whose lost answer is recovered by a lease (pairs, subscreens).
+//! Only calls that are safe to repeat go through [`retry`]: reads (blocks, energies),
+//! keyed writes (deposits, pixel rows: a repeat is acknowledged and ignored), and
+//! hand-outs whose lost answer is recovered by a lease (pairs, subscreens).
 //!
 //! ```no_run
-//! # async fn f(mut host: magg_proto::v1::host_client::HostClient<magg_proto::auth::Authed>) {
-//! use magg_node::{retry, Backoff};
+//! # async fn f(mut host: magg_proto::v1::host_client::HostClient<magg_plumbing::auth::Authed>) {
+//! use magg_plumbing::retry::{retry, Backoff};
 //! let req = magg_proto::v1::NextWorkRequest { node: 0, report: None };
 //! let reply = retry("NextWork", Backoff::default(), || {
 //!     let (mut host, req) = (host.clone(), req.clone());
@@ -19,10 +20,84 @@
 //! # }
 //! ```
 
-use crate::connect::Backoff;
+use crate::transport::{self, Transport};
 use std::future::Future;
 use std::time::{Duration, Instant};
 use tonic::{Code, Status};
+
+/// Retry policy of connections and of calls that failed for a transient reason, and the
+/// deadline of every call.
+#[derive(Clone, Copy, Debug)]
+pub struct Backoff {
+    /// First delay.
+    pub initial: Duration,
+    /// Longest delay.
+    pub max: Duration,
+    /// Give up after this long.
+    pub deadline: Duration,
+    /// Deadline of each call on a channel (a stalled peer fails the call with
+    /// `DEADLINE_EXCEEDED` instead of hanging the caller).
+    pub call_timeout: Duration,
+}
+
+/// Default deadline of one call: far above any healthy call (the largest, a
+/// `GetBlocks` of 4096 blocks, is 8 MB), far below "hung".
+pub const CALL_TIMEOUT: Duration = Duration::from_secs(60);
+
+/// How long one connection attempt of [`connect_with_backoff`] may take.
+pub const CONNECT_ATTEMPT_TIMEOUT: Duration = Duration::from_secs(2);
+
+impl Default for Backoff {
+    fn default() -> Self {
+        Backoff {
+            initial: Duration::from_millis(50),
+            max: Duration::from_secs(2),
+            deadline: Duration::from_secs(30),
+            call_timeout: CALL_TIMEOUT,
+        }
+    }
+}
+
+/// A peer that could not be reached, even after retries.
+#[derive(Debug, thiserror::Error)]
+#[error("cannot reach {addr}: {reason}")]
+pub struct ConnectError {
+    /// Address tried.
+    pub addr: String,
+    /// Last error.
+    pub reason: String,
+}
+
+/// Connects to `addr` ([`crate::net::endpoint`]: the cluster's limits, TLS when
+/// installed; the in-process service when this process registered it), retrying with
+/// exponential backoff and jitter until `backoff.deadline`; logs each failed attempt with
+/// the address. Every call on the channel gets `backoff.call_timeout` as its deadline.
+pub async fn connect_with_backoff(addr: &str, backoff: Backoff) -> Result<Transport, ConnectError> {
+    let endpoint = crate::net::endpoint(addr)
+        .map_err(|e| ConnectError { addr: addr.to_string(), reason: e.to_string() })?
+        .connect_timeout(CONNECT_ATTEMPT_TIMEOUT)
+        .timeout(backoff.call_timeout);
+    let start = Instant::now();
+    let mut delay = backoff.initial;
+    let mut attempt = 0u64;
+    loop {
+        match transport::connect(endpoint.clone(), Some(backoff.call_timeout)).await {
+            Ok(ch) => return Ok(ch),
+            Err(e) => {
+                attempt += 1;
+                if start.elapsed() >= backoff.deadline {
+                    return Err(ConnectError {
+                        addr: addr.to_string(),
+                        reason: format!("{e} (after {attempt} attempts)"),
+                    });
+                }
+                tracing::warn!("cannot reach {addr} (attempt {attempt}): {e}; retrying in {delay:?}");
+                tokio::time::sleep(jitter(delay)).await;
+                delay = (delay * 2).min(backoff.max);
+            }
+        }
+    }
+}
 
 /// `delay` scaled by a factor in [0.5, 1.5), from the clock's low bits (no RNG needed:
 /// only spreading matters, not quality).

@@ -8,7 +8,7 @@
 //! (fine on 127.0.0.1, the default bind address; [`exposure_warning`] says when not).
 //!
 //! ```no_run
-//! use magg_proto::auth::{AddToken, Token};
+//! use magg_plumbing::auth::{AddToken, Token};
 //! use magg_proto::v1::fork_client::ForkClient;
 //! # async fn f() -> Result<(), Box<dyn std::error::Error>> {
 //! let token = Token::new(Some("s3cret".into()));

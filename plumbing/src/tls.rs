@@ -12,7 +12,7 @@
 //!
 //! ```no_run
 //! # fn f() -> Result<(), Box<dyn std::error::Error>> {
-//! use magg_proto::tls::{self, TlsFiles};
+//! use magg_plumbing::tls::{self, TlsFiles};
 //! let files = TlsFiles { cert: Some("fork.pem".into()), key: Some("fork.key".into()), ca: Some("ca.pem".into()) };
 //! tls::install(files.load()?);
 //! let endpoint = tls::endpoint("127.0.0.1:7100")?; // https://127.0.0.1:7100, CA-verified

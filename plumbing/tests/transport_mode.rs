@@ -1,7 +1,7 @@
 //! The tcp mode hides this process's registered services (a test binary of its own: the
 //! mode is process-wide).
 
-use magg_proto::transport::{self, Mode};
+use magg_plumbing::transport::{self, Mode};
 use std::time::Duration;
 
 #[test]

@@ -3,8 +3,8 @@
 //! outlives its deadline fails as on a channel; an unregistered address, or the tcp mode,
 //! goes to the network.
 
-use magg_proto::auth::{AddToken, CheckToken, Token};
-use magg_proto::transport;
+use magg_plumbing::auth::{AddToken, CheckToken, Token};
+use magg_plumbing::transport;
 use magg_proto::v1::host_client::HostClient;
 use magg_proto::v1::host_server::{Host, HostServer};
 use magg_proto::v1::{
@@ -42,8 +42,8 @@ fn token(t: &str) -> Token {
     Token::new(Some(t.into()))
 }
 
-async fn client(addr: &str, timeout: Option<Duration>, t: &str) -> HostClient<magg_proto::auth::Authed> {
-    let endpoint = magg_proto::tls::endpoint(addr).unwrap().connect_timeout(Duration::from_millis(300));
+async fn client(addr: &str, timeout: Option<Duration>, t: &str) -> HostClient<magg_plumbing::auth::Authed> {
+    let endpoint = magg_plumbing::tls::endpoint(addr).unwrap().connect_timeout(Duration::from_millis(300));
     let ch = transport::connect(endpoint, timeout).await.unwrap();
     HostClient::with_interceptor(ch, AddToken(token(t)))
 }
@@ -71,6 +71,6 @@ async fn a_registered_service_answers_without_a_socket_with_its_interceptors_and
 
     drop(registered);
     assert!(transport::in_process(&addr).is_none());
-    let endpoint = magg_proto::tls::endpoint(&addr).unwrap().connect_timeout(Duration::from_millis(300));
+    let endpoint = magg_plumbing::tls::endpoint(&addr).unwrap().connect_timeout(Duration::from_millis(300));
     assert!(transport::connect(endpoint, None).await.is_err(), "unregistered: a socket, and nobody listens");
 }

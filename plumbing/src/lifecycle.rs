@@ -1,0 +1,78 @@
+//! How every magg process starts and stops, the same in all three binaries: first it
+//! keeps the memory it frees, loads its TLS files and, asked to `probe ADDR`, probes
+//! ([`start`]); it stops on Ctrl-C or SIGTERM (in a container the binary is PID 1, which
+//! the kernel gives no default signal action: without a handler, `docker stop` would wait
+//! and then kill).
+//!
+//! ```no_run
+//! # async fn f() {
+//! // Serve until Ctrl-C or SIGTERM:
+//! magg_plumbing::lifecycle::shutdown_signal().await;
+//! # }
+//! ```
+
+use crate::flags::{ClusterArgs, ProbeCommand};
+use std::process::ExitCode;
+
+/// What a cluster process does first: keeps the memory it frees
+/// ([`crate::allocator`]), puts its TLS files in force and, when asked to `probe ADDR`,
+/// probes. `Some(code)` means: exit with it now.
+pub fn start(program: &str, cluster: &ClusterArgs, command: &Option<ProbeCommand>) -> Option<ExitCode> {
+    crate::allocator::keep_freed_memory();
+    if let Err(e) = crate::tls::install_files(&cluster.tls) {
+        return Some(crate::logging::fail(program, e));
+    }
+    match command {
+        Some(ProbeCommand::Probe(p)) => Some(crate::health::probe_command(program, p)),
+        None => None,
+    }
+}
+
+/// Registers for Ctrl-C and (on Unix) SIGTERM at once, and returns a future that
+/// completes when either arrives. Call it inside a tokio runtime.
+pub fn shutdown_signal() -> impl std::future::Future<Output = ()> {
+    #[cfg(unix)]
+    let signals = {
+        use tokio::signal::unix::{signal, SignalKind};
+        (signal(SignalKind::interrupt()), signal(SignalKind::terminate()))
+    };
+    async move {
+        #[cfg(unix)]
+        match signals {
+            (Ok(mut int), Ok(mut term)) => {
+                tokio::select! {
+                    _ = int.recv() => {}
+                    _ = term.recv() => {}
+                }
+            }
+            (Err(e), _) | (_, Err(e)) => {
+                tracing::warn!("cannot wait for Ctrl-C or SIGTERM: {e}");
+                std::future::pending::<()>().await;
+            }
+        }
+        #[cfg(not(unix))]
+        if let Err(e) = tokio::signal::ctrl_c().await {
+            tracing::warn!("cannot wait for Ctrl-C: {e}");
+            std::future::pending::<()>().await;
+        }
+        tracing::info!("shutting down");
+    }
+}
+
+/// For a process with nothing to finish on the way out (a node, which keeps no state of
+/// its own; a host, whose render is lost anyway): a thread that exits the
+/// process with `code` on Ctrl-C or SIGTERM, saying so on stderr. The signals are
+/// registered before this returns.
+pub fn exit_on_signal(program: &'static str, code: i32) -> std::io::Result<()> {
+    let runtime = tokio::runtime::Builder::new_current_thread().enable_all().build()?;
+    let signal = {
+        let _context = runtime.enter();
+        shutdown_signal()
+    };
+    std::thread::Builder::new().name(format!("{program}-signals")).spawn(move || {
+        runtime.block_on(signal);
+        eprintln!("{program}: stopped by a signal");
+        std::process::exit(code);
+    })?;
+    Ok(())
+}
