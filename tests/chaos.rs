@@ -24,7 +24,8 @@ const LEASE: &str = "1.5";
 
 /// A fork on `port` (0: any), logging to `DIR/LOG.log`; returns it and its address.
 fn fork(dir: &Path, log: &str, port: u16) -> (Child, String) {
-    spawn_fork(port, &[], &dir.join(format!("{log}.log")))
+    // -v: the checks below read the fork's info lines (shard loaded, replay, leases).
+    spawn_fork(port, &["-v"], &dir.join(format!("{log}.log")))
 }
 
 fn port_of(addr: &str) -> u16 {
