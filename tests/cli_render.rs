@@ -1,5 +1,5 @@
 //! `magg-host render` end to end on the paper's scene: the PNG, the stats JSON with every
-//! key of DESIGN.md §5, the energy CSV, and the linear PFM and EXR outputs.
+//! key of docs/USER_GUIDE.md's stats file, the energy CSV, and the linear PFM and EXR outputs.
 
 use magg_tests::{
     assert_success, magg_host, not_all_black, pfm_header, read_energy, read_json, read_pfm, read_png_rgb, render,

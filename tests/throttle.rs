@@ -1,4 +1,4 @@
-//! The throttling layer end to end (DESIGN.md §4, issue 4): a throttled cluster gives the
+//! The throttling layer end to end (docs/ARCHITECTURE.md, the throttling layer): a throttled cluster gives the
 //! embedded renderer's image bit for bit, its cost model gives the same modelled compute
 //! whatever the cluster's shape, the native profile takes the layer out, a fork started
 //! with another profile refuses the render, and the small sweep writes its CSV and figures

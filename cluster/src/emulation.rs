@@ -1,4 +1,4 @@
-//! The host's part of the throttling layer (DESIGN.md §4): preprocessing priced by the
+//! The host's part of the throttling layer (docs/ARCHITECTURE.md, the throttling layer): preprocessing priced by the
 //! cost model, stage times turned into modelled seconds, and the real CPU share that
 //! tells whether an emulated run was faithful.
 

@@ -32,7 +32,7 @@ impl FaultPolicy {
     /// Installs the TLS files for this process when the render reaches other processes
     /// (`external`); a render wholly inside this process talks over 127.0.0.1 only and
     /// ignores them, saying so.
-    pub fn install_tls(&self, external: bool) -> anyhow::Result<()> {
+    pub fn install_tls(&self, external: bool) -> Result<(), magg_plumbing::tls::TlsError> {
         if external {
             magg_plumbing::tls::install_files(&self.tls)?;
         } else if !self.tls.is_empty() {

@@ -51,7 +51,10 @@ fn node_figures(node: u32, forks: u32, r: &v1::NodeReport) -> (NodeStats, CacheS
 impl ClusterMachine {
     /// Waits (bounded) for every node's final report, collects the forks' figures, stops
     /// the host server, and builds the machine's part of the stats.
-    pub(super) async fn collect_figures(&mut self, times: PhaseTimes) -> anyhow::Result<MachineFigures> {
+    pub(super) async fn collect_figures(
+        &mut self,
+        times: PhaseTimes,
+    ) -> Result<MachineFigures, crate::failure::ClusterError> {
         let t_start = self.opts.started;
         // --- Done: every node hears it and sends its final report (bounded wait).
         self.service.set_phase(Phase::Done);

@@ -18,11 +18,12 @@
 //! without the failure. Completions from before the epoch are not counted, so no pair
 //! whose deposit the restarted fork lost is taken for done.
 
+use crate::failure::ClusterError;
 use crate::FaultPolicy;
-use anyhow::{bail, Context};
 use magg_core::preprocess::PreparedScene;
 use magg_plumbing::auth::{AddToken, Authed, Token};
 use magg_plumbing::retry::{self, Backoff};
+use magg_plumbing::transport::InProcess;
 use magg_plumbing::with_message_limits;
 use magg_proto::convert::scene_blocks_to_wire;
 use magg_proto::v1::fork_client::ForkClient;
@@ -31,6 +32,8 @@ use magg_proto::PROTOCOL_VERSION;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 use tonic::Code;
+
+type Result<T> = std::result::Result<T, ClusterError>;
 
 /// Longest wait for one poll of a fork (a stalled fork counts as down).
 const POLL_TIMEOUT: Duration = Duration::from_secs(5);
@@ -62,42 +65,38 @@ pub struct ForkSet {
     nodes: u32,
 }
 
-async fn connect(addr: &str, token: &Token) -> anyhow::Result<ForkClient<Authed>> {
-    let ch = retry::connect_with_backoff(addr, Backoff::default()).await?;
+async fn connect(links: &InProcess, addr: &str, token: &Token) -> Result<ForkClient<Authed>> {
+    let ch = retry::connect_with_backoff(links, addr, Backoff::default()).await?;
     Ok(with_message_limits!(ForkClient::with_interceptor(ch, AddToken(token.clone()))))
 }
 
 /// Sends `req` to the fork `name` behind `client`, retrying while it is unavailable
 /// (until `timeout`): a load replaces the last.
-async fn load_shard(
-    client: ForkClient<Authed>,
-    name: String,
-    timeout: Duration,
-    req: LoadShardRequest,
-) -> anyhow::Result<()> {
+async fn load_shard(client: ForkClient<Authed>, name: String, timeout: Duration, req: LoadShardRequest) -> Result<()> {
     let backoff = Backoff { deadline: timeout, ..Default::default() };
     retry::retry("LoadShard", backoff, || {
         let (mut c, req) = (client.clone(), req.clone());
         async move { c.load_shard(req).await }
     })
     .await
-    .map_err(|e| {
-        let hint = magg_plumbing::tls::mismatch_hint(&e.to_string());
-        anyhow::Error::new(e).context(format!("loading the shard of {name}{hint}"))
+    .map_err(|status| {
+        let hint = magg_plumbing::tls::mismatch_hint(&status.to_string());
+        ClusterError::Call { doing: "loading the shard of", fork: name, status, hint: hint.to_string() }
     })?;
     Ok(())
 }
 
 impl ForkSet {
-    /// Connects to the forks at `addrs` (by index).
+    /// Connects to the forks at `addrs` (by index); those of this process through `links`.
     pub async fn connect(
         prepared: &Arc<PreparedScene>,
         addrs: &[String],
         faults: &FaultPolicy,
-    ) -> anyhow::Result<ForkSet> {
+        links: &InProcess,
+    ) -> Result<ForkSet> {
         let mut clients = Vec::with_capacity(addrs.len());
         for addr in addrs {
-            clients.push(connect(addr, &faults.token).await?);
+            clients.push(connect(links, addr, &faults.token).await?);
         }
         Ok(ForkSet {
             prepared: prepared.clone(),
@@ -141,7 +140,7 @@ impl ForkSet {
     /// Loads fork `i`'s shard (every block `b` with `b mod F == i`), with its vertex
     /// energies in the same request if they exist already (so no node can read a block
     /// between the two). Retried while the fork is unavailable: a load replaces the last.
-    pub async fn load(&mut self, i: usize) -> anyhow::Result<()> {
+    pub async fn load(&mut self, i: usize) -> Result<()> {
         let req = self.shard_request(i);
         load_shard(self.clients[i].clone(), self.name(i), self.timeout, req).await
     }
@@ -152,7 +151,7 @@ impl ForkSet {
     /// 22 MB: 33 -> 24 ms on 2 cores); a small one's are polled together in this task,
     /// where waking runtime threads would cost more than it saves (magg-paper, 350 KB:
     /// 1.0 ms, 1.2 spawned). Forks across sockets load concurrently either way.
-    pub async fn load_all(&mut self) -> anyhow::Result<()> {
+    pub async fn load_all(&mut self) -> Result<()> {
         let requests: Vec<_> = (0..self.len()).map(|i| self.shard_request(i)).collect();
         let bytes: usize = requests.iter().map(|r| r.blocks.len() * magg_core::blocks::BLOCK_SIZE).sum();
         let loads = requests
@@ -165,7 +164,7 @@ impl ForkSet {
         }
         let tasks: Vec<_> = loads.map(tokio::spawn).collect();
         for t in tasks {
-            t.await.context("a shard upload task failed")??;
+            t.await??;
         }
         Ok(())
     }
@@ -190,13 +189,12 @@ impl ForkSet {
     }
 
     /// Stores the vertex-energy blocks on their forks (and keeps them, to reload a fork).
-    pub async fn put_vertex_blocks(&mut self, per_fork: Vec<Vec<v1::Block>>) -> anyhow::Result<()> {
+    pub async fn put_vertex_blocks(&mut self, per_fork: Vec<Vec<v1::Block>>) -> Result<()> {
         for (i, blocks) in per_fork.iter().enumerate() {
             let name = self.name(i);
-            self.clients[i]
-                .put_blocks(PutBlocksRequest { blocks: blocks.clone() })
-                .await
-                .with_context(|| format!("storing vertex energies on {name}"))?;
+            self.clients[i].put_blocks(PutBlocksRequest { blocks: blocks.clone() }).await.map_err(|status| {
+                ClusterError::Call { doing: "storing vertex energies on", fork: name, status, hint: String::new() }
+            })?;
         }
         self.vertex_blocks = Some(per_fork);
         Ok(())
@@ -210,7 +208,7 @@ impl ForkSet {
         i: usize,
         summary_only: bool,
         lrt_pending: bool,
-    ) -> anyhow::Result<Option<v1::GetEnergiesReply>> {
+    ) -> Result<Option<v1::GetEnergiesReply>> {
         let mut client = self.clients[i].clone();
         let call = client.get_energies(GetEnergiesRequest { summary_only });
         let status = match tokio::time::timeout(POLL_TIMEOUT, call).await {
@@ -243,14 +241,18 @@ impl ForkSet {
         }
         let since = *self.down_since[i].get_or_insert_with(Instant::now);
         if since.elapsed() > self.timeout {
-            bail!("{} has not answered for {:?} (--fork-timeout): {}", self.name(i), self.timeout, status.message());
+            return Err(ClusterError::ForkSilent {
+                fork: self.name(i),
+                after: self.timeout,
+                reason: status.message().to_string(),
+            });
         }
         tracing::warn!("{} does not answer ({}); waiting for it", self.name(i), status.message());
         Ok(None)
     }
 
     /// Tells every fork but `i` to start the current replay epoch.
-    async fn replay_others(&mut self, i: usize) -> anyhow::Result<()> {
+    async fn replay_others(&mut self, i: usize) -> Result<()> {
         for j in (0..self.len()).filter(|&j| j != i) {
             let name = self.name(j);
             let req = v1::ReplayRequest { epoch: self.epoch, lost_fork: Some(i as u32) };
@@ -259,7 +261,12 @@ impl ForkSet {
                 async move { c.replay(req).await }
             })
             .await
-            .with_context(|| format!("starting a replay on {name}"))?;
+            .map_err(|status| ClusterError::Call {
+                doing: "starting a replay on",
+                fork: name,
+                status,
+                hint: String::new(),
+            })?;
         }
         Ok(())
     }
@@ -271,7 +278,7 @@ impl ForkSet {
         i: usize,
         summary_only: bool,
         lrt_pending: bool,
-    ) -> anyhow::Result<v1::GetEnergiesReply> {
+    ) -> Result<v1::GetEnergiesReply> {
         loop {
             if let Some(r) = self.poll(i, summary_only, lrt_pending).await? {
                 return Ok(r);

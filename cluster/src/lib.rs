@@ -27,6 +27,7 @@
 pub mod emulation;
 mod error;
 pub mod events;
+mod failure;
 mod faults;
 mod figures;
 pub mod forks;
@@ -36,5 +37,6 @@ pub mod schedule;
 pub mod service;
 
 pub use error::HostError;
+pub use failure::ClusterError;
 pub use faults::FaultPolicy;
 pub use machine::{ClusterMachine, DriveOptions};

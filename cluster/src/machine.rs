@@ -11,7 +11,7 @@ use super::emulation::{preprocess_time, process_cpu_s};
 use super::events::EventSender;
 use super::forks::ForkSet;
 use super::service::{HostService, HostState, Phase};
-use anyhow::{bail, Context};
+use crate::failure::ClusterError;
 use magg_core::color::Rgb;
 use magg_core::machine::{LightPass, Machine, MachineFigures, PhaseTimes, RenderError, ViewPass, ViewedFrame};
 use magg_core::preprocess::PreparedScene;
@@ -33,8 +33,8 @@ use tonic::service::interceptor::InterceptedService;
 pub struct DriveOptions {
     /// Fork addresses, by index.
     pub forks: Vec<String>,
-    /// Cache blocks per node (`None` = unlimited).
-    pub cache_blocks: Option<u64>,
+    /// Cache blocks per node.
+    pub cache_blocks: magg_core::blocks::CacheSize,
     /// Subscreen edge in pixels.
     pub subscreen: u32,
     /// Nodes expected (sizes the forks' pair batches; see `gather`).
@@ -57,6 +57,9 @@ pub struct DriveOptions {
     /// When the render began (before this process started its forks and nodes): the
     /// stats' total counts from here, so that it holds every cost of the cluster.
     pub started: Instant,
+    /// The forks and nodes of this process, reached without sockets: the host's service
+    /// registers here, and its fork clients look here first.
+    pub links: magg_plumbing::transport::InProcess,
 }
 
 /// Sets the phase to [`Phase::Done`] when dropped: a render that fails still lets the
@@ -128,14 +131,14 @@ impl ClusterMachine {
         opts: &DriveOptions,
         listener: TcpListener,
         rt: tokio::runtime::Handle,
-    ) -> anyhow::Result<ClusterMachine> {
+    ) -> Result<ClusterMachine, ClusterError> {
         let t_start = opts.started;
         let cpu0 = process_cpu_s();
         mark(t_start, "driving: forks and nodes started");
         let h = prepared.header.clone();
         let f = opts.forks.len();
         if f == 0 {
-            bail!("no fork to render with");
+            return Err(ClusterError::NoForks);
         }
         let throttled = !opts.profile.is_native();
         let wire_profile = if throttled { opts.profile.to_wire() } else { String::new() };
@@ -145,8 +148,9 @@ impl ClusterMachine {
             if throttled { preprocess_time(&opts.profile, opts.scheme, prepared, f as u32) } else { Duration::ZERO };
         // Not even a zero sleep natively: the timer would round it up to its next tick (1 ms).
         magg_throttle::wait(Instant::now() + opts.profile.dilate(preprocess_model)).await;
-        let mut forks =
-            ForkSet::connect(prepared, &opts.forks, &opts.faults).await?.for_render(wire_profile.clone(), opts.nodes);
+        let mut forks = ForkSet::connect(prepared, &opts.forks, &opts.faults, &opts.links)
+            .await?
+            .for_render(wire_profile.clone(), opts.nodes);
 
         // Serve the host service.
         let service = HostService::new(HostState {
@@ -155,7 +159,7 @@ impl ClusterMachine {
             schedule: None,
             header: v1::SceneHeader::from(&*h),
             fork_addrs: opts.forks.clone(),
-            cache_blocks: opts.cache_blocks.unwrap_or(0),
+            cache_blocks: opts.cache_blocks,
             profile: wire_profile,
             scheme: opts.scheme.name().to_string(),
             link_bytes: 0,
@@ -172,10 +176,10 @@ impl ClusterMachine {
             CheckToken { token: opts.faults.token.clone(), server: "host" },
         );
         // Nodes of this process reach the host without a socket (see magg_plumbing::transport).
-        let host_addr = listener.local_addr().context("the host listener's address")?;
-        let in_process = magg_plumbing::transport::register(&host_addr.to_string(), host_server.clone());
+        let host_addr = listener.local_addr().map_err(ClusterError::Listener)?;
+        let in_process = opts.links.register(&host_addr.to_string(), host_server.clone());
         let server = magg_plumbing::net::server()
-            .map_err(|e| anyhow::anyhow!("host server TLS: {e}"))?
+            .map_err(ClusterError::ServerTls)?
             .add_service(health_service)
             .add_service(host_server)
             .serve_with_incoming_shutdown(magg_plumbing::net::nodelay_incoming(listener), async {
@@ -231,8 +235,8 @@ impl ClusterMachine {
     }
 }
 
-/// A cluster failure as the phase sequence's error (its chain of causes kept).
-fn failed(e: anyhow::Error) -> RenderError {
+/// A cluster failure as the phase sequence's error.
+fn failed(e: ClusterError) -> RenderError {
     RenderError::Machine(e.into())
 }
 

@@ -6,7 +6,7 @@ use super::events::ClusterEvent;
 use super::machine::{mark, ClusterMachine};
 use super::schedule::Scheduler;
 use super::service::Phase;
-use anyhow::{bail, Context};
+use crate::failure::ClusterError;
 use magg_core::blocks::fork_of_block;
 use magg_core::color::Rgb;
 use magg_core::energy::{vertex_energy_blocks, Fixed};
@@ -31,7 +31,7 @@ impl ClusterMachine {
     /// LRT: the nodes pull pairs from their home forks; the host waits until every fork
     /// reports all of its pairs done, then collects the energies, all within one replay
     /// epoch (a fork that restarts meanwhile starts a new one, and the wait goes on).
-    pub(super) async fn trace_light(&mut self, progress: &dyn Progress) -> anyhow::Result<LightPass> {
+    pub(super) async fn trace_light(&mut self, progress: &dyn Progress) -> Result<LightPass, ClusterError> {
         let f = self.forks.len();
         let n_el = self.prepared.header.counts.elements as usize;
         // The clock (in the phase sequence) started before the nodes hear of the pass
@@ -78,11 +78,11 @@ impl ClusterMachine {
                 let t_collect = Instant::now();
                 for i in 0..f {
                     let r = self.forks.poll_until_up(i, false, true).await?;
-                    let energies = element_energies(&r).with_context(|| format!("the energies of fork {i}"))?;
+                    let energies = element_energies(&r).map_err(|source| ClusterError::Energies { fork: i, source })?;
                     for (element, e) in energies {
                         match element_flux.get_mut(element as usize) {
                             Some(slot) => *slot = e,
-                            None => bail!("fork {i} sent energy for element {element} of {n_el}"),
+                            None => return Err(ClusterError::NoSuchElement { fork: i, element, elements: n_el }),
                         }
                     }
                 }
@@ -92,10 +92,7 @@ impl ClusterMachine {
                 continue;
             }
             if last.1.elapsed() > self.opts.stall_timeout {
-                bail!(
-                    "light ray tracing stalled at {done} of {total_pairs} pairs for {:?} (are nodes connected?)",
-                    self.opts.stall_timeout
-                );
+                return Err(ClusterError::LightStalled { done, total: total_pairs, after: self.opts.stall_timeout });
             }
             // One RPC per fork per poll: keep it gentle, but look at once when a node runs
             // out of pairs (the pass may be over).
@@ -106,7 +103,7 @@ impl ClusterMachine {
     }
 
     /// Sends every fork the vertex-energy blocks it owns.
-    pub(super) async fn put_vertex_energies(&mut self, vertex_irradiance: &[Rgb]) -> anyhow::Result<()> {
+    pub(super) async fn put_vertex_energies(&mut self, vertex_irradiance: &[Rgb]) -> Result<(), ClusterError> {
         // Given energies skip the light pass: the nodes wait meanwhile.
         self.service.set_phase(Phase::Interp);
         let f = self.forks.len();
@@ -126,7 +123,7 @@ impl ClusterMachine {
         &mut self,
         pass: ViewPass<'_>,
         progress: &dyn Progress,
-    ) -> anyhow::Result<ViewedFrame> {
+    ) -> Result<ViewedFrame, ClusterError> {
         let h = self.prepared.header.clone();
         let s = &h.settings;
         let f = self.forks.len();
@@ -177,7 +174,7 @@ impl ClusterMachine {
                 break;
             }
             if last_rows.1.elapsed() > self.opts.stall_timeout {
-                bail!("viewing ray tracing stalled at {px} pixels for {:?}", self.opts.stall_timeout);
+                return Err(ClusterError::ViewStalled { pixels: px, after: self.opts.stall_timeout });
             }
             self.service.wait_for(VRT_POLL).await;
         }
@@ -187,7 +184,7 @@ impl ClusterMachine {
             let mut st = self.service.lock();
             match st.schedule.as_mut() {
                 Some(sc) => (sc.take_frame(), sc.redivisions),
-                None => bail!("the viewing pass lost its schedule"),
+                None => return Err(ClusterError::LostSchedule),
             }
         };
         if pass.is_last() {

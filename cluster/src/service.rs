@@ -95,8 +95,8 @@ pub struct HostState {
     pub profile: String,
     /// Schedule sent to nodes (`paper` or `magg`).
     pub scheme: String,
-    /// Cache blocks per node (0 = unlimited).
-    pub cache_blocks: u64,
+    /// Cache blocks per node, told to nodes at registration.
+    pub cache_blocks: magg_core::blocks::CacheSize,
     /// Bytes of node <-> host messages (the link path).
     pub link_bytes: u64,
     /// RPCs served.
@@ -263,7 +263,7 @@ impl Host for HostService {
             home_fork: home_fork_of_node(node, forks),
             fork_addrs: s.fork_addrs.clone(),
             header: Some(s.header.clone()),
-            cache_blocks: s.cache_blocks,
+            cache_blocks: magg_proto::convert::cache_size_to_wire(s.cache_blocks),
             profile: s.profile.clone(),
             scheme: s.scheme.clone(),
         }))

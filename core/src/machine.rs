@@ -16,6 +16,7 @@
 //! # Ok(()) }
 //! ```
 
+use crate::blocks::CacheSize;
 use crate::blocks::{BlockError, CacheStats};
 use crate::color::Rgb;
 use crate::energy::Fixed;
@@ -171,8 +172,8 @@ pub struct MachineFigures {
     pub nodes: u32,
     /// Forks the blocks were interleaved over.
     pub forks: u32,
-    /// Cache blocks per node; `None` for unlimited.
-    pub cache_blocks: Option<u64>,
+    /// Cache blocks per node.
+    pub cache_blocks: CacheSize,
     /// Hardware profile.
     pub profile: String,
     /// Schedule: `paper` or `magg`.

@@ -97,7 +97,7 @@ pub fn run(
         mode: m.mode,
         nodes: m.nodes,
         forks: m.forks,
-        cache_blocks: m.cache_blocks,
+        cache_blocks: m.cache_blocks.blocks(),
         profile: m.profile,
         scheme: m.scheme,
         stages: m.stages,

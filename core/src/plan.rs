@@ -1,4 +1,4 @@
-//! The effects plan: simulate only the effects a scene calls for (DESIGN.md §1).
+//! The effects plan: simulate only the effects a scene calls for (docs/ARCHITECTURE.md, the effects plan).
 //!
 //! Before rendering, the scene is analysed and each optional pass or ray kind is switched
 //! on or off with a reason. A pass left out costs nothing, and because every kernel only

@@ -10,7 +10,7 @@
 //! phases themselves are sequenced by [`crate::phases::run`]; [`render`] and
 //! [`render_sequence`] run them on an embedded machine.
 
-use crate::blocks::{home_fork_of_node, BlockCache, BlockError, BlockSource, MemStore};
+use crate::blocks::{home_fork_of_node, BlockCache, BlockError, BlockSource, CacheSize, MemStore};
 use crate::camera::CameraRig;
 use crate::color::Rgb;
 use crate::energy::{vertex_energy_blocks, Fixed};
@@ -38,15 +38,15 @@ pub struct RenderOptions {
     pub nodes: u32,
     /// Forks the blocks are interleaved over (for traffic accounting).
     pub forks: u32,
-    /// Cache blocks per node; `None` = unlimited.
-    pub cache_blocks: Option<u64>,
+    /// Cache blocks per node.
+    pub cache_blocks: CacheSize,
     /// Subscreen edge in pixels.
     pub subscreen: u32,
 }
 
 impl Default for RenderOptions {
     fn default() -> Self {
-        RenderOptions { nodes: 0, forks: 5, cache_blocks: None, subscreen: 16 }
+        RenderOptions { nodes: 0, forks: 5, cache_blocks: CacheSize::Unlimited, subscreen: 16 }
     }
 }
 
@@ -238,7 +238,7 @@ impl EmbeddedMachine {
         let views = (0..nodes)
             .map(|node| {
                 let source: Arc<dyn BlockSource> = store.clone();
-                let cache = BlockCache::new(source, opts.cache_blocks.map(|c| c as usize))
+                let cache = BlockCache::new(source, opts.cache_blocks.blocks().map(|c| c as usize))
                     .with_home(home_fork_of_node(node, forks), forks);
                 SceneView::new(header.clone(), cache)
             })

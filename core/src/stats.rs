@@ -1,4 +1,4 @@
-//! The stats of a render, serialised as the JSON that scripts rely on (DESIGN.md §5).
+//! The stats of a render, serialised as the JSON that scripts rely on (docs/USER_GUIDE.md, stats file).
 
 use crate::blocks::CacheStats;
 use crate::header::Counts;
@@ -46,7 +46,7 @@ impl From<CacheStats> for CacheSummary {
     }
 }
 
-/// Bytes per path of DESIGN.md §4 and RPC count.
+/// Bytes per path of the emulated machine (link, DMA, G-bus) and RPC count.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
 pub struct Traffic {
     /// Serial-link bytes (control, pairs, deposits, pixel rows).
@@ -101,7 +101,7 @@ fn is_zero(x: &f64) -> bool {
     *x == 0.0
 }
 
-/// What the throttling layer emulated (DESIGN.md §4; throttled profiles only). Stage
+/// What the throttling layer emulated (throttled profiles only). Stage
 /// times of such a run are modelled seconds: real seconds divided by `dilation`.
 #[derive(Clone, Debug, Default, PartialEq, Serialize)]
 pub struct Emulation {
@@ -165,7 +165,7 @@ pub struct RenderStats {
     pub cache_blocks: Option<u64>,
     /// Hardware profile.
     pub profile: String,
-    /// Schedule: `paper` or `magg` (DESIGN.md §4).
+    /// Schedule: `paper` or `magg` (docs/ARCHITECTURE.md).
     pub scheme: String,
     /// Stage times.
     pub stages: Stages,

@@ -3,6 +3,7 @@
 
 mod common;
 use common::*;
+use magg_core::blocks::CacheSize;
 use magg_core::preprocess::prepare;
 use magg_core::render::{render, RenderOptions};
 
@@ -23,7 +24,7 @@ fn nodes_forks_and_cache_size_do_not_change_a_bit() {
     for (nodes, forks, cache) in [(2, 5, None), (4, 3, Some(20)), (7, 1, Some(3)), (16, 2, Some(60))] {
         let o = render(
             &p,
-            &RenderOptions { nodes, forks, cache_blocks: cache, subscreen: 5 },
+            &RenderOptions { nodes, forks, cache_blocks: CacheSize::from_blocks(cache), subscreen: 5 },
             &magg_core::progress::NoProgress,
         )
         .unwrap();

@@ -6,6 +6,7 @@ mod common;
 mod hard;
 
 use hard::*;
+use magg_core::blocks::CacheSize;
 use magg_core::preprocess::prepare;
 use magg_core::progress::NoProgress;
 use magg_core::render::{render, RenderOptions};
@@ -35,9 +36,12 @@ fn every_shipped_scene_renders_finite_at_tiny_settings() {
         s.light_rays = 2;
         s.element_size = 0.3; // patches with fixed `subdivisions` keep theirs
         let prepared = prepare(&scene).unwrap_or_else(|e| panic!("{label}: {e}"));
-        let out =
-            render(&prepared, &RenderOptions { nodes: 2, forks: 5, cache_blocks: None, subscreen: 8 }, &NoProgress)
-                .unwrap_or_else(|e| panic!("{label}: {e}"));
+        let out = render(
+            &prepared,
+            &RenderOptions { nodes: 2, forks: 5, cache_blocks: CacheSize::Unlimited, subscreen: 8 },
+            &NoProgress,
+        )
+        .unwrap_or_else(|e| panic!("{label}: {e}"));
         assert_render_finite(&label, &out);
         assert_eq!(out.frame.pixels.len(), 24 * 24);
         // Something is lit, and the light pass balances.

@@ -1,4 +1,4 @@
-//! The fork's emulated hardware (DESIGN.md §4, the throttling layer): its processor,
+//! The fork's emulated hardware (the throttling layer of docs/ARCHITECTURE.md): its processor,
 //! which serves one request at a time, the DMA engine of its GPU card, and its share of
 //! the one usable G-bus.
 //!

@@ -29,7 +29,7 @@
 //! let (stop, stopped) = tokio::sync::oneshot::channel::<()>();
 //! let token = magg_plumbing::auth::Token::default(); // none: fine on 127.0.0.1
 //! let server = tokio::spawn(magg_fork::serve(listener, token.clone(), async { stopped.await.ok(); }));
-//! let mut fork = magg_fork::connect(&addr.to_string(), &token).await?;
+//! let mut fork = magg_fork::connect(&addr.to_string(), &magg_fork::PeerAccess::with_token(token)).await?;
 //! // fork.load_shard(...), fork.get_blocks(...), fork.take_pairs(...), ...
 //! stop.send(()).ok();
 //! server.await??;
@@ -49,7 +49,7 @@ pub mod shard;
 
 pub use error::ForkError;
 pub use hardware::ForkHardware;
-pub use peers::connect;
+pub use peers::{connect, PeerAccess};
 pub use server::{fork_server, serve, serve_service};
 pub use service::ForkService;
 pub use shard::Shard;

@@ -7,6 +7,7 @@
 use crate::error::ForkError;
 use crate::locks::lock;
 use magg_plumbing::auth::{AddToken, Authed, Token};
+use magg_plumbing::transport::InProcess;
 use magg_plumbing::{net, retry, with_message_limits};
 use magg_proto::v1;
 use magg_proto::v1::fork_client::ForkClient;
@@ -20,34 +21,53 @@ pub const CONNECT_TIMEOUT: Duration = Duration::from_secs(5);
 /// How long one fork-to-fork call may take.
 pub const PEER_CALL_TIMEOUT: Duration = Duration::from_secs(60);
 
-/// Connects to the fork at `addr` (`HOST:PORT`), presenting the cluster `token`, with the
-/// cluster's limits ([`net::endpoint`], [`net::MAX_MESSAGE_BYTES`] both ways). Errors are
+/// How a fork is reached: the cluster token presented on every call, and the servers of
+/// this process reached without sockets (none for a process of its own).
+#[derive(Clone, Debug, Default)]
+pub struct PeerAccess {
+    /// Presented on every call.
+    pub token: Token,
+    /// Forks of this process (the in-process harness).
+    pub links: InProcess,
+}
+
+impl PeerAccess {
+    /// Reaching forks over sockets with `token`.
+    pub fn with_token(token: Token) -> PeerAccess {
+        PeerAccess { token, links: InProcess::none() }
+    }
+}
+
+/// Connects to the fork at `addr` (`HOST:PORT`) as `access` says, with the cluster's
+/// limits ([`net::endpoint`], [`net::MAX_MESSAGE_BYTES`] both ways). Errors are
 /// [`ForkError::PeerUnavailable`] naming the address.
-pub async fn connect(addr: &str, token: &Token) -> Result<ForkClient<Authed>, ForkError> {
+pub async fn connect(addr: &str, access: &PeerAccess) -> Result<ForkClient<Authed>, ForkError> {
     let unavailable = |reason: String| ForkError::PeerUnavailable { addr: addr.to_string(), reason };
     let endpoint = net::endpoint(addr)
         .map_err(|e| unavailable(format!("bad address: {e}")))?
         .connect_timeout(CONNECT_TIMEOUT)
         .timeout(PEER_CALL_TIMEOUT);
-    let channel = magg_plumbing::transport::connect(endpoint, Some(PEER_CALL_TIMEOUT))
+    let channel = access
+        .links
+        .connect(endpoint, Some(PEER_CALL_TIMEOUT))
         .await
         .map_err(|e| unavailable(magg_plumbing::error_chain(&e)))?;
-    Ok(with_message_limits!(ForkClient::with_interceptor(channel, AddToken(token.clone()))))
+    Ok(with_message_limits!(ForkClient::with_interceptor(channel, AddToken(access.token.clone()))))
 }
 
 /// Cached clients to the other forks of one render.
 #[derive(Debug)]
 pub struct Peers {
     addrs: Vec<String>,
-    token: Token,
+    access: PeerAccess,
     clients: Mutex<HashMap<u32, ForkClient<Authed>>>,
 }
 
 impl Peers {
-    /// Peers at `addrs` (by fork index), reached with the cluster `token`; nothing is
-    /// connected yet.
-    pub fn new(addrs: Vec<String>, token: Token) -> Peers {
-        Peers { addrs, token, clients: Mutex::new(HashMap::new()) }
+    /// Peers at `addrs` (by fork index), reached as `access` says; nothing is connected
+    /// yet.
+    pub fn new(addrs: Vec<String>, access: PeerAccess) -> Peers {
+        Peers { addrs, access, clients: Mutex::new(HashMap::new()) }
     }
 
     /// Address of fork `fork`.
@@ -59,7 +79,7 @@ impl Peers {
         if let Some(c) = lock(&self.clients).get(&fork) {
             return Ok(c.clone());
         }
-        let c = connect(self.addr(fork), &self.token).await?;
+        let c = connect(self.addr(fork), &self.access).await?;
         lock(&self.clients).insert(fork, c.clone());
         Ok(c)
     }

@@ -12,10 +12,12 @@
 use crate::error::ForkError;
 use crate::hardware::ForkHardware;
 use crate::locks::{read, write};
+use crate::peers::PeerAccess;
 use crate::shard::{Shard, MAX_IDS_PER_REQUEST, MAX_PAIRS_PER_REQUEST};
 use bytes::Bytes;
 use magg_core::cluster::{DepositBatch, PairLease, ShardLoad};
 use magg_plumbing::auth::Token;
+use magg_plumbing::transport::InProcess;
 use magg_proto::convert::block_bytes_from_wire;
 use magg_proto::v1;
 use magg_proto::v1::fork_server::Fork;
@@ -30,7 +32,7 @@ use tonic::{Request, Response, Status};
 pub struct ForkService {
     shard: RwLock<Option<Arc<Shard>>>,
     hw: Arc<ForkHardware>,
-    token: Token,
+    access: PeerAccess,
 }
 
 impl ForkService {
@@ -41,7 +43,13 @@ impl ForkService {
 
     /// A fork with no scene loaded that reaches the other forks with `token`.
     pub fn with_token(token: Token) -> ForkService {
-        ForkService { token, ..ForkService::default() }
+        ForkService { access: PeerAccess::with_token(token), ..ForkService::default() }
+    }
+
+    /// The same fork reaching the forks of this process in `links` without sockets.
+    pub fn with_links(mut self, links: InProcess) -> ForkService {
+        self.access.links = links;
+        self
     }
 
     /// The same fork on the given hardware (forks of one process share one G-bus this
@@ -73,11 +81,11 @@ fn too_many(what: &'static str, got: usize, max: usize) -> ForkError {
 
 /// A shard from a `LoadShard` request: the protocol version checked first, then the
 /// request converted (header, 2 KB blocks) and the shard built (placement, ownership).
-pub fn load_shard(req: v1::LoadShardRequest, token: Token) -> Result<Shard, ForkError> {
+pub fn load_shard(req: v1::LoadShardRequest, access: PeerAccess) -> Result<Shard, ForkError> {
     if req.protocol_version != magg_proto::PROTOCOL_VERSION {
         return Err(ForkError::ProtocolVersion { got: req.protocol_version, want: magg_proto::PROTOCOL_VERSION });
     }
-    Shard::load(ShardLoad::try_from(req)?, token)
+    Shard::load(ShardLoad::try_from(req)?, access)
 }
 
 /// Blocks from the wire, each checked to be 2 KB (kept as received, no copy).
@@ -203,7 +211,7 @@ impl Fork for ForkService {
             Some(Profile::from_wire(&req.profile).map_err(|e| ForkError::BadRequest(e.to_string()))?)
         };
         self.hw.check_profile(profile.as_ref())?;
-        let shard = load_shard(req, self.token.clone())?;
+        let shard = load_shard(req, self.access.clone())?;
         shard.count_rpc();
         self.hw.set_profile(profile);
         // The host's upload crosses the G-bus.

@@ -10,7 +10,7 @@
 
 use crate::error::ForkError;
 use crate::locks::lock;
-use crate::peers::Peers;
+use crate::peers::{PeerAccess, Peers};
 use crate::state::ledger::Ledger;
 use crate::state::pairs::{guided_batch, PairBook, PairQueue};
 use crate::state::store::BlockStore;
@@ -18,7 +18,6 @@ use bytes::Bytes;
 use magg_core::blocks::{fork_of_block, BLOCK_SIZE};
 use magg_core::cluster::{DepositBatch, ForkReport, PairDeposit, ShardLoad};
 use magg_core::header::SceneHeader;
-use magg_plumbing::auth::Token;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Mutex;
 use std::time::{Duration, Instant};
@@ -102,8 +101,8 @@ pub struct Shard {
 
 impl Shard {
     /// Builds the shard of a render: checks the placement and every block, then builds
-    /// the pair queue. Other forks are reached with the cluster `token`.
-    pub fn load(load: ShardLoad<Bytes>, token: Token) -> Result<Shard, ForkError> {
+    /// the pair queue. Other forks are reached as `access` says.
+    pub fn load(load: ShardLoad<Bytes>, access: PeerAccess) -> Result<Shard, ForkError> {
         let forks = load.fork_addrs.len();
         if forks == 0 || forks > MAX_FORKS {
             return Err(ForkError::BadRequest(format!("fork_addrs has {forks} addresses, expected 1..={MAX_FORKS}")));
@@ -139,7 +138,7 @@ impl Shard {
             owned,
             work: Mutex::new(work),
             traffic: Traffic::default(),
-            peers: Peers::new(place.addrs.clone(), token),
+            peers: Peers::new(place.addrs.clone(), access),
             place,
             nodes: load.nodes,
             left_elsewhere: Mutex::new(left_elsewhere),

@@ -69,8 +69,9 @@ pub struct RenderArgs {
     // Text until `validate` makes it a `CacheSize`: a bad value is then one error line.
     #[arg(long, default_value = "unlimited")]
     pub cache_blocks: String,
-    /// Hardware profile (DESIGN.md §4): a built-in name, "native" (nothing throttled) or
-    /// "magg1993" (the paper's transputers, links, DMA and G-bus), or a profile file
+    /// Hardware profile, the machine to emulate (docs/EXPERIMENTS.md): a built-in name,
+    /// "native" (nothing throttled) or "magg1993" (the paper's transputers, links, DMA and
+    /// G-bus), or a profile file
     /// (deploy/profiles/*.toml). Stage times of a throttled run are modelled seconds.
     #[arg(long, default_value = "native", env = "MAGG_PROFILE")]
     pub profile: String,
@@ -219,8 +220,8 @@ pub struct RenderConfig {
     pub nodes: u32,
     /// Forks.
     pub forks: u32,
-    /// Cache blocks per node (`None` = unlimited).
-    pub cache_blocks: Option<u64>,
+    /// Cache blocks per node.
+    pub cache_blocks: CacheSize,
     /// Hardware profile.
     pub profile: magg_throttle::Profile,
     /// Schedule.
@@ -343,7 +344,7 @@ impl RenderArgs {
             linear,
             nodes: self.nodes,
             forks: self.forks,
-            cache_blocks: parse_cache_blocks(&self.cache_blocks)?.blocks(),
+            cache_blocks: parse_cache_blocks(&self.cache_blocks)?,
             profile,
             scheme,
             stats: self.stats,

@@ -9,6 +9,7 @@ use magg_cluster::{ClusterMachine, DriveOptions, FaultPolicy};
 use magg_core::machine::{FrameSink, RenderOutput, Sequence};
 use magg_core::preprocess::PreparedScene;
 use magg_core::progress::Progress;
+use magg_plumbing::transport::{InProcess, Mode as TransportMode};
 use std::time::Duration;
 use tokio::net::TcpListener;
 
@@ -20,13 +21,13 @@ pub struct InProcessOptions {
     pub nodes: u32,
     /// Nodes of other processes to wait for before the light pass.
     pub external_nodes: u32,
-    /// Cache blocks per node (`None` = unlimited).
-    pub cache_blocks: Option<u64>,
+    /// Cache blocks per node.
+    pub cache_blocks: magg_core::blocks::CacheSize,
     /// Subscreen edge.
     pub subscreen: u32,
     /// Abort a phase that makes no progress for this long.
     pub stall_timeout: Duration,
-    /// Hardware profile (DESIGN.md §4).
+    /// Hardware profile (the emulated 1993 machine, docs/EXPERIMENTS.md).
     pub profile: magg_throttle::Profile,
     /// The paper's schedule or ours.
     pub scheme: magg_throttle::Scheme,
@@ -50,6 +51,8 @@ pub struct ClusterShape {
     pub listen: String,
     /// The cluster token of every process.
     pub token: magg_plumbing::auth::Token,
+    /// How the forks, nodes and host of this process call each other.
+    pub transport: TransportMode,
 }
 
 /// A harness started ahead of its render: the async runtime, the forks of this process
@@ -63,6 +66,7 @@ pub struct StartedCluster {
     fork_addrs: Vec<String>,
     fork_tasks: Vec<tokio::task::JoinHandle<Result<(), tonic::transport::Error>>>,
     _registrations: Vec<magg_plumbing::transport::Registration>,
+    links: InProcess,
     listener: TcpListener,
     host_addr: String,
 }
@@ -77,6 +81,9 @@ impl StartedCluster {
         let mut fork_addrs = shape.forks_at.clone();
         let mut fork_tasks = Vec::new();
         let mut registrations = Vec::new();
+        // The forks, nodes and host of this process reach each other here, without
+        // sockets (unless `--transport tcp`); forks elsewhere are always sockets.
+        let links = InProcess::new(shape.transport);
         if fork_addrs.is_empty() {
             // The forks of this process share one G-bus, as the paper's shared one.
             let gbus = std::sync::Arc::new(magg_throttle::Resource::new());
@@ -87,10 +94,11 @@ impl StartedCluster {
                 let mut stop = stop_tx.subscribe();
                 let service = std::sync::Arc::new(
                     magg_fork::ForkService::with_token(shape.token.clone())
-                        .on_hardware(magg_fork::ForkHardware::new(gbus.clone(), true)),
+                        .on_hardware(magg_fork::ForkHardware::new(gbus.clone(), true))
+                        .with_links(links.clone()),
                 );
                 // Calls from this process skip the socket (see magg_plumbing::transport).
-                registrations.push(magg_plumbing::transport::register(
+                registrations.push(links.register(
                     fork_addrs.last().expect("just pushed"),
                     magg_fork::fork_server(service.clone(), shape.token.clone()),
                 ));
@@ -112,7 +120,16 @@ impl StartedCluster {
             tracing::warn!("{w}");
         }
         tracing::info!("host serving nodes on {host_addr}, forks at {}", fork_addrs.join(","));
-        Ok(StartedCluster { rt, stop_tx, fork_addrs, fork_tasks, _registrations: registrations, listener, host_addr })
+        Ok(StartedCluster {
+            rt,
+            stop_tx,
+            fork_addrs,
+            fork_tasks,
+            _registrations: registrations,
+            links,
+            listener,
+            host_addr,
+        })
     }
 }
 
@@ -128,7 +145,7 @@ impl StartedCluster {
         progress: &dyn Progress,
         sink: &mut FrameSink<'_>,
     ) -> anyhow::Result<RenderOutput> {
-        let StartedCluster { rt, stop_tx, fork_addrs, fork_tasks, _registrations, listener, host_addr } = self;
+        let StartedCluster { rt, stop_tx, fork_addrs, fork_tasks, _registrations, links, listener, host_addr } = self;
         // Nodes, each on a thread of its own. When they are as many as the cores, node i
         // is pinned to core i (see magg_core::placement).
         let cores = magg_core::placement::worker_cores(opts.nodes as usize);
@@ -145,12 +162,13 @@ impl StartedCluster {
                     pair_delay: Duration::ZERO,
                     token: opts.faults.token.clone(),
                     cores: cores.get(i as usize).map(|&c| vec![c]).unwrap_or_default(),
+                    links: links.clone(),
                 };
                 let handle = rt.handle().clone();
                 std::thread::Builder::new().name(format!("magg-node-{i}")).spawn(move || {
                     // The host service registers for in-process calls when `drive` starts
                     // serving: connect after that, not over the socket before it.
-                    magg_plumbing::transport::wait_registered(&cfg.host, Duration::from_secs(10));
+                    cfg.links.wait_registered(&cfg.host, Duration::from_secs(10));
                     magg_node::run_with_runtime(handle, &cfg)
                 })
             })
@@ -172,14 +190,16 @@ impl StartedCluster {
             events: opts.events.clone(),
             faults: opts.faults.clone(),
             started,
+            links,
         };
         // The phases run on this thread; the machine's passes run on the runtime.
-        let result = rt.block_on(ClusterMachine::start(prepared, &drive_opts, listener, rt.handle().clone())).and_then(
-            |mut machine| {
+        let result = rt
+            .block_on(ClusterMachine::start(prepared, &drive_opts, listener, rt.handle().clone()))
+            .map_err(anyhow::Error::from)
+            .and_then(|mut machine| {
                 magg_core::phases::run(&mut machine, prepared, &opts.sequence, progress, sink)
                     .map_err(anyhow::Error::from)
-            },
-        );
+            });
         if result.is_err() {
             // The render failed: its nodes may be retrying a host that is gone. Stop the
             // forks and report; the node threads end on their own (retry deadline).

@@ -81,7 +81,7 @@ fn run(args: Args) -> anyhow::Result<()> {
     let cfg = magg_node::NodeConfig {
         host: args.host,
         threads: args.threads,
-        cache_blocks: args.cache_blocks.map(magg_core::blocks::CacheSize::blocks),
+        cache_blocks: args.cache_blocks,
         name: args.name,
         backoff: magg_plumbing::retry::Backoff {
             deadline: Duration::from_secs(args.connect_timeout),
@@ -97,6 +97,8 @@ fn run(args: Args) -> anyhow::Result<()> {
         // A node process of its own runs where the kernel puts it: its machine may run
         // other nodes and other work.
         cores: Vec::new(),
+        // Its host and forks are other processes: sockets.
+        links: magg_plumbing::transport::InProcess::none(),
     };
     // A node keeps no state of its own: on Ctrl-C or SIGTERM it just exits (cleanly: in
     // a container it is PID 1, which has no default action for SIGTERM).

@@ -6,11 +6,13 @@ use crate::pace::{NodePace, Processor};
 use crate::report::{Totals, WorkerTotals};
 use crate::work::Worker;
 use crate::NodeError;
-use magg_core::blocks::{BlockCache, BlockSource};
+use magg_core::blocks::{BlockCache, BlockSource, CacheSize};
 use magg_core::header::SceneHeader;
 use magg_core::view::SceneView;
 use magg_plumbing::auth::{AddToken, Token};
 use magg_plumbing::retry::Backoff;
+use magg_plumbing::transport::InProcess;
+use magg_proto::convert::cache_size_from_wire;
 use magg_proto::v1::fork_client::ForkClient;
 use magg_proto::v1::host_client::HostClient;
 use magg_proto::v1::RegisterRequest;
@@ -32,8 +34,8 @@ pub struct NodeConfig {
     pub host: String,
     /// Worker threads (each with its own share of the cache).
     pub threads: u32,
-    /// Cache blocks per node, overriding the host's choice; `Some(None)` = unlimited.
-    pub cache_blocks: Option<Option<u64>>,
+    /// Cache blocks per node, overriding the host's choice (`None`: the host's).
+    pub cache_blocks: Option<CacheSize>,
     /// Name shown in the host's logs.
     pub name: String,
     /// Connection retries.
@@ -52,6 +54,9 @@ pub struct NodeConfig {
     /// Cores to pin the workers to (worker j on `cores[j % len]`, see
     /// [`magg_core::placement`]); empty (the default): the kernel places them.
     pub cores: Vec<usize>,
+    /// The host and forks of this process, reached without sockets (the in-process
+    /// harness); a node process of its own has none.
+    pub links: InProcess,
 }
 
 impl Default for NodeConfig {
@@ -67,6 +72,7 @@ impl Default for NodeConfig {
             pair_delay: std::time::Duration::ZERO,
             token: Token::default(),
             cores: Vec::new(),
+            links: InProcess::none(),
         }
     }
 }
@@ -95,7 +101,7 @@ pub fn run(cfg: &NodeConfig) -> Result<NodeSummary, NodeError> {
 /// Runs a node whose RPCs go through `rt`. Must be called from a thread that is not one
 /// of the runtime's (the kernels block on it).
 pub fn run_with_runtime(rt: Handle, cfg: &NodeConfig) -> Result<NodeSummary, NodeError> {
-    let channel = rt.block_on(connect_with_backoff(&cfg.host, cfg.backoff))?;
+    let channel = rt.block_on(connect_with_backoff(&cfg.links, &cfg.host, cfg.backoff))?;
     let auth = AddToken(cfg.token.clone());
     let mut host = magg_plumbing::with_message_limits!(HostClient::with_interceptor(channel, auth.clone()));
     let req =
@@ -128,21 +134,17 @@ pub fn run_with_runtime(rt: Handle, cfg: &NodeConfig) -> Result<NodeSummary, Nod
     }
     let mut forks = Vec::with_capacity(reg.fork_addrs.len());
     for addr in &reg.fork_addrs {
-        let ch = rt.block_on(connect_with_backoff(addr, cfg.backoff))?;
+        let ch = rt.block_on(connect_with_backoff(&cfg.links, addr, cfg.backoff))?;
         forks.push(magg_plumbing::with_message_limits!(ForkClient::with_interceptor(ch, auth.clone())));
     }
     let home = reg.home_fork as usize;
-    let cache_blocks = match cfg.cache_blocks {
-        Some(c) => c,
-        None if reg.cache_blocks == 0 => None,
-        None => Some(reg.cache_blocks),
-    };
+    let cache_blocks = cfg.cache_blocks.unwrap_or(cache_size_from_wire(reg.cache_blocks)).blocks();
     let threads = cfg.threads.max(1) as usize;
     // The node's cache is split evenly over its workers.
     let per_worker = cache_blocks.map(|c| (c as usize / threads).max(1));
     let totals = Arc::new(Totals::new(threads).paced(pace.clone()));
     tracing::info!(node = reg.node, home, threads, ?cache_blocks, "registered with {}", cfg.host);
-    let overlap = crate::work::overlap_pays(pace.is_some(), &reg.fork_addrs);
+    let overlap = crate::work::overlap_pays(pace.is_some(), &cfg.links, &reg.fork_addrs);
 
     let handles: Vec<_> = (0..threads)
         .map(|index| {

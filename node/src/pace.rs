@@ -1,4 +1,4 @@
-//! The node's side of the throttling layer (DESIGN.md §4): its serial link to the fork
+//! The node's side of the throttling layer (docs/ARCHITECTURE.md, the throttling layer): its serial link to the fork
 //! and host, and its processor, priced by the hardware profile the host sent.
 //!
 //! Every message a node sends or receives pays for its encoded bytes on the link, one

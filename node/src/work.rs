@@ -37,7 +37,7 @@ pub const MAX_WAIT_MS: u32 = 1000;
 /// Longest time a node keeps finished rows before sending them to the host.
 pub const ROW_REPORT: Duration = Duration::from_millis(5);
 
-/// Pairs asked for per request (batched hand-out, DESIGN.md §4 `--scheme magg`; the
+/// Pairs asked for per request (batched hand-out, `--scheme magg` in docs/ARCHITECTURE.md; the
 /// fork may hand out fewer, see `magg_fork::state::pairs::guided_batch`). The paper's scheme
 /// asks for one pair per request.
 pub const PAIR_BATCH: u32 = 64;
@@ -91,8 +91,8 @@ pub struct Worker {
 /// Whether a node gains by overlapping communication with tracing: when a link is
 /// emulated (its transfer time is slept, not computed) or some fork is reached over a
 /// socket (a round trip waits on the network).
-pub fn overlap_pays(paced: bool, fork_addrs: &[String]) -> bool {
-    paced || fork_addrs.iter().any(|a| magg_plumbing::transport::in_process(a).is_none())
+pub fn overlap_pays(paced: bool, links: &magg_plumbing::transport::InProcess, fork_addrs: &[String]) -> bool {
+    paced || fork_addrs.iter().any(|a| links.get(a).is_none())
 }
 
 impl Worker {

@@ -21,7 +21,8 @@
 //!     net::server()?.add_service(health).serve_with_incoming_shutdown(net::nodelay_incoming(listener), lifecycle::shutdown_signal()),
 //! );
 //! // A client: retried with backoff, the token added to every call.
-//! let channel = retry::connect_with_backoff("127.0.0.1:7100", retry::Backoff::default()).await?;
+//! let links = magg_plumbing::transport::InProcess::none(); // a process of its own: sockets
+//! let channel = retry::connect_with_backoff(&links, "127.0.0.1:7100", retry::Backoff::default()).await?;
 //! let _authed = tonic::service::interceptor::InterceptedService::new(channel, auth::AddToken(auth::Token::default()));
 //! # Ok(()) }
 //! ```

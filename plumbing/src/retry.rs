@@ -20,7 +20,7 @@
 //! # }
 //! ```
 
-use crate::transport::{self, Transport};
+use crate::transport::{InProcess, Transport};
 use std::future::Future;
 use std::time::{Duration, Instant};
 use tonic::{Code, Status};
@@ -69,10 +69,10 @@ pub struct ConnectError {
 }
 
 /// Connects to `addr` ([`crate::net::endpoint`]: the cluster's limits, TLS when
-/// installed; the in-process service when this process registered it), retrying with
+/// installed; the in-process service when `links` holds it), retrying with
 /// exponential backoff and jitter until `backoff.deadline`; logs each failed attempt with
 /// the address. Every call on the channel gets `backoff.call_timeout` as its deadline.
-pub async fn connect_with_backoff(addr: &str, backoff: Backoff) -> Result<Transport, ConnectError> {
+pub async fn connect_with_backoff(links: &InProcess, addr: &str, backoff: Backoff) -> Result<Transport, ConnectError> {
     let endpoint = crate::net::endpoint(addr)
         .map_err(|e| ConnectError { addr: addr.to_string(), reason: e.to_string() })?
         .connect_timeout(CONNECT_ATTEMPT_TIMEOUT)
@@ -81,7 +81,7 @@ pub async fn connect_with_backoff(addr: &str, backoff: Backoff) -> Result<Transp
     let mut delay = backoff.initial;
     let mut attempt = 0u64;
     loop {
-        match transport::connect(endpoint.clone(), Some(backoff.call_timeout)).await {
+        match links.connect(endpoint.clone(), Some(backoff.call_timeout)).await {
             Ok(ch) => return Ok(ch),
             Err(e) => {
                 attempt += 1;

@@ -2,29 +2,32 @@
 //! in-process transport to a server of this same process.
 //!
 //! The single-process harness behind `magg-host render` runs forks, nodes and the host in
-//! one process. Their calls need not cross the kernel's loopback: a server of this
-//! process [`register`]s its tonic service under the address it listens on, and a client
-//! that [`connect`]s to that address gets the service itself instead of a socket. The
-//! call is still gRPC: the client encodes the request with prost, the server's
-//! interceptors (cluster token) and codec (message size limits) run, the reply is decoded
-//! and statuses are the same; only HTTP/2 framing, TCP and the hop between threads are
-//! skipped. This is grpc-java's `InProcessChannel`, for tonic. With
-//! `MAGG_TRANSPORT=tcp` (or [`set_mode`]) every call goes over a socket again.
+//! one process. Their calls need not cross the kernel's loopback: the harness makes one
+//! [`InProcess`] set, each server [`InProcess::register`]s its tonic service under the
+//! address it also listens on, and a client given the same set that
+//! [`InProcess::connect`]s to that address gets the service itself instead of a socket.
+//! The set is passed to whoever needs it (no process-wide registry): a fork or node
+//! process of its own holds [`InProcess::none`] and always opens sockets. The call is still
+//! gRPC: the client encodes the request with prost, the server's interceptors (cluster
+//! token) and codec (message size limits) run, the reply is decoded and statuses are the
+//! same; only HTTP/2 framing, TCP and the hop between threads are skipped. This is
+//! grpc-java's `InProcessChannel`, for tonic. A set made in [`Mode::Tcp`] registers
+//! nothing, so every call goes over a socket again.
 //!
 //! ```no_run
 //! # async fn f() -> Result<(), Box<dyn std::error::Error>> {
-//! use magg_plumbing::transport;
+//! use magg_plumbing::transport::{InProcess, Mode};
+//! let links = InProcess::new(Mode::InProcess);
 //! let (_reporter, health) = tonic_health::server::health_reporter();
-//! let _registered = transport::register("127.0.0.1:7100", health); // until dropped
+//! let _registered = links.register("127.0.0.1:7100", health); // until dropped
 //! let endpoint = magg_plumbing::tls::endpoint("127.0.0.1:7100")?;
-//! let channel = transport::connect(endpoint, None).await?; // no socket
+//! let channel = links.connect(endpoint, None).await?; // no socket
 //! # Ok(()) }
 //! ```
 
 use std::collections::HashMap;
 use std::convert::Infallible;
-use std::sync::atomic::{AtomicU8, Ordering};
-use std::sync::{Condvar, Mutex, OnceLock};
+use std::sync::{Arc, Condvar, Mutex};
 use std::task::{Context, Poll};
 use std::time::Duration;
 use tonic::body::Body;
@@ -56,50 +59,35 @@ impl std::error::Error for TransportError {
     }
 }
 
-/// How this process's clients reach servers of the same process.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+/// How the clients of one in-process cluster reach its servers.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum)]
 pub enum Mode {
     /// Through the in-process transport when the address is registered (the default).
+    #[default]
     InProcess,
     /// Always over a socket, as between processes.
     Tcp,
 }
 
-/// Environment variable selecting the mode (`in-process` or `tcp`).
-pub const MODE_ENV: &str = "MAGG_TRANSPORT";
-
-const UNSET: u8 = 0;
-const IN_PROCESS: u8 = 1;
-const TCP: u8 = 2;
-static MODE: AtomicU8 = AtomicU8::new(UNSET);
-
-/// Sets the mode for the rest of the process's life (overrides [`MODE_ENV`]).
-pub fn set_mode(mode: Mode) {
-    MODE.store(if mode == Mode::Tcp { TCP } else { IN_PROCESS }, Ordering::Relaxed);
+/// The servers of one in-process cluster, by address (`HOST:PORT`, no scheme), shared by
+/// its clients. Cloning shares the set.
+#[derive(Clone, Debug, Default)]
+pub struct InProcess {
+    shared: Option<Arc<Shared>>,
 }
 
-/// The mode in force: [`set_mode`]'s, else [`MODE_ENV`]'s, else in-process.
-pub fn mode() -> Mode {
-    match MODE.load(Ordering::Relaxed) {
-        TCP => Mode::Tcp,
-        IN_PROCESS => Mode::InProcess,
-        _ => match std::env::var(MODE_ENV).as_deref() {
-            Ok("tcp") => Mode::Tcp,
-            _ => Mode::InProcess,
-        },
+#[derive(Default)]
+struct Shared {
+    services: Mutex<HashMap<String, Transport>>,
+    /// Signalled whenever a service registers (for [`InProcess::wait_registered`]).
+    registered: Condvar,
+}
+
+impl std::fmt::Debug for Shared {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let addrs: Vec<String> = self.services.lock().map(|r| r.keys().cloned().collect()).unwrap_or_default();
+        f.debug_struct("InProcess").field("addrs", &addrs).finish()
     }
-}
-
-/// The servers of this process, by address (`HOST:PORT`, no scheme).
-fn registry() -> &'static Mutex<HashMap<String, Transport>> {
-    static REGISTRY: OnceLock<Mutex<HashMap<String, Transport>>> = OnceLock::new();
-    REGISTRY.get_or_init(Default::default)
-}
-
-/// Signalled whenever a service registers (for [`wait_registered`]).
-fn registered() -> &'static Condvar {
-    static REGISTERED: Condvar = Condvar::new();
-    &REGISTERED
 }
 
 /// `HOST:PORT` of an address given with or without a scheme.
@@ -113,83 +101,105 @@ fn key(addr: &str) -> String {
 /// connects later gets a socket, as to any other process).
 #[must_use = "the service is unregistered when this is dropped"]
 #[derive(Debug)]
-pub struct Registration(String);
+pub struct Registration {
+    shared: Option<Arc<Shared>>,
+    key: String,
+}
 
 impl Drop for Registration {
     fn drop(&mut self) {
-        if let Ok(mut r) = registry().lock() {
-            r.remove(&self.0);
+        if let Some(mut r) = self.shared.as_ref().and_then(|s| s.services.lock().ok()) {
+            r.remove(&self.key);
         }
     }
 }
 
-/// Makes `service` (a tonic server with its interceptors, e.g. what `fork_server` builds)
-/// reachable in-process at `addr`, the address it also listens on.
-pub fn register<S, B>(addr: &str, service: S) -> Registration
-where
-    S: Service<Request<Body>, Response = Response<B>, Error = Infallible> + Clone + Send + Sync + 'static,
-    S::Future: Send + 'static,
-    B: http_body::Body<Data = tonic::codegen::Bytes> + Send + 'static,
-    B::Error: Into<tower::BoxError>,
-{
-    let k = key(addr);
-    let boxed = BoxCloneSyncService::new(
-        service
-            .map_response(|r: Response<B>| r.map(Body::new))
-            .map_err(|e: Infallible| -> TransportError { match e {} }),
-    );
-    if let Ok(mut r) = registry().lock() {
-        r.insert(k.clone(), boxed);
-    }
-    registered().notify_all();
-    Registration(k)
-}
-
-/// The registered service at `addr`, when the mode allows it.
-pub fn in_process(addr: &str) -> Option<Transport> {
-    if mode() == Mode::Tcp {
-        return None;
-    }
-    registry().lock().ok()?.get(&key(addr)).cloned()
-}
-
-/// Waits up to `timeout` for a server of this process to register `addr` (a client
-/// started with its server should not race it onto a socket). False when the time ran
-/// out or the mode is [`Mode::Tcp`].
-pub fn wait_registered(addr: &str, timeout: Duration) -> bool {
-    if mode() == Mode::Tcp {
-        return false;
-    }
-    let (k, deadline) = (key(addr), std::time::Instant::now() + timeout);
-    let Ok(mut r) = registry().lock() else { return false };
-    loop {
-        if r.contains_key(&k) {
-            return true;
+impl InProcess {
+    /// A set for the servers of this process: in [`Mode::InProcess`] they register and
+    /// are reached without sockets; in [`Mode::Tcp`] nothing registers ([`InProcess::none`]).
+    pub fn new(mode: Mode) -> InProcess {
+        match mode {
+            Mode::InProcess => InProcess { shared: Some(Arc::default()) },
+            Mode::Tcp => InProcess::none(),
         }
-        let left = deadline.saturating_duration_since(std::time::Instant::now());
-        if left.is_zero() {
-            return false;
-        }
-        r = match registered().wait_timeout(r, left) {
-            Ok((r, _)) => r,
-            Err(_) => return false,
-        };
     }
-}
 
-/// Opens `endpoint`: the in-process service when its address is registered here, with
-/// `call_timeout` as the deadline of each call (what `Endpoint::timeout` does for a
-/// socket); otherwise a connection (TCP, or TLS when installed), as [`Endpoint::connect`].
-pub async fn connect(endpoint: Endpoint, call_timeout: Option<Duration>) -> Result<Transport, tonic::transport::Error> {
-    let authority = endpoint.uri().authority().map(|a| a.to_string()).unwrap_or_default();
-    if let Some(service) = in_process(&authority) {
-        return Ok(match call_timeout {
-            Some(timeout) => BoxCloneSyncService::new(Deadline { inner: service, timeout }),
-            None => service,
-        });
+    /// No in-process servers: every connection is a socket (a fork or node process of
+    /// its own, or `--transport tcp`).
+    pub fn none() -> InProcess {
+        InProcess { shared: None }
     }
-    let channel = endpoint.connect().await?;
-    Ok(BoxCloneSyncService::new(channel.map_err(|e| TransportError(e.into()))))
+
+    /// Makes `service` (a tonic server with its interceptors, e.g. what `fork_server`
+    /// builds) reachable in-process at `addr`, the address it also listens on.
+    pub fn register<S, B>(&self, addr: &str, service: S) -> Registration
+    where
+        S: Service<Request<Body>, Response = Response<B>, Error = Infallible> + Clone + Send + Sync + 'static,
+        S::Future: Send + 'static,
+        B: http_body::Body<Data = tonic::codegen::Bytes> + Send + 'static,
+        B::Error: Into<tower::BoxError>,
+    {
+        let k = key(addr);
+        if let Some(shared) = &self.shared {
+            let boxed = BoxCloneSyncService::new(
+                service
+                    .map_response(|r: Response<B>| r.map(Body::new))
+                    .map_err(|e: Infallible| -> TransportError { match e {} }),
+            );
+            if let Ok(mut r) = shared.services.lock() {
+                r.insert(k.clone(), boxed);
+            }
+            shared.registered.notify_all();
+        }
+        Registration { shared: self.shared.clone(), key: k }
+    }
+
+    /// The registered service at `addr`, if any.
+    pub fn get(&self, addr: &str) -> Option<Transport> {
+        self.shared.as_ref()?.services.lock().ok()?.get(&key(addr)).cloned()
+    }
+
+    /// Waits up to `timeout` for a server of this set to register `addr` (a client
+    /// started with its server should not race it onto a socket). False when the time
+    /// ran out or the set is [`InProcess::none`].
+    pub fn wait_registered(&self, addr: &str, timeout: Duration) -> bool {
+        let Some(shared) = &self.shared else { return false };
+        let (k, deadline) = (key(addr), std::time::Instant::now() + timeout);
+        let Ok(mut r) = shared.services.lock() else { return false };
+        loop {
+            if r.contains_key(&k) {
+                return true;
+            }
+            let left = deadline.saturating_duration_since(std::time::Instant::now());
+            if left.is_zero() {
+                return false;
+            }
+            r = match shared.registered.wait_timeout(r, left) {
+                Ok((r, _)) => r,
+                Err(_) => return false,
+            };
+        }
+    }
+
+    /// Opens `endpoint`: the in-process service when its address is registered in this
+    /// set, with `call_timeout` as the deadline of each call (what `Endpoint::timeout`
+    /// does for a socket); otherwise a connection (TCP, or TLS when installed), as
+    /// [`Endpoint::connect`].
+    pub async fn connect(
+        &self,
+        endpoint: Endpoint,
+        call_timeout: Option<Duration>,
+    ) -> Result<Transport, tonic::transport::Error> {
+        let authority = endpoint.uri().authority().map(|a| a.to_string()).unwrap_or_default();
+        if let Some(service) = self.get(&authority) {
+            return Ok(match call_timeout {
+                Some(timeout) => BoxCloneSyncService::new(Deadline { inner: service, timeout }),
+                None => service,
+            });
+        }
+        let channel = endpoint.connect().await?;
+        Ok(BoxCloneSyncService::new(channel.map_err(|e| TransportError(e.into()))))
+    }
 }
 
 /// A deadline on every call of an in-process service: a call still running after

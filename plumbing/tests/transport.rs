@@ -1,10 +1,10 @@
 //! The in-process transport: a registered service is reached without a socket (nothing
 //! listens on its address), with the server's interceptors and status codes; a call that
-//! outlives its deadline fails as on a channel; an unregistered address, or the tcp mode,
-//! goes to the network.
+//! outlives its deadline fails as on a channel; an unregistered address, another set's
+//! address, or the tcp mode, goes to the network.
 
 use magg_plumbing::auth::{AddToken, CheckToken, Token};
-use magg_plumbing::transport;
+use magg_plumbing::transport::{InProcess, Mode};
 use magg_proto::v1::host_client::HostClient;
 use magg_proto::v1::host_server::{Host, HostServer};
 use magg_proto::v1::{
@@ -42,9 +42,14 @@ fn token(t: &str) -> Token {
     Token::new(Some(t.into()))
 }
 
-async fn client(addr: &str, timeout: Option<Duration>, t: &str) -> HostClient<magg_plumbing::auth::Authed> {
+async fn client(
+    links: &InProcess,
+    addr: &str,
+    timeout: Option<Duration>,
+    t: &str,
+) -> HostClient<magg_plumbing::auth::Authed> {
     let endpoint = magg_plumbing::tls::endpoint(addr).unwrap().connect_timeout(Duration::from_millis(300));
-    let ch = transport::connect(endpoint, timeout).await.unwrap();
+    let ch = links.connect(endpoint, timeout).await.unwrap();
     HostClient::with_interceptor(ch, AddToken(token(t)))
 }
 
@@ -52,10 +57,11 @@ async fn client(addr: &str, timeout: Option<Duration>, t: &str) -> HostClient<ma
 async fn a_registered_service_answers_without_a_socket_with_its_interceptors_and_deadlines() {
     let addr = unused_addr();
     let server = InterceptedService::new(HostServer::new(Echo), CheckToken { token: token("s3cret"), server: "host" });
-    let registered = transport::register(&addr, server);
-    assert!(transport::in_process(&format!("http://{addr}")).is_some(), "the scheme is ignored");
+    let links = InProcess::new(Mode::InProcess);
+    let registered = links.register(&addr, server);
+    assert!(links.get(&format!("http://{addr}")).is_some(), "the scheme is ignored");
 
-    let mut host = client(&addr, Some(Duration::from_millis(100)), "s3cret").await;
+    let mut host = client(&links, &addr, Some(Duration::from_millis(100)), "s3cret").await;
     let reply = host.register(RegisterRequest { name: "abcd".into(), ..Default::default() }).await.unwrap();
     assert_eq!(reply.into_inner().node, 4, "the call went through encoding and the service");
     let e = host.submit_rows(SubmitRowsRequest::default()).await.unwrap_err();
@@ -65,12 +71,37 @@ async fn a_registered_service_answers_without_a_socket_with_its_interceptors_and
     let e = host.next_work(NextWorkRequest::default()).await.unwrap_err();
     assert_eq!((e.code(), e.message()), (Code::Cancelled, "Timeout expired"), "{e:?}");
 
-    let mut intruder = client(&addr, None, "wrong").await;
+    let mut intruder = client(&links, &addr, None, "wrong").await;
     let e = intruder.register(RegisterRequest::default()).await.unwrap_err();
     assert_eq!(e.code(), Code::Unauthenticated, "the server's token check runs in-process too");
 
     drop(registered);
-    assert!(transport::in_process(&addr).is_none());
+    assert!(links.get(&addr).is_none());
     let endpoint = magg_plumbing::tls::endpoint(&addr).unwrap().connect_timeout(Duration::from_millis(300));
-    assert!(transport::connect(endpoint, None).await.is_err(), "unregistered: a socket, and nobody listens");
+    assert!(links.connect(endpoint, None).await.is_err(), "unregistered: a socket, and nobody listens");
+}
+
+#[tokio::test]
+async fn a_service_is_reached_only_through_the_set_it_registered_in() {
+    let addr = unused_addr();
+    let (_reporter, health) = tonic_health::server::health_reporter();
+    let (ours, theirs) = (InProcess::new(Mode::InProcess), InProcess::new(Mode::InProcess));
+    let _registered = ours.register(&addr, health);
+    assert!(ours.wait_registered(&addr, Duration::from_millis(10)));
+    assert!(ours.clone().get(&addr).is_some(), "a clone shares the set");
+    assert!(theirs.get(&addr).is_none(), "no process-wide registry: another set does not see it");
+    assert!(!theirs.wait_registered(&addr, Duration::from_millis(50)));
+    let endpoint = magg_plumbing::tls::endpoint(&addr).unwrap().connect_timeout(Duration::from_millis(300));
+    assert!(theirs.connect(endpoint, None).await.is_err(), "another set opens a socket, and nobody listens");
+}
+
+#[test]
+fn the_tcp_mode_and_a_process_of_its_own_register_nothing() {
+    let addr = unused_addr();
+    for links in [InProcess::new(Mode::Tcp), InProcess::none()] {
+        let (_reporter, health) = tonic_health::server::health_reporter();
+        let _registered = links.register(&addr, health);
+        assert!(links.get(&addr).is_none(), "{links:?} found an in-process service");
+        assert!(!links.wait_registered(&addr, Duration::from_millis(50)), "{links:?} waited for a registration");
+    }
 }

@@ -21,7 +21,7 @@
 use crate::v1;
 use glam::DVec3;
 use magg_core::blocks::{
-    Block, BlockLayout, BLOCK_SIZE, ELEMENTS_PER_BLOCK, NO_BLOCK, PATCHES_PER_BLOCK, VERTICES_PER_BLOCK,
+    Block, BlockLayout, CacheSize, BLOCK_SIZE, ELEMENTS_PER_BLOCK, NO_BLOCK, PATCHES_PER_BLOCK, VERTICES_PER_BLOCK,
 };
 use magg_core::color::Rgb;
 use magg_core::header::{Counts, GridHeader, SceneHeader};
@@ -560,6 +560,20 @@ pub fn block_bytes_from_wire(b: v1::Block) -> Result<(u32, bytes::Bytes), Conver
     Ok((b.id, b.data))
 }
 
+/// A node's cache size as `RegisterReply.cache_blocks` carries it: the count, 0 for
+/// unlimited.
+pub fn cache_size_to_wire(c: CacheSize) -> u64 {
+    c.blocks().unwrap_or(0)
+}
+
+/// The cache size of `RegisterReply.cache_blocks` (0: unlimited).
+pub fn cache_size_from_wire(blocks: u64) -> CacheSize {
+    match blocks {
+        0 => CacheSize::Unlimited,
+        n => CacheSize::from_blocks(Some(n)),
+    }
+}
+
 /// A block for the wire.
 pub fn block_to_wire(id: u32, block: &Block) -> v1::Block {
     v1::Block { id, data: bytes::Bytes::copy_from_slice(block) }
@@ -624,6 +638,15 @@ mod tests {
     use super::*;
     use prost::Message;
     use std::sync::Arc;
+
+    #[test]
+    fn cache_size_crosses_the_wire_with_zero_for_unlimited() {
+        for c in [CacheSize::Unlimited, CacheSize::from_blocks(Some(1)), CacheSize::from_blocks(Some(40))] {
+            assert_eq!(cache_size_from_wire(cache_size_to_wire(c)), c);
+        }
+        assert_eq!(cache_size_to_wire(CacheSize::Unlimited), 0);
+        assert_eq!(cache_size_from_wire(7).blocks(), Some(7));
+    }
 
     fn paper_header() -> Arc<SceneHeader> {
         let text = include_str!("../../scenes/magg-paper.toml");

@@ -1,7 +1,7 @@
 //! # magg-throttle: the 1993 machine on today's hardware
 //!
 //! A run with a hardware profile behaves like the MAGG system of Kawai et al. (1993):
-//! every message pays for its bytes on the path it travels (DESIGN.md §4: the T800
+//! every message pays for its bytes on the path it travels (the T800
 //! serial **link** between a node and its fork or the host, the **DMA** bus inside a GPU
 //! card from a fork to its nodes, the shared **G-bus** between forks), every fork pays a
 //! service time per request, and every node pays for its computation through a
@@ -21,7 +21,7 @@
 //! ```
 //! use magg_throttle::{Path, Profile};
 //! let p = Profile::named("magg1993").unwrap();
-//! // A 2 KB block costs about 1.2 ms on a T800 link (DESIGN.md §4).
+//! // A 2 KB block costs about 1.2 ms on a T800 link.
 //! let t = p.path(Path::Link).unwrap().cost(2048);
 //! assert!((t.as_secs_f64() - 1.2e-3).abs() < 0.1e-3);
 //! // The native profile throttles nothing: the layer is out of the path.
@@ -36,7 +36,7 @@ pub use cost::{preprocess_ops, CpuCost};
 pub use profile::{CpuSpec, ForkSpec, Path, PathSpec, Profile, ProfileError, BUILTIN};
 pub use resource::{wait, wait_blocking, Resource, BURST, SLACK};
 
-/// How the cluster schedules its work (DESIGN.md §4): the paper's choices or ours.
+/// How the cluster schedules its work (docs/ARCHITECTURE.md, the throttling layer): the paper's choices or ours.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Scheme {

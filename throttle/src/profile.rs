@@ -36,7 +36,7 @@ pub enum ProfileError {
     },
 }
 
-/// The paths of DESIGN.md §4.
+/// The paths a byte travels on the 1993 machine (docs/ARCHITECTURE.md, the throttling layer).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum Path {
     /// T800 serial link: node <-> fork/host messages.
@@ -143,7 +143,7 @@ pub struct ForkSpec {
     pub deposit_us: f64,
 }
 
-/// A hardware profile (DESIGN.md §4).
+/// A hardware profile: the measured speeds of the machine's processors, links, DMA and G-bus.
 #[derive(Clone, Debug, PartialEq, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Profile {
@@ -307,7 +307,7 @@ mod tests {
 
     #[test]
     fn design_figures_hold() {
-        // DESIGN.md §4: a 2 KB block costs about 1.2 ms on a link and 24 us on the G-bus.
+        // The paper's measurements: a 2 KB block costs about 1.2 ms on a link and 24 us on the G-bus.
         let p = Profile::named("magg1993").unwrap();
         let link = p.path(Path::Link).unwrap().cost(2048).as_secs_f64();
         let gbus = p.path(Path::Gbus).unwrap().cost(2048).as_secs_f64();

@@ -2,7 +2,7 @@
 #![allow(dead_code)]
 
 use glam::DVec3;
-use magg_core::blocks::{BlockCache, MemStore};
+use magg_core::blocks::{BlockCache, CacheSize, MemStore};
 use magg_core::color::Rgb;
 use magg_core::machine::RenderOutput;
 use magg_core::preprocess::{prepare, PreparedScene};
@@ -87,7 +87,12 @@ pub fn scene(patches: Vec<PatchDef>, materials: Vec<Material>, lights: Vec<Light
 }
 
 pub fn run(p: &PreparedScene, nodes: u32, cache: Option<u64>) -> RenderOutput {
-    render(p, &RenderOptions { nodes, forks: 5, cache_blocks: cache, subscreen: 8 }, &NoProgress).expect("render")
+    render(
+        p,
+        &RenderOptions { nodes, forks: 5, cache_blocks: CacheSize::from_blocks(cache), subscreen: 8 },
+        &NoProgress,
+    )
+    .expect("render")
 }
 
 pub fn prepare_and_run(s: &Scene) -> (PreparedScene, RenderOutput) {

@@ -1,4 +1,4 @@
-//! `magg-host accuracy SCENE`: what accuracy costs in time (DESIGN §1). Parses the flags,
+//! `magg-host accuracy SCENE`: what accuracy costs in time (docs/ACCURACY.md). Parses the flags,
 //! runs the accuracy study of `magg_study::accuracy::study` (the scene rendered by the
 //! embedded renderer over a grid of accuracy settings, each measured against a converged
 //! reference), and prints the Pareto front of error against time as a markdown table.

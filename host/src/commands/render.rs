@@ -19,7 +19,6 @@ use std::sync::Arc;
 
 /// Renders per `cfg` and writes every requested output.
 pub fn run(cfg: RenderConfig) -> anyhow::Result<()> {
-    magg_plumbing::transport::set_mode(cfg.transport);
     let (mut scene, path) = scene_file::load_with_path(&cfg.scene)?;
     if let Some(q) = cfg.quality {
         q.apply(&mut scene);
@@ -37,6 +36,7 @@ pub fn run(cfg: RenderConfig) -> anyhow::Result<()> {
                 forks_at: forks_at.clone(),
                 listen: listen.clone(),
                 token: faults.token.clone(),
+                transport: cfg.transport,
             };
             std::thread::scope(|s| {
                 let cluster = std::thread::Builder::new()

@@ -1,4 +1,4 @@
-//! `magg-host sweep`: the paper's experiments (paper §5, DESIGN.md §4). Parses the flags,
+//! `magg-host sweep`: the paper's experiments (paper §5, docs/EXPERIMENTS.md). Parses the flags,
 //! runs the grid of `magg_study::sweep::study` (the scene on the cluster under a hardware
 //! profile over nodes x cache blocks x forks x schedule; `sweep.csv` and the figures),
 //! and prints a table.

@@ -1,4 +1,4 @@
-//! What accuracy costs in time (DESIGN §1): the settings grid of the accuracy study, its
+//! What accuracy costs in time (docs/ACCURACY.md): the settings grid of the accuracy study, its
 //! error metrics against a converged reference, the Pareto front of error against render
 //! time, and the `--quality` presets of `magg-host render` that sit on that front.
 //!

@@ -1,4 +1,4 @@
-//! The accuracy study (DESIGN §1): renders a scene with the embedded renderer over a grid
+//! The accuracy study (docs/ACCURACY.md): renders a scene with the embedded renderer over a grid
 //! of accuracy settings, measures each against a converged reference at the same
 //! resolution, and writes `reference.png`, `accuracy.csv` and the figures; the rows, the
 //! Pareto front of error against modelled time and their markdown table come back to

@@ -1,4 +1,4 @@
-//! The paper's experiments redone (DESIGN.md §4-§5, paper §5): a grid of cluster runs
+//! The paper's experiments redone (paper §5, docs/EXPERIMENTS.md): a grid of cluster runs
 //! over nodes x cache blocks x forks x schedule under a hardware profile, one CSV row per
 //! run from its stats, and PNG figures that mirror the paper's figures 4-11.
 //!

@@ -1,4 +1,4 @@
-//! The sweep's grid (paper §5, DESIGN.md §4): renders a scene on the cluster under a
+//! The sweep's grid (paper §5, docs/EXPERIMENTS.md): renders a scene on the cluster under a
 //! hardware profile over nodes x cache blocks x forks x schedule, writes `sweep.csv`
 //! (one row per run, from its stats) and the figures of [`super::figures`], and returns
 //! the rows, whose [`table`] `magg-host sweep` prints.
