@@ -23,12 +23,9 @@ struct Args {
     /// services and the standard gRPC health service are served there.
     #[arg(long, default_value = "127.0.0.1:7100", env = "MAGG_FORK_LISTEN")]
     listen: SocketAddr,
-    /// Profile, token and TLS: the flags every cluster process shares.
+    /// Profile, token, TLS and log level: the flags every cluster process shares.
     #[command(flatten)]
     cluster: magg_plumbing::flags::ClusterArgs,
-    /// More log output (-v: info, -vv: debug, -vvv: trace); RUST_LOG overrides.
-    #[arg(short, long, action = clap::ArgAction::Count)]
-    verbose: u8,
     /// Instead of serving: probe a process.
     #[command(subcommand)]
     command: Option<magg_plumbing::flags::ProbeCommand>,
@@ -36,14 +33,8 @@ struct Args {
 
 fn main() -> ExitCode {
     let args = Args::parse();
-    if let Some(code) = magg_plumbing::lifecycle::start("magg-fork", &args.cluster, &args.command) {
-        return code;
-    }
-    magg_plumbing::logging::init("magg-fork", args.verbose);
-    match run(args) {
-        Ok(()) => ExitCode::SUCCESS,
-        Err(e) => magg_plumbing::logging::fail("magg-fork", format_args!("{e:#}")),
-    }
+    let (cluster, command) = (args.cluster.clone(), args.command.clone());
+    magg_plumbing::lifecycle::main("magg-fork", &cluster, &command, || run(args))
 }
 
 fn run(args: Args) -> anyhow::Result<()> {

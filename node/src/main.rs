@@ -50,12 +50,9 @@ struct Args {
     /// tracing (fault tests kill such a node in the middle of its pairs).
     #[arg(long, default_value_t = 0)]
     slow_pair_ms: u64,
-    /// Profile, token and TLS: the flags every cluster process shares.
+    /// Profile, token, TLS and log level: the flags every cluster process shares.
     #[command(flatten)]
     cluster: magg_plumbing::flags::ClusterArgs,
-    /// More log output (-v: info, -vv: debug, -vvv: trace); RUST_LOG overrides.
-    #[arg(short, long, action = clap::ArgAction::Count)]
-    verbose: u8,
     /// Instead of serving: probe a process.
     #[command(subcommand)]
     command: Option<magg_plumbing::flags::ProbeCommand>,
@@ -63,14 +60,8 @@ struct Args {
 
 fn main() -> ExitCode {
     let args = Args::parse();
-    if let Some(code) = magg_plumbing::lifecycle::start("magg-node", &args.cluster, &args.command) {
-        return code;
-    }
-    magg_plumbing::logging::init("magg-node", args.verbose);
-    match run(args) {
-        Ok(()) => ExitCode::SUCCESS,
-        Err(e) => magg_plumbing::logging::fail("magg-node", format_args!("{e:#}")),
-    }
+    let (cluster, command) = (args.cluster.clone(), args.command.clone());
+    magg_plumbing::lifecycle::main("magg-node", &cluster, &command, || run(args))
 }
 
 fn run(args: Args) -> anyhow::Result<()> {

@@ -16,7 +16,7 @@
 //! ```
 
 /// Arguments of the `probe` subcommand of every binary.
-#[derive(Debug, clap::Args)]
+#[derive(Clone, Debug, clap::Args)]
 pub struct ProbeArgs {
     /// Address to probe (HOST:PORT): a magg-fork, a magg-node with --health-listen, or a
     /// magg-host while it renders.
@@ -28,7 +28,7 @@ pub struct ProbeArgs {
 }
 
 /// The subcommands of a binary whose only one is `probe` (magg-fork, magg-node).
-#[derive(Debug, clap::Subcommand)]
+#[derive(Clone, Debug, clap::Subcommand)]
 pub enum ProbeCommand {
     /// Ask the gRPC health service at ADDR and exit 0 when it reports SERVING: the health
     /// check of a container image that has no shell.
@@ -53,4 +53,7 @@ pub struct ClusterArgs {
     /// certificates chain to (every connection is then https).
     #[command(flatten)]
     pub tls: crate::tls::TlsFiles,
+    /// More log output (-v: info, -vv: debug, -vvv: trace); RUST_LOG overrides.
+    #[arg(short, long, action = clap::ArgAction::Count)]
+    pub verbose: u8,
 }

@@ -28,6 +28,25 @@ pub fn start(program: &str, cluster: &ClusterArgs, command: &Option<ProbeCommand
     }
 }
 
+/// The whole `main` of a serving cluster process (magg-fork, magg-node): [`start`], the
+/// log set-up at `cluster.verbose`, then `run`. An error ends the process with its one
+/// error line (`PROGRAM: error: ...`, causes included) and the failure exit code.
+pub fn main<E: std::fmt::Display>(
+    program: &str,
+    cluster: &ClusterArgs,
+    command: &Option<ProbeCommand>,
+    run: impl FnOnce() -> Result<(), E>,
+) -> ExitCode {
+    if let Some(code) = start(program, cluster, command) {
+        return code;
+    }
+    crate::logging::init(program, cluster.verbose);
+    match run() {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => crate::logging::fail(program, format_args!("{e:#}")),
+    }
+}
+
 /// Registers for Ctrl-C and (on Unix) SIGTERM at once, and returns a future that
 /// completes when either arrives. Call it inside a tokio runtime.
 pub fn shutdown_signal() -> impl std::future::Future<Output = ()> {

@@ -125,7 +125,7 @@ pub(super) fn load_mesh(
 
 impl MaterialTable {
     /// Adds an MTL material of a mesh (once) and returns its index, or why it clashes.
-    fn add_mtl(&mut self, entry: &MeshEntry<'_>, mm: &MtlMaterial) -> Result<u32, String> {
+    fn add_mtl(&mut self, entry: &MeshEntry<'_>, mm: &Material) -> Result<u32, String> {
         let name = format!("{}:{}", entry.obj, mm.name);
         if let Some(&id) = self.from_mtl.get(&name) {
             return Ok(id);
@@ -134,14 +134,7 @@ impl MaterialTable {
             return Err(format!("MTL material '{name}' clashes with a [[material]] of the same name"));
         }
         let id = u32::try_from(self.list.len()).map_err(|_| "too many materials".to_string())?;
-        self.list.push(Material {
-            name: name.clone(),
-            diffuse: mm.diffuse,
-            mirror: mm.mirror,
-            transmit: mm.transmit,
-            ior: mm.ior,
-            loc: mm.loc.clone(),
-        });
+        self.list.push(Material { name: name.clone(), ..mm.clone() });
         self.from_mtl.insert(name, id);
         Ok(id)
     }
@@ -154,9 +147,9 @@ fn load_mtllibs(
     obj_path: &Path,
     obj_label: &str,
     read: &dyn Fn(&Path) -> std::io::Result<String>,
-) -> Result<Vec<MtlMaterial>, SceneError> {
+) -> Result<Vec<Material>, SceneError> {
     let dir = obj_path.parent().map_or_else(PathBuf::new, Path::to_path_buf);
-    let mut out: Vec<MtlMaterial> = Vec::new();
+    let mut out: Vec<Material> = Vec::new();
     for lib in &mesh.mtllibs {
         let path = dir.join(&lib.file);
         let label = path.display().to_string();
@@ -354,23 +347,6 @@ fn truncate(s: &str) -> String {
     }
 }
 
-/// A material read from an MTL file, already made valid.
-#[derive(Clone, Debug, PartialEq)]
-pub(super) struct MtlMaterial {
-    /// The `newmtl` name.
-    pub name: String,
-    /// Diffuse reflectance.
-    pub diffuse: Rgb,
-    /// Ideal mirror reflectance.
-    pub mirror: Rgb,
-    /// Dielectric part.
-    pub transmit: Rgb,
-    /// Index of refraction.
-    pub ior: f64,
-    /// The MTL file and line of `newmtl`.
-    pub loc: SourceLoc,
-}
-
 /// The statements of one `newmtl` block, before they are made valid.
 #[derive(Default)]
 struct MtlPending {
@@ -394,7 +370,7 @@ impl MtlPending {
     ///    `diffuse + mirror + transmit` is still above 1, the three are divided by that sum
     ///    (keeping their ratio).
     /// 4. `ior = Ni` clamped to `[1, 4]`, 1.5 when absent.
-    fn finish(self, label: &str) -> MtlMaterial {
+    fn finish(self, label: &str) -> Material {
         let clamp = |c: Rgb| Rgb(c.0.map(|x| x.clamp(0.0, 1.0)));
         let opacity = self.d.or(self.tr.map(|t| 1.0 - t)).map(|o| o.clamp(0.0, 1.0));
         let transmit = match (opacity, self.tf) {
@@ -413,7 +389,7 @@ impl MtlPending {
                 transmit.0[k] /= sum;
             }
         }
-        MtlMaterial {
+        Material {
             name: self.name,
             diffuse,
             mirror,
@@ -426,8 +402,8 @@ impl MtlPending {
 
 /// Parses an MTL file; `label` names it in errors. Unknown statements (`Ka`, `Ns`,
 /// `illum`, texture maps, ...) are ignored; a name defined twice is an error.
-pub(super) fn parse_mtl(label: &str, text: &str) -> Result<Vec<MtlMaterial>, SceneError> {
-    let mut done: Vec<MtlMaterial> = Vec::new();
+pub(super) fn parse_mtl(label: &str, text: &str) -> Result<Vec<Material>, SceneError> {
+    let mut done: Vec<Material> = Vec::new();
     let mut pending: Option<MtlPending> = None;
     for (n, raw_line) in text.lines().enumerate() {
         let line = u32::try_from(n + 1).unwrap_or(u32::MAX);
@@ -597,7 +573,7 @@ mod tests {
         assert!(obj_err("\u{0}\u{1}garbage\n").starts_with("m.obj:1:"));
     }
 
-    fn mtl(text: &str) -> Vec<MtlMaterial> {
+    fn mtl(text: &str) -> Vec<Material> {
         parse_mtl("m.mtl", text).unwrap()
     }
 
