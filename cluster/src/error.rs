@@ -5,10 +5,11 @@
 //! | --- | --- |
 //! | [`HostError::ProtocolVersion`], [`HostError::NoViewPass`] | `FAILED_PRECONDITION` |
 //! | [`HostError::RenderOver`] (a node that came after the end: it exits quietly) | `UNAVAILABLE` |
-//! | [`HostError::NameTooLong`], [`HostError::UnknownNode`], [`HostError::Rows`] | `INVALID_ARGUMENT` |
+//! | [`HostError::NameTooLong`], [`HostError::UnknownNode`], [`HostError::Report`], [`HostError::Rows`] | `INVALID_ARGUMENT` |
 //! | [`HostError::TooManyNodes`] | `RESOURCE_EXHAUSTED` |
 
 use crate::schedule::RowError;
+use magg_proto::convert::ConvertError;
 use magg_proto::PROTOCOL_VERSION;
 use tonic::Status;
 
@@ -39,6 +40,9 @@ pub enum HostError {
     /// Rows sent while no viewing pass runs.
     #[error("no viewing ray tracing in progress")]
     NoViewPass,
+    /// A node report that does not convert (a NaN or negative figure).
+    #[error("bad node report: {0}")]
+    Report(ConvertError),
     /// Rows the subscreen queue refuses.
     #[error(transparent)]
     Rows(#[from] RowError),
@@ -50,7 +54,9 @@ impl From<HostError> for Status {
         match e {
             HostError::ProtocolVersion(_) | HostError::NoViewPass => Status::failed_precondition(text),
             HostError::RenderOver => Status::unavailable(text),
-            HostError::NameTooLong | HostError::UnknownNode(_) | HostError::Rows(_) => Status::invalid_argument(text),
+            HostError::NameTooLong | HostError::UnknownNode(_) | HostError::Report(_) | HostError::Rows(_) => {
+                Status::invalid_argument(text)
+            }
             HostError::TooManyNodes => Status::resource_exhausted(text),
         }
     }

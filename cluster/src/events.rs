@@ -5,6 +5,7 @@
 //! never blocks the service and no event is lost (a watcher must keep up; the live view
 //! does, it only appends to its log).
 
+use magg_core::cluster::NodeReport;
 use magg_core::vrt::Subscreen;
 use magg_proto::v1;
 
@@ -31,7 +32,7 @@ pub enum ClusterEvent {
         /// Node id.
         node: u32,
         /// The report.
-        report: v1::NodeReport,
+        report: NodeReport,
         /// Bytes of its messages with the host so far (its link traffic).
         link_bytes: u64,
     },

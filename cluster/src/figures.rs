@@ -5,47 +5,24 @@ use super::emulation::{cpu_share, process_cpu_s};
 use super::machine::{mark, ClusterMachine};
 use super::service::Phase;
 use magg_core::blocks::{home_fork_of_node, CacheStats};
-use magg_core::color::Rgb;
+use magg_core::cluster::NodeReport;
 use magg_core::lrt::LrtTally;
 use magg_core::machine::{MachineFigures, PhaseTimes};
 use magg_core::stats::{Emulation, NodeStats, Stages, Traffic};
-use magg_core::view::OpCounters;
-use magg_proto::v1;
 use std::time::{Duration, Instant};
 
-fn rgb(c: &Option<v1::Rgb>) -> Rgb {
-    c.as_ref().map_or(Rgb::BLACK, |c| Rgb::new(c.r, c.g, c.b))
-}
-
-/// A node's final report as the stats' per-node figures, its cache and its light tally.
-fn node_figures(node: u32, forks: u32, r: &v1::NodeReport) -> (NodeStats, CacheStats, LrtTally) {
-    let cache =
-        CacheStats { hits: r.cache_hits, misses: r.cache_misses, remote_misses: r.cache_remote_misses, prefetched: 0 };
-    let light = LrtTally {
-        reached: rgb(&r.reached),
-        occluded: rgb(&r.occluded),
-        absorbed: rgb(&r.absorbed),
-        diffuse_end: rgb(&r.diffuse_end),
-        escaped: rgb(&r.escaped),
-        cut: rgb(&r.cut),
-    };
-    let stats = NodeStats {
+/// A node's final report as the stats' per-node figures.
+fn node_stats(node: u32, forks: u32, r: &NodeReport) -> NodeStats {
+    NodeStats {
         node,
         home_fork: home_fork_of_node(node, forks),
         pairs: r.pairs,
         tiles: r.tiles,
-        cache: cache.into(),
-        ops: OpCounters {
-            grid_steps: r.grid_steps,
-            patch_tests: r.patch_tests,
-            light_rays: r.light_rays,
-            view_rays: r.view_rays,
-            shades: r.shades,
-        },
+        cache: r.cache.into(),
+        ops: r.ops,
         cpu_s: r.cpu_busy_s,
         link_s: r.link_busy_s,
-    };
-    (stats, cache, light)
+    }
 }
 
 impl ClusterMachine {
@@ -89,9 +66,9 @@ impl ClusterMachine {
         traffic.rpcs += st.rpcs;
         let (mut per_node, mut cache, mut light) = (Vec::new(), CacheStats::default(), LrtTally::default());
         for (i, n) in st.nodes.iter().enumerate() {
-            let (stats, c, l) = node_figures(i as u32, f as u32, &n.report);
-            cache = cache.add(c);
-            light = light.add(l);
+            let stats = node_stats(i as u32, f as u32, &n.report);
+            cache = cache.add(n.report.cache);
+            light = light.add(n.report.tally);
             busy.node_cpu_s += stats.cpu_s;
             busy.link_s += stats.link_s;
             per_node.push(stats);

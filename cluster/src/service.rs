@@ -4,6 +4,7 @@ use super::error::{HostError, MAX_NODES, MAX_NODE_NAME};
 use super::events::{ClusterEvent, EventSender};
 use super::schedule::{Next, Scheduler};
 use magg_core::blocks::home_fork_of_node;
+use magg_core::cluster::NodeReport;
 use magg_proto::v1::host_server::Host;
 use magg_proto::v1::next_work_reply::Kind;
 use magg_proto::v1::{
@@ -37,7 +38,7 @@ pub struct NodeEntry {
     /// Name it gave.
     pub name: String,
     /// Its latest cumulative report.
-    pub report: v1::NodeReport,
+    pub report: NodeReport,
     /// It was told to trace pairs already in this LRT phase.
     pub told_pairs: bool,
     /// The [`HostState::pairs_epoch`] it was last told to trace pairs in.
@@ -277,7 +278,7 @@ impl Host for HostService {
             let mut s = self.lock();
             let entry = s.count_request(r.node, prost::Message::encoded_len(&r))?;
             if let Some(rep) = &r.report {
-                entry.report = rep.clone();
+                entry.report = NodeReport::try_from(rep).map_err(HostError::Report)?;
             }
         }
         let reported = r.report.is_some();
@@ -310,7 +311,7 @@ impl Host for HostService {
         if let Some(entry) = s.nodes.get_mut(r.node as usize) {
             entry.link_bytes += reply_len;
             if reported {
-                let (report, link_bytes) = (entry.report.clone(), entry.link_bytes);
+                let (report, link_bytes) = (entry.report, entry.link_bytes);
                 s.emit(|| ClusterEvent::Report { node: r.node, report, link_bytes });
             }
         }

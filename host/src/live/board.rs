@@ -115,11 +115,11 @@ impl Inner {
             ClusterEvent::Report { node, report: r, link_bytes } => {
                 let n = self.node(node);
                 n.pairs = r.pairs;
-                n.light_rays = r.light_rays;
-                n.view_rays = r.view_rays;
-                n.hits = r.cache_hits;
-                n.misses = r.cache_misses;
-                n.remote_misses = r.cache_remote_misses;
+                n.light_rays = r.ops.light_rays;
+                n.view_rays = r.ops.view_rays;
+                n.hits = r.cache.hits;
+                n.misses = r.cache.misses;
+                n.remote_misses = r.cache.remote_misses;
                 n.link_bytes = Some(link_bytes);
             }
             ClusterEvent::Assigned { node, id, rect } => self.tile(node, id, rect),

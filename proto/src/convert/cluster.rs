@@ -5,11 +5,14 @@
 //! A batch of deposits is not copied: [`DepositBatch`] borrows the request's packed
 //! arrays ([`crate::deposits`]).
 
-use super::{block_bytes_from_wire, require, rgb_to_wire, ConvertError};
+use super::{block_bytes_from_wire, finite, invalid, require, rgb_from_wire, rgb_to_wire, ConvertError};
 use crate::deposits::{DepositError, Pairs};
 use crate::v1;
+use magg_core::blocks::CacheStats;
 use magg_core::cluster::{DepositBatch, ForkReport, NodeReport, PairLease, ShardLoad};
 use magg_core::header::SceneHeader;
+use magg_core::lrt::LrtTally;
+use magg_core::view::OpCounters;
 use std::time::Duration;
 
 /// A `LoadShard` request as a shard to load: the header converted, every block checked
@@ -106,10 +109,66 @@ impl From<&NodeReport> for v1::NodeReport {
     }
 }
 
+/// A node's report as it came off the wire: every light tally finite and non-negative,
+/// busy times finite and non-negative (a report the host sums and prints must not be NaN).
+impl TryFrom<&v1::NodeReport> for NodeReport {
+    type Error = ConvertError;
+    fn try_from(r: &v1::NodeReport) -> Result<Self, ConvertError> {
+        let rgb = |c: &Option<v1::Rgb>, field: &str| rgb_from_wire(*c, field, f64::MAX);
+        let seconds = |s: f64, field: &str| {
+            finite(s, field)?;
+            if s < 0.0 {
+                return Err(invalid(field, s, "not negative"));
+            }
+            Ok(s)
+        };
+        Ok(NodeReport {
+            cache: CacheStats {
+                hits: r.cache_hits,
+                misses: r.cache_misses,
+                remote_misses: r.cache_remote_misses,
+                prefetched: 0,
+            },
+            ops: OpCounters {
+                grid_steps: r.grid_steps,
+                patch_tests: r.patch_tests,
+                light_rays: r.light_rays,
+                view_rays: r.view_rays,
+                shades: r.shades,
+            },
+            pairs: r.pairs,
+            tiles: r.tiles,
+            tally: LrtTally {
+                reached: rgb(&r.reached, "reached")?,
+                occluded: rgb(&r.occluded, "occluded")?,
+                absorbed: rgb(&r.absorbed, "absorbed")?,
+                diffuse_end: rgb(&r.diffuse_end, "diffuse_end")?,
+                escaped: rgb(&r.escaped, "escaped")?,
+                cut: rgb(&r.cut, "cut")?,
+            },
+            link_busy_s: seconds(r.link_busy_s, "link_busy_s")?,
+            cpu_busy_s: seconds(r.cpu_busy_s, "cpu_busy_s")?,
+        })
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::deposits::DepositWriter;
+
+    #[test]
+    fn node_reports_round_trip_and_refuse_nan() {
+        let mut r = NodeReport { pairs: 7, tiles: 2, cpu_busy_s: 0.5, ..Default::default() };
+        r.tally.reached = magg_core::color::Rgb::new(1.0, 2.0, 3.0);
+        r.cache.hits = 9;
+        let wire = v1::NodeReport::from(&r);
+        assert_eq!(NodeReport::try_from(&wire).unwrap(), r);
+        let nan = v1::NodeReport { reached: Some(v1::Rgb { r: f64::NAN, g: 0.0, b: 0.0 }), ..wire.clone() };
+        assert!(NodeReport::try_from(&nan).unwrap_err().to_string().contains("reached.r"));
+        let negative = v1::NodeReport { link_busy_s: -1.0, ..wire };
+        assert!(NodeReport::try_from(&negative).is_err());
+    }
 
     #[test]
     fn pair_leases_round_trip() {
