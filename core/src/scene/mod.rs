@@ -10,10 +10,12 @@
 //! `read` callback the caller passes.
 
 mod error;
+mod field;
 mod model;
 mod obj;
 mod parse;
 mod path;
+mod shape;
 
 pub use error::SceneError;
 pub use model::*;

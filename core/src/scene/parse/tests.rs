@@ -1,0 +1,347 @@
+//! Tests of the scene parser: every field, its errors with file, line and field.
+
+use super::*;
+use std::collections::HashMap;
+use std::path::PathBuf;
+
+/// A small valid scene; line numbers below refer to it.
+const MINI: &str = "\
+[camera]
+eye = [0, 1, 3]
+look_at = [0, 1, 0]
+fov = 40
+
+[[light]]
+position = [0, 1.9, 0]
+intensity = [1, 1, 1]
+
+[[material]]
+name = \"white\"
+diffuse = [0.7, 0.7, 0.7]
+
+[[triangle]]
+vertices = [[0, 0, 0], [1, 0, 0], [0, 1, 0]]
+material = \"white\"
+";
+
+fn parse_with(text: &str, files: &[(&str, &str)]) -> Result<Scene, SceneError> {
+    let files: HashMap<PathBuf, String> = files.iter().map(|(p, t)| (PathBuf::from(p), t.to_string())).collect();
+    let read = move |p: &Path| {
+        files.get(p).cloned().ok_or_else(|| std::io::Error::new(std::io::ErrorKind::NotFound, "not found"))
+    };
+    parse_scene_str("t.toml", text, Path::new("base"), &read)
+}
+
+fn parse(text: &str) -> Result<Scene, SceneError> {
+    parse_with(text, &[])
+}
+
+fn err(text: &str) -> String {
+    match parse(text) {
+        Ok(_) => panic!("scene unexpectedly parsed:\n{text}"),
+        Err(e) => e.to_string(),
+    }
+}
+
+#[test]
+fn minimal_scene_parses_with_defaults() {
+    let s = parse(MINI).unwrap();
+    assert_eq!(s.name, "t.toml");
+    assert_eq!(s.camera.up, DVec3::new(0.0, 1.0, 0.0));
+    assert_eq!(s.settings, RenderSettings::default());
+    assert_eq!(s.patches.len(), 1);
+    assert_eq!(s.patches[0].loc, SourceLoc { file: "t.toml".into(), line: 15 });
+    assert_eq!(s.lights[0].loc.line, 7);
+    assert_eq!(s.materials[0].loc.line, 11);
+    assert_eq!(s.materials[0].ior, 1.5);
+}
+
+#[test]
+fn render_table_sets_every_field() {
+    let text = format!(
+        "{MINI}\n[render]\nwidth = 640\nheight = 480\npixel_samples = 2\nelement_size = 0.25\nlight_rays = 16\n\
+         lrt_depth = 1\nvrt_depth = 2\ndiffuse_bounces = 3\nambient = [0.1, 0.2, 0.3]\ngrid = [8, 7, 6]\n\
+         seed = 42\nexposure = 2\nbackground = [0, 0, 1]\nmax_elements = 1000\n"
+    );
+    let s = parse(&text).unwrap().settings;
+    assert_eq!((s.width, s.height, s.pixel_samples, s.light_rays), (640, 480, 2, 16));
+    assert_eq!((s.lrt_depth, s.vrt_depth, s.diffuse_bounces, s.seed, s.max_elements), (1, 2, 3, 42, 1000));
+    assert_eq!(s.element_size, 0.25);
+    assert_eq!(s.ambient, Rgb::new(0.1, 0.2, 0.3));
+    assert_eq!(s.background, Rgb::new(0.0, 0.0, 1.0));
+    assert_eq!(s.grid, GridSpec::Fixed([8, 7, 6]));
+    assert_eq!(s.exposure, Exposure::Fixed(2.0));
+    let auto = parse(&format!("{MINI}[render]\ngrid = \"auto\"\nexposure = \"auto\"\n")).unwrap().settings;
+    assert_eq!((auto.grid, auto.exposure), (GridSpec::Auto, Exposure::Auto));
+}
+
+#[test]
+fn toml_syntax_error_names_file_and_line() {
+    let e = err(&format!("{MINI}[render]\nwidth = = 3\n"));
+    assert!(e.starts_with("t.toml:18: "), "{e}");
+}
+
+#[test]
+fn undefined_material_names_the_reference() {
+    let e = err(&MINI.replace("material = \"white\"", "material = \"gold\""));
+    assert_eq!(e, "t.toml:16: triangle[0].material: material 'gold' is not defined");
+}
+
+#[test]
+fn nan_and_infinity_are_refused() {
+    let e = err(&format!("{MINI}[render]\nelement_size = nan\n"));
+    assert!(e.starts_with("t.toml:18: render.element_size: NaN is not a finite number"), "{e}");
+    let e = err(&MINI.replace("eye = [0, 1, 3]", "eye = [0, inf, 3]"));
+    assert!(e.starts_with("t.toml:2: camera.eye: y = inf"), "{e}");
+}
+
+#[test]
+fn negative_intensity_is_refused() {
+    let e = err(&MINI.replace("intensity = [1, 1, 1]", "intensity = [-1, 1, 1]"));
+    assert_eq!(e, "t.toml:8: light[0].intensity: red = -1 is out of range >= 0");
+    let e = err(&MINI.replace("intensity = [1, 1, 1]", "intensity = [0, 0, 0]"));
+    assert!(e.starts_with("t.toml:8: light[0].intensity"), "{e}");
+}
+
+#[test]
+fn unknown_key_names_file_line_and_key() {
+    let e = err(&MINI.replace("diffuse = [0.7, 0.7, 0.7]", "colour = [0.7, 0.7, 0.7]"));
+    assert!(e.starts_with("t.toml:12: material[0].colour: unknown field `colour`"), "{e}");
+    let e = err(&format!("{MINI}[render]\nwidht = 3\n"));
+    assert!(e.starts_with("t.toml:18: render.widht: unknown field `widht`"), "{e}");
+}
+
+#[test]
+fn wrong_types_name_the_line() {
+    let e = err(&format!("{MINI}[render]\nwidth = \"big\"\n"));
+    assert!(e.starts_with("t.toml:18: render.width: "), "{e}");
+    let e = err(&format!("{MINI}[render]\ngrid = [8, 7]\n"));
+    assert!(e.starts_with("t.toml:18: render.grid: "), "{e}");
+    let e = err(&MINI.replace("eye = [0, 1, 3]", "eye = [0, 1]"));
+    assert_eq!(e, "t.toml:2: camera.eye: expected 3 numbers, found 2");
+}
+
+#[test]
+fn out_of_range_values_are_refused() {
+    for (line, field) in [
+        ("width = 0", "render.width"),
+        ("height = 20000", "render.height"),
+        ("pixel_samples = 5000", "render.pixel_samples"),
+        ("element_size = -0.1", "render.element_size"),
+        ("light_rays = 0", "render.light_rays"),
+        ("lrt_depth = 33", "render.lrt_depth"),
+        ("diffuse_bounces = -1", "render.diffuse_bounces"),
+        ("ambient = [0, -0.1, 0]", "render.ambient"),
+        ("grid = [512, 512, 512]", "render.grid"),
+        ("grid = [0, 1, 1]", "render.grid"),
+        ("exposure = -1", "render.exposure"),
+        ("exposure = \"bright\"", "render.exposure"),
+        ("seed = -1", "render.seed"),
+    ] {
+        let e = err(&format!("{MINI}[render]\n{line}\n"));
+        assert!(e.starts_with(&format!("t.toml:18: {field}: ")), "{line}: {e}");
+    }
+    let e = err(&MINI.replace("fov = 40", "fov = 180"));
+    assert!(e.starts_with("t.toml:4: camera.fov: 180 is out of range"), "{e}");
+    let e = err(&MINI.replace("diffuse = [0.7, 0.7, 0.7]", "diffuse = [0.7, 0.7, 0.7]\nior = 0.5"));
+    assert!(e.starts_with("t.toml:13: material[0].ior"), "{e}");
+}
+
+#[test]
+fn energy_conservation_names_the_channel() {
+    let e = err(&MINI.replace("diffuse = [0.7, 0.7, 0.7]", "diffuse = [0.7, 0.7, 0.7]\nmirror = [0.2, 0.5, 0.2]"));
+    assert!(e.starts_with("t.toml:11: material[0]: "), "{e}");
+    assert!(e.contains("green channel"), "{e}");
+    // Within the 1e-9 tolerance.
+    parse(&MINI.replace("diffuse = [0.7, 0.7, 0.7]", "diffuse = [0.7, 0.7, 0.7]\ntransmit = [0.3, 0.3, 0.3]")).unwrap();
+}
+
+#[test]
+fn duplicate_material_is_refused() {
+    let text = MINI.replace("[[triangle]]", "[[material]]\nname = \"white\"\n\n[[triangle]]");
+    let e = err(&text);
+    assert_eq!(e, "t.toml:15: material[1].name: material 'white' is already defined at line 11");
+}
+
+#[test]
+fn degenerate_triangle_is_refused() {
+    let e = err(&MINI.replace("[[0, 0, 0], [1, 0, 0], [0, 1, 0]]", "[[0, 0, 0], [1, 1, 1], [2, 2, 2]]"));
+    assert!(e.starts_with("t.toml:15: triangle[0].vertices: triangle[0] is degenerate"), "{e}");
+    let e = err(&MINI.replace("[[0, 0, 0], [1, 0, 0], [0, 1, 0]]", "[[0, 0, 0], [1, 0, 0]]"));
+    assert!(e.contains("expected 3 vertices, found 2"), "{e}");
+}
+
+#[test]
+fn missing_tables_are_refused() {
+    assert!(err(&MINI.replace("[camera]\neye = [0, 1, 3]\nlook_at = [0, 1, 0]\nfov = 40\n", "")).contains("camera"));
+    let no_light = MINI.replace("[[light]]\nposition = [0, 1.9, 0]\nintensity = [1, 1, 1]\n", "");
+    assert!(err(&no_light).contains("no [[light]]"));
+    let no_patch =
+        MINI.replace("[[triangle]]\nvertices = [[0, 0, 0], [1, 0, 0], [0, 1, 0]]\nmaterial = \"white\"\n", "");
+    assert!(err(&no_patch).contains("no [[triangle]]"));
+    let e = err(&MINI
+        .replace("look_at = [0, 1, 0]", "look_at = [0, 1, 0]\nup = [0, 2, 0]")
+        .replace("eye = [0, 1, 3]", "eye = [0, 5, 0]"));
+    assert!(e.contains("camera.up"), "{e}");
+}
+
+#[test]
+fn spot_light_is_normalized_and_checked() {
+    let spot = "intensity = [1, 1, 1]\ndirection = [0, -2, 0]\ncone = 30\nfalloff = 5";
+    let s = parse(&MINI.replace("intensity = [1, 1, 1]", spot)).unwrap();
+    let sp = s.lights[0].spot.clone().unwrap();
+    assert_eq!(sp.direction, DVec3::new(0.0, -1.0, 0.0));
+    assert_eq!((sp.half_angle_deg, sp.falloff_deg), (30.0, 5.0));
+    let e = err(&MINI.replace("intensity = [1, 1, 1]", "intensity = [1, 1, 1]\ncone = 30"));
+    assert!(e.starts_with("t.toml:9: light[0].cone"), "{e}");
+    let e = err(&MINI.replace("intensity = [1, 1, 1]", "intensity = [1, 1, 1]\ndirection = [0, 0, 0]\ncone = 30"));
+    assert!(e.starts_with("t.toml:9: light[0].direction"), "{e}");
+    let e = err(&MINI
+        .replace("intensity = [1, 1, 1]", "intensity = [1, 1, 1]\ndirection = [0, -1, 0]\ncone = 170\nfalloff = 20"));
+    assert!(e.starts_with("t.toml:11: light[0].falloff"), "{e}");
+}
+
+const QUAD: &str = "[[quad]]\nvertices = [[0, 0, 0], [2, 0, 0], [2, 1, 0], [0, 1, 0]]\nmaterial = \"white\"\n";
+
+#[test]
+fn quad_becomes_two_triangles_with_equal_subdivisions() {
+    let s = parse(&format!("{MINI}{QUAD}[render]\nelement_size = 0.5\n")).unwrap();
+    assert_eq!(s.patches.len(), 3);
+    let (a, b) = (&s.patches[1], &s.patches[2]);
+    let v = |x: f64, y: f64| DVec3::new(x, y, 0.0);
+    assert_eq!(a.vertices, [v(0.0, 0.0), v(2.0, 0.0), v(2.0, 1.0)]);
+    assert_eq!(b.vertices, [v(0.0, 0.0), v(2.0, 1.0), v(0.0, 1.0)]);
+    // Both halves carry the quad's longest edge incl. the diagonal: sqrt(5).
+    assert_eq!((a.subdivisions, b.subdivisions), (None, None));
+    assert_eq!(a.size_hint, b.size_hint);
+    assert!((a.size_hint.unwrap() - 5f64.sqrt()).abs() < 1e-12);
+    assert_eq!(a.loc.line, 18);
+    // Winding kept: normal +z.
+    for p in [a, b] {
+        assert!((p.vertices[1] - p.vertices[0]).cross(p.vertices[2] - p.vertices[0]).z > 0.0);
+    }
+    let fixed = parse(&format!("{MINI}{QUAD}subdivisions = 7\n")).unwrap();
+    assert_eq!(fixed.patches[2].subdivisions, Some(7));
+}
+
+#[test]
+fn bad_quads_are_refused() {
+    let bent = QUAD.replace("[2, 1, 0]", "[2, 1, 0.01]");
+    assert!(err(&format!("{MINI}{bent}")).contains("quad[0] is not planar"));
+    let concave = QUAD.replace("[2, 1, 0]", "[0.5, 0.2, 0]");
+    assert!(err(&format!("{MINI}{concave}")).contains("quad[0] is not convex"));
+    let crossed = QUAD.replace("[2, 1, 0], [0, 1, 0]", "[0, 1, 0], [2, 1, 0]");
+    assert!(err(&format!("{MINI}{crossed}")).contains("quad[0]"));
+    let e = err(&format!("{MINI}{QUAD}subdivisions = 0\n"));
+    assert!(e.starts_with("t.toml:20: quad[0].subdivisions: 0 is out of range 1..=4096"), "{e}");
+}
+
+const CUBE_OBJ: &str =
+    "mtllib cube.mtl\nv 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nusemtl red\nf 1 2 3 4\nusemtl white\nf -4 -2 -1\n";
+const CUBE_MTL: &str = "newmtl red\nKd 0.8 0.1 0.1\n";
+
+fn mesh_scene(extra: &str) -> String {
+    format!("{MINI}\n[[mesh]]\nobj = \"m/cube.obj\"\n{extra}")
+}
+
+#[test]
+fn mesh_materials_come_from_mtl_then_toml() {
+    let s = parse_with(&mesh_scene(""), &[("base/m/cube.obj", CUBE_OBJ), ("base/m/cube.mtl", CUBE_MTL)]).unwrap();
+    assert_eq!(s.patches.len(), 1 + 3);
+    let names: Vec<&str> = s.materials.iter().map(|m| m.name.as_str()).collect();
+    assert_eq!(names, ["white", "m/cube.obj:red"]);
+    assert_eq!(s.materials[1].diffuse, Rgb::new(0.8, 0.1, 0.1));
+    assert_eq!(s.materials[1].loc, SourceLoc { file: "base/m/cube.mtl".into(), line: 1 });
+    assert_eq!([s.patches[1].material, s.patches[2].material, s.patches[3].material], [1, 1, 0]);
+    assert_eq!(s.patches[3].loc, SourceLoc { file: "t.toml".into(), line: 19 });
+    // An explicit material overrides the MTL, which is then not even read.
+    let s = parse_with(&mesh_scene("material = \"white\"\n"), &[("base/m/cube.obj", CUBE_OBJ)]).unwrap();
+    assert!(s.patches.iter().all(|p| p.material == 0));
+    assert_eq!(s.materials.len(), 1);
+}
+
+#[test]
+fn missing_obj_names_scene_line_and_path() {
+    let e = err(&mesh_scene(""));
+    assert!(e.starts_with("t.toml:19: mesh[0].obj: cannot read OBJ file 'base/m/cube.obj'"), "{e}");
+    let e = parse_with(&mesh_scene(""), &[("base/m/cube.obj", CUBE_OBJ)]).unwrap_err().to_string();
+    assert!(e.starts_with("base/m/cube.obj:1: mtllib: cannot read MTL file 'base/m/cube.mtl'"), "{e}");
+}
+
+#[test]
+fn obj_errors_name_the_obj_file_and_line() {
+    let bad = "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 9\n";
+    let e = parse_with(&mesh_scene("material = \"white\"\n"), &[("base/m/cube.obj", bad)]).unwrap_err();
+    assert_eq!(e.loc, SourceLoc { file: "base/m/cube.obj".into(), line: 4 });
+    let no_mtl = "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n";
+    let e = parse_with(&mesh_scene(""), &[("base/m/cube.obj", no_mtl)]).unwrap_err().to_string();
+    assert!(e.starts_with("t.toml:19: mesh[0].material: base/m/cube.obj:4: face has no material"), "{e}");
+    let unknown = "v 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl gold\nf 1 2 3\n";
+    let e = parse_with(&mesh_scene(""), &[("base/m/cube.obj", unknown)]).unwrap_err().to_string();
+    assert!(e.contains("base/m/cube.obj:5: material 'gold' is not defined"), "{e}");
+}
+
+#[test]
+fn mesh_transform_is_scale_rotate_translate() {
+    let obj = "v 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 2 3\n";
+    let text = mesh_scene("material = \"white\"\nscale = 2\nrotate = [0, 0, 90]\ntranslate = [10, 0, 0]\n");
+    let s = parse_with(&text, &[("base/m/cube.obj", obj)]).unwrap();
+    let v = s.patches[1].vertices;
+    // (1,0,0) -> scale (2,0,0) -> 90 deg about z (0,2,0) -> translate (10,2,0).
+    assert!((v[0] - DVec3::new(10.0, 2.0, 0.0)).length() < 1e-12, "{:?}", v[0]);
+    assert!((v[2] - DVec3::new(10.0, 0.0, 2.0)).length() < 1e-12, "{:?}", v[2]);
+}
+
+#[test]
+fn negative_scale_keeps_normals_outward() {
+    let obj = "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n";
+    let normal = |extra: &str| {
+        let s =
+            parse_with(&mesh_scene(&format!("material = \"white\"\n{extra}")), &[("base/m/cube.obj", obj)]).unwrap();
+        let v = s.patches[1].vertices;
+        (v[1] - v[0]).cross(v[2] - v[0]).normalized()
+    };
+    assert_eq!(normal(""), DVec3::new(0.0, 0.0, 1.0));
+    // Mirroring x alone maps the +z normal to +z; without the re-flip it would be -z.
+    assert_eq!(normal("scale = [-1, 1, 1]"), DVec3::new(0.0, 0.0, 1.0));
+    // Mirroring z mirrors the surface too: its front now faces -z, like a box's top face
+    // becoming its bottom face (normal = M^-T n, as for a closed mesh staying outward).
+    assert_eq!(normal("scale = [1, 1, -3]"), DVec3::new(0.0, 0.0, -1.0));
+    let e = err(&mesh_scene("material = \"white\"\nscale = [1, 0, 1]\n"));
+    assert!(e.contains("mesh[0].scale"), "{e}");
+}
+
+#[test]
+fn degenerate_obj_faces_are_skipped() {
+    let obj = "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 2 0 0\nf 1 2 3\nf 1 2 4\n";
+    let s = parse_with(&mesh_scene("material = \"white\"\nsubdivisions = 3\n"), &[("base/m/cube.obj", obj)]).unwrap();
+    assert_eq!(s.patches.len(), 2);
+    assert_eq!(s.patches[1].subdivisions, Some(3));
+    let flat = "v 0 0 0\nv 1 0 0\nv 2 0 0\nf 1 2 3\n";
+    let e = parse_with(&mesh_scene("material = \"white\"\n"), &[("base/m/cube.obj", flat)]).unwrap_err();
+    assert!(e.message.contains("no faces of non-zero area"), "{e}");
+}
+
+#[test]
+fn patches_keep_file_order_across_kinds() {
+    let text = MINI.replace("[[triangle]]", &format!("{QUAD}\n[[triangle]]"));
+    let s = parse(&text).unwrap();
+    assert_eq!(s.patches.iter().map(|p| p.loc.line).collect::<Vec<_>>(), [15, 15, 19]);
+}
+
+#[test]
+fn mangled_input_never_panics() {
+    // Every single-character deletion and a few insertions: an error or a scene, never a panic.
+    let text = format!("{MINI}{QUAD}[render]\ngrid = [2, 2, 2]\nexposure = 1.5\n");
+    let chars: Vec<char> = text.chars().collect();
+    for k in 0..chars.len() {
+        let mut deleted = chars.clone();
+        deleted.remove(k);
+        let _ = parse(&deleted.iter().collect::<String>());
+        for c in ['[', '"', '=', '-', '\n', '9'] {
+            let mut inserted = chars.clone();
+            inserted.insert(k, c);
+            let _ = parse(&inserted.iter().collect::<String>());
+        }
+    }
+}
