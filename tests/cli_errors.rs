@@ -241,3 +241,36 @@ fn unwritable_output_is_an_error_not_a_panic() {
     let line = assert_user_error(&out, "unwritable output");
     assert_contains(&line, &["no/such/dir/x.png"]);
 }
+
+#[test]
+fn devices_and_files_outside_the_scene_folder_are_not_read() {
+    let (dir, other) = (tempfile::tempdir().unwrap(), tempfile::tempdir().unwrap());
+    // A device as the scene, or as its mesh: refused at once, not read until memory runs out.
+    let out = render(dir.path(), Path::new("/dev/zero"), &["--out", "x.png"]);
+    assert_contains(&assert_user_error(&out, "/dev/zero as the scene"), &["/dev/zero", "not a regular file"]);
+    let mesh = |obj: &str| format!("{GOOD}\n[[mesh]]\nobj = \"{obj}\"\nmaterial = \"white\"\n");
+    let s = write(dir.path(), "dev.toml", &mesh("/dev/zero"));
+    assert_contains(
+        &assert_user_error(&render(dir.path(), &s, &["--out", "x.png"]), "/dev/zero mesh"),
+        &["dev.toml", "obj"],
+    );
+    // A file beside another folder: refused, and what it holds is not printed.
+    write(other.path(), "secret.obj", "MAGG_TOKEN=hunter2-very-secret-value\n");
+    let outside = other.path().join("secret.obj");
+    let s = write(dir.path(), "out.toml", &mesh(&outside.display().to_string()));
+    let line = assert_user_error(&render(dir.path(), &s, &["--out", "x.png"]), "a mesh outside the scene's folder");
+    assert_contains(&line, &["out.toml", "outside the scene's folder", "--allow-path"]);
+    assert!(!line.contains("hunter2"), "{line}");
+    // Allowed, it is read; it is not an OBJ, and the error still hides its contents.
+    let out = magg_host()
+        .current_dir(dir.path())
+        .args(["--allow-path", &other.path().display().to_string(), "render"])
+        .arg(&s)
+        .args(["--out", "x.png"])
+        .output()
+        .unwrap();
+    let line = assert_user_error(&out, "an allowed foreign file");
+    assert_contains(&line, &["secret.obj:1", "unknown statement a token of"]);
+    assert!(!line.contains("hunter2"), "{line}");
+    assert!(!dir.path().join("x.png").exists());
+}

@@ -25,7 +25,7 @@ pub enum Next {
 }
 
 /// Why a row was refused.
-#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
 pub enum RowError {
     /// Unknown or finished subscreen.
     #[error("subscreen {0} is not being traced")]
@@ -49,6 +49,21 @@ pub enum RowError {
         got: usize,
         /// Bytes expected (three little-endian f32 per pixel).
         expected: usize,
+    },
+    /// A pixel that is not a finite non-negative radiance: the subscreen was taken back
+    /// and goes to the queue again, for another node (or the same) to trace.
+    #[error(
+        "row {y} of subscreen {id}: pixel {x} has {value}, not a finite radiance >= 0; the subscreen is taken back"
+    )]
+    BadPixel {
+        /// Subscreen.
+        id: u64,
+        /// Row.
+        y: u32,
+        /// Pixel within the row.
+        x: u32,
+        /// The channel value sent.
+        value: f32,
     },
 }
 
@@ -177,7 +192,12 @@ impl Scheduler {
             a.seen = Instant::now();
         }
         for &(y, rgb) in rows {
-            self.store_row(id, y, rgb)?;
+            if let Err(e) = self.store_row(id, y, rgb) {
+                if matches!(e, RowError::BadPixel { .. }) {
+                    self.take_back(id);
+                }
+                return Err(e);
+            }
         }
         Ok(self.split_if_wanted(id))
     }
@@ -195,6 +215,10 @@ impl Scheduler {
         let expected = 12 * a.rect.w as usize;
         if rgb.len() != expected {
             return Err(RowError::BadLength { y, got: rgb.len(), expected });
+        }
+        let bad = magg_proto::convert::pixels_from_wire(rgb).enumerate().find(|(_, v)| !(v.is_finite() && *v >= 0.0));
+        if let Some((k, value)) = bad {
+            return Err(RowError::BadPixel { id, y, x: (k / 3) as u32, value });
         }
         // The frame holds f32 pixels, as the wire does: the row is copied as it came.
         if let Some(row) = self.frame.row_mut(a.rect.x, y, a.rect.w) {
@@ -231,17 +255,19 @@ impl Scheduler {
     pub fn expire(&mut self, lease: Duration) -> Vec<u32> {
         let expired: Vec<u64> =
             self.active.iter().filter(|(_, a)| a.seen.elapsed() > lease).map(|(&id, _)| id).collect();
-        let mut nodes = Vec::new();
-        for id in expired {
-            let Some(a) = self.active.remove(&id) else { continue };
-            if a.next_row < a.end {
-                self.queue.push_front(Subscreen { x: a.rect.x, y: a.next_row, w: a.rect.w, h: a.end - a.next_row });
-            }
-            self.revoked.insert(id);
-            self.revocations += 1;
-            nodes.push(a.node);
+        expired.into_iter().filter_map(|id| self.take_back(id)).collect()
+    }
+
+    /// Revokes subscreen `id`: its rows not received yet go to the front of the queue and
+    /// its late rows are dropped. Returns the node that had it.
+    fn take_back(&mut self, id: u64) -> Option<u32> {
+        let a = self.active.remove(&id)?;
+        if a.next_row < a.end {
+            self.queue.push_front(Subscreen { x: a.rect.x, y: a.next_row, w: a.rect.w, h: a.end - a.next_row });
         }
-        nodes
+        self.revoked.insert(id);
+        self.revocations += 1;
+        Some(a.node)
     }
 
     /// Pixels received so far.
@@ -371,5 +397,26 @@ mod tests {
         assert!(matches!(s.submit(99, &[(0, &row(4, 0.0))]), Err(RowError::UnknownSubscreen(99))));
         s.submit(id, &[(0, &row(4, 0.0)), (1, &row(4, 0.0))]).unwrap();
         assert_eq!(s.submit(id, &[(1, &row(4, 0.0))]).unwrap(), None, "a repeated row is ignored");
+    }
+
+    #[test]
+    fn a_row_with_nan_or_negative_radiance_sends_the_subscreen_back_to_the_queue() {
+        for poison in [f32::NAN, f32::INFINITY, -1.0] {
+            let mut s = Scheduler::new(4, 2, vec![Subscreen { x: 0, y: 0, w: 4, h: 2 }]);
+            let Next::Trace(id, _) = s.next(0) else { panic!() };
+            s.submit(id, &[(0, &row(4, 0.5))]).unwrap();
+            let mut bad = row(4, 0.5);
+            bad[12 * 2 + 4..12 * 2 + 8].copy_from_slice(&poison.to_le_bytes());
+            let e = s.submit(id, &[(1, &bad)]).unwrap_err();
+            assert!(matches!(e, RowError::BadPixel { y: 1, x: 2, .. }), "{e}");
+            assert_eq!(s.revocations, 1);
+            // The row not received is traced again, by whoever asks next.
+            let Next::Trace(again, rect) = s.next(1) else { panic!("the subscreen is not back on the queue") };
+            assert_eq!((rect.y, rect.h), (1, 1));
+            assert_eq!(s.submit(id, &[(1, &row(4, 0.5))]).unwrap(), Some(0), "the first node's late rows are dropped");
+            s.submit(again, &[(1, &row(4, 0.25))]).unwrap();
+            assert!(s.is_done());
+            assert_eq!(s.frame().get(2, 1), [0.25; 3]);
+        }
     }
 }

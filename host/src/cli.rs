@@ -13,6 +13,10 @@ pub struct Cli {
     /// More log output (-v: info, -vv: debug, -vvv: trace); RUST_LOG overrides.
     #[arg(short, long, action = clap::ArgAction::Count, global = true)]
     pub verbose: u8,
+    /// Also read mesh files (OBJ, MTL) from this folder and below; by default only the
+    /// scene's own folder is. Repeat for more folders.
+    #[arg(long, global = true, value_name = "DIR", env = "MAGG_ALLOW_PATH", value_delimiter = ':')]
+    pub allow_path: Vec<PathBuf>,
     /// What to do.
     #[command(subcommand)]
     pub command: Command,
@@ -439,7 +443,7 @@ mod tests {
     #[test]
     fn explicit_knobs_override_the_preset() {
         let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/cornell.toml");
-        let mut s = crate::scene_file::load(&path).unwrap();
+        let mut s = crate::scene_file::SceneFiles::default().load(&path).unwrap();
         magg_study::accuracy::preset::Quality::Final.apply(&mut s);
         let knobs = Knobs { light_rays: Some(4), ..Default::default() };
         knobs.apply(&mut s.settings).unwrap();

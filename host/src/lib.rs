@@ -21,11 +21,12 @@ pub mod scene_file;
 
 /// Runs a parsed command line.
 pub fn run(cli: cli::Cli) -> anyhow::Result<()> {
+    let files = scene_file::SceneFiles::new(&cli.allow_path)?;
     match cli.command {
-        cli::Command::Render(args) => commands::render::run(args.validate()?),
-        cli::Command::Info(args) => commands::info::run(&args),
-        cli::Command::Accuracy(args) => commands::accuracy::run(&args),
-        cli::Command::Sweep(args) => commands::sweep::run(&args),
+        cli::Command::Render(args) => commands::render::run(args.validate()?, &files),
+        cli::Command::Info(args) => commands::info::run(&args, &files),
+        cli::Command::Accuracy(args) => commands::accuracy::run(&args, &files),
+        cli::Command::Sweep(args) => commands::sweep::run(&args, &cli.allow_path),
         cli::Command::Probe(p) => {
             magg_plumbing::health::probe_blocking(&p.addr)?;
             println!("{}: SERVING", p.addr);

@@ -1,18 +1,142 @@
-//! Loading a scene file from disk (the core parses; this reads the files it names).
+//! Loading a scene file from disk (the core parses; this reads the files it names), with
+//! the limits of a renderer that may be handed any scene: only regular files, each
+//! capped in size, and mesh files only from the scene's folder or a root the user allows
+//! (`--allow-path DIR`). An error names the file and the limit; it never shows what the
+//! file holds.
 
 use anyhow::Context;
 use magg_core::scene::{parse_scene_with_path, CameraPath, Scene};
-use std::path::Path;
+use std::io::{self, Read};
+use std::path::{Path, PathBuf};
 
-/// Reads and parses the scene at `path`; OBJ/MTL files are resolved next to it.
-pub fn load(path: &Path) -> anyhow::Result<Scene> {
-    load_with_path(path).map(|(scene, _)| scene)
+/// Largest scene file (TOML) read, in bytes: a scene of a million explicit quads is
+/// about 150 MB of TOML; meshes belong in OBJ files.
+pub const MAX_SCENE_BYTES: u64 = 256 << 20;
+
+/// Largest mesh file (OBJ or MTL) read, in bytes: about 20 million triangles of OBJ,
+/// past the renderer's default memory bound.
+pub const MAX_MESH_BYTES: u64 = 2 << 30;
+
+/// Where a scene's meshes may come from besides its own folder.
+#[derive(Clone, Debug, Default)]
+pub struct SceneFiles {
+    roots: Vec<PathBuf>,
 }
 
-/// Reads and parses the scene at `path` with its camera path, if it has one.
-pub fn load_with_path(path: &Path) -> anyhow::Result<(Scene, Option<CameraPath>)> {
-    let text = std::fs::read_to_string(path).with_context(|| format!("cannot read scene file {}", path.display()))?;
-    let base = path.parent().unwrap_or_else(|| Path::new("."));
-    let label = path.display().to_string();
-    Ok(parse_scene_with_path(&label, &text, base, &|p: &Path| std::fs::read_to_string(p))?)
+impl SceneFiles {
+    /// Mesh files from the scene's folder and below, and from the folders `allow`
+    /// (each must exist).
+    pub fn new(allow: &[PathBuf]) -> anyhow::Result<SceneFiles> {
+        let roots = allow
+            .iter()
+            .map(|d| {
+                let c = d.canonicalize().with_context(|| format!("--allow-path {}", d.display()))?;
+                anyhow::ensure!(c.is_dir(), "--allow-path {}: not a folder", d.display());
+                Ok(c)
+            })
+            .collect::<anyhow::Result<_>>()?;
+        Ok(SceneFiles { roots })
+    }
+
+    /// Reads and parses the scene at `path`.
+    pub fn load(&self, path: &Path) -> anyhow::Result<Scene> {
+        self.load_with_path(path).map(|(scene, _)| scene)
+    }
+
+    /// Reads and parses the scene at `path` with its camera path, if it has one.
+    pub fn load_with_path(&self, path: &Path) -> anyhow::Result<(Scene, Option<CameraPath>)> {
+        let text =
+            read_capped(path, MAX_SCENE_BYTES).with_context(|| format!("cannot read scene file {}", path.display()))?;
+        let base = path.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or_else(|| Path::new("."));
+        let home = base.canonicalize().with_context(|| format!("the scene's folder {}", base.display()))?;
+        let label = path.display().to_string();
+        let read = |p: &Path| self.read_mesh(&home, p);
+        Ok(parse_scene_with_path(&label, &text, base, &read)?)
+    }
+
+    /// A mesh file, if it lies in the scene's folder `home` or an allowed root.
+    fn read_mesh(&self, home: &Path, p: &Path) -> io::Result<String> {
+        let c = p.canonicalize()?;
+        if !c.starts_with(home) && !self.roots.iter().any(|r| c.starts_with(r)) {
+            return Err(io::Error::new(
+                io::ErrorKind::PermissionDenied,
+                format!("it lies outside the scene's folder {}; allow its folder with --allow-path", home.display()),
+            ));
+        }
+        read_capped(&c, MAX_MESH_BYTES)
+    }
+}
+
+/// The text of the regular file at `path`, refused past `limit` bytes or when it is not
+/// UTF-8 (the error then gives the line).
+pub fn read_capped(path: &Path, limit: u64) -> io::Result<String> {
+    let file = std::fs::File::open(path)?;
+    if !file.metadata()?.is_file() {
+        return Err(io::Error::new(io::ErrorKind::InvalidInput, "not a regular file"));
+    }
+    let mut bytes = Vec::new();
+    file.take(limit + 1).read_to_end(&mut bytes)?;
+    if bytes.len() as u64 > limit {
+        return Err(io::Error::new(
+            io::ErrorKind::InvalidData,
+            format!("larger than the limit of {} MiB", limit >> 20),
+        ));
+    }
+    String::from_utf8(bytes).map_err(|e| {
+        let at = e.utf8_error().valid_up_to();
+        let line = 1 + e.as_bytes()[..at].iter().filter(|&&b| b == b'\n').count();
+        io::Error::new(io::ErrorKind::InvalidData, format!("line {line}: not UTF-8 text"))
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn dir() -> tempfile::TempDir {
+        tempfile::tempdir().unwrap()
+    }
+
+    #[test]
+    fn only_regular_files_within_the_limit() {
+        let d = dir();
+        let f = d.path().join("a.txt");
+        std::fs::write(&f, "0123456789").unwrap();
+        assert_eq!(read_capped(&f, 10).unwrap(), "0123456789");
+        let e = read_capped(&f, 9).unwrap_err().to_string();
+        assert!(e.contains("larger than the limit"), "{e}");
+        let e = read_capped(Path::new("/dev/zero"), 1 << 20).unwrap_err().to_string();
+        assert_eq!(e, "not a regular file");
+        assert!(read_capped(d.path(), 10).is_err(), "a folder");
+    }
+
+    #[test]
+    fn non_utf8_names_its_line_and_not_its_bytes() {
+        let d = dir();
+        let f = d.path().join("s.toml");
+        std::fs::write(&f, b"a = 1\nb = 2\nc = \"\xff\xfe secret\"\n").unwrap();
+        let e = read_capped(&f, 1 << 20).unwrap_err().to_string();
+        assert_eq!(e, "line 3: not UTF-8 text");
+    }
+
+    #[test]
+    fn meshes_come_from_the_scene_folder_or_an_allowed_root() {
+        let (scene_dir, other) = (dir(), dir());
+        let inside = scene_dir.path().join("m.obj");
+        let outside = other.path().join("m.obj");
+        for f in [&inside, &outside] {
+            std::fs::write(f, "v 0 0 0\n").unwrap();
+        }
+        let home = scene_dir.path().canonicalize().unwrap();
+        let files = SceneFiles::default();
+        assert!(files.read_mesh(&home, &inside).is_ok());
+        let e = files.read_mesh(&home, &outside).unwrap_err();
+        assert_eq!(e.kind(), io::ErrorKind::PermissionDenied);
+        assert!(e.to_string().contains("--allow-path"), "{e}");
+        let sneaky = scene_dir.path().join("..").join(other.path().file_name().unwrap()).join("m.obj");
+        assert!(files.read_mesh(&home, &sneaky).is_err(), "../ leaves the folder");
+        let allowed = SceneFiles::new(&[other.path().to_path_buf()]).unwrap();
+        assert!(allowed.read_mesh(&home, &outside).is_ok());
+        assert!(SceneFiles::new(&[other.path().join("missing")]).is_err());
+    }
 }

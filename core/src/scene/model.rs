@@ -178,6 +178,17 @@ pub struct Spot {
     pub falloff_deg: f64,
 }
 
+/// Largest coordinate a scene may use, in either sign (vertices after their mesh's
+/// transform, light positions, the camera). The kernel forms products of three
+/// coordinates (edge cross products, squared distances times lengths); docs/NUMERICS.md
+/// measures where they overflow (about 1e77), and 1e30 keeps a wide margin.
+pub const MAX_COORDINATE: f64 = 1e30;
+
+/// Largest radiometric value a scene may give (a light's intensity in W/sr, the ambient
+/// and background radiance, a fixed exposure): far past any real scene, and well inside
+/// what flux, radiance and tone mapping can carry without overflowing to infinity.
+pub const MAX_RADIOMETRIC: f64 = 1e30;
+
 /// A point light source (paper §3: ideal point lights; spot cones are our extension).
 #[derive(Clone, Debug, PartialEq)]
 pub struct Light {

@@ -16,7 +16,7 @@ use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
 use super::error::SceneError;
-use super::model::{Material, SourceLoc};
+use super::model::{Material, SourceLoc, MAX_COORDINATE};
 use super::shape::is_degenerate;
 use crate::color::Rgb;
 use glam::{DMat3, DVec3};
@@ -110,8 +110,9 @@ pub(super) fn load_mesh(
         if flip {
             v.swap(1, 2);
         }
-        if !v.iter().all(|p| p.is_finite()) {
-            return Err(scene_err("scale", "the transform sends a vertex to infinity".into()));
+        if !v.iter().all(|p| p.is_finite() && p.abs().max_element() <= MAX_COORDINATE) {
+            let msg = format!("the transform sends a vertex past {MAX_COORDINATE:e}");
+            return Err(scene_err("scale", msg));
         }
         if !is_degenerate(&v) {
             out.push((v, material));
@@ -245,6 +246,9 @@ pub(super) fn parse_obj(label: &str, text: &str) -> Result<ObjMesh, SceneError> 
                 let mut count = 0;
                 for tok in tokens {
                     let x = parse_number(tok).map_err(|m| err(format!("v: {m}")))?;
+                    if x.abs() > MAX_COORDINATE {
+                        return Err(err(format!("v: {x:e} is out of range [-{MAX_COORDINATE:e}, {MAX_COORDINATE:e}]")));
+                    }
                     if let Some(slot) = xyz.get_mut(count) {
                         *slot = x;
                     }
@@ -294,7 +298,7 @@ pub(super) fn parse_obj(label: &str, text: &str) -> Result<ObjMesh, SceneError> 
             k if OBJ_FREEFORM.contains(&k) => {
                 return Err(err(format!("free-form geometry ('{k}') is not supported: export triangles or polygons")));
             }
-            k => return Err(err(format!("unknown statement '{}'", truncate(k)))),
+            k => return Err(err(format!("unknown statement {}", shown(k)))),
         }
     }
     Ok(mesh)
@@ -308,10 +312,10 @@ fn resolve_corner(tok: &str, count: usize) -> Result<usize, String> {
     for p in parts {
         extra += 1;
         if extra > 2 || (!p.is_empty() && p.parse::<i64>().is_err()) {
-            return Err(format!("'{}' is not a vertex reference (v, v/vt, v//vn or v/vt/vn)", truncate(tok)));
+            return Err(format!("{} is not a vertex reference (v, v/vt, v//vn or v/vt/vn)", shown(tok)));
         }
     }
-    let i: i64 = v.parse().map_err(|_| format!("'{}' is not a vertex index", truncate(tok)))?;
+    let i: i64 = v.parse().map_err(|_| format!("{} is not a vertex index", shown(tok)))?;
     let count_i = i64::try_from(count).unwrap_or(i64::MAX);
     let index = match i {
         0 => return Err("vertex index 0 is not valid (OBJ indices start at 1)".to_string()),
@@ -329,7 +333,7 @@ fn parse_number(tok: &str) -> Result<f64, String> {
     match tok.parse::<f64>() {
         Ok(x) if x.is_finite() => Ok(x),
         Ok(x) => Err(format!("{x} is not a finite number")),
-        Err(_) => Err(format!("'{}' is not a number", truncate(tok))),
+        Err(_) => Err(format!("{} is not a number", shown(tok))),
     }
 }
 
@@ -338,12 +342,15 @@ fn rest_after_keyword<'t>(content: &'t str, keyword: &str) -> &'t str {
     content.strip_prefix(keyword).unwrap_or("").trim()
 }
 
-/// A token shortened for an error message.
-fn truncate(s: &str) -> String {
-    if s.chars().count() > 40 {
-        format!("{}...", s.chars().take(40).collect::<String>())
+/// A token as an error message may show it: quoted when it is short and looks like OBJ
+/// (a keyword, a number, a vertex reference), else only its length, so that an error
+/// about a file that is not an OBJ (a secret, a binary) does not print what it holds.
+fn shown(s: &str) -> String {
+    let plain = s.len() <= 24 && s.bytes().all(|b| b.is_ascii_alphanumeric() || b"._+-/".contains(&b));
+    if plain {
+        format!("'{s}'")
     } else {
-        s.to_string()
+        format!("a token of {} bytes", s.len())
     }
 }
 
@@ -430,7 +437,7 @@ pub(super) fn parse_mtl(label: &str, text: &str) -> Result<Vec<Material>, SceneE
         let known = matches!(keyword, "Kd" | "Ks" | "Tf" | "d" | "Tr" | "Ni");
         let Some(p) = pending.as_mut() else {
             if known {
-                return Err(err(format!("'{keyword}' before any newmtl")));
+                return Err(err(format!("{} before any newmtl", shown(keyword))));
             }
             continue;
         };
@@ -463,7 +470,9 @@ pub(super) fn parse_mtl(label: &str, text: &str) -> Result<Vec<Material>, SceneE
 /// An MTL colour: `r g b` or a single value for all three.
 fn parse_colour(args: &[&str]) -> Result<Rgb, String> {
     match args {
-        [first, ..] if *first == "spectral" || *first == "xyz" => Err(format!("'{first}' colours are not supported")),
+        [first, ..] if *first == "spectral" || *first == "xyz" => {
+            Err(format!("{} colours are not supported", shown(first)))
+        }
         [v] => parse_number(v).map(Rgb::splat),
         [r, g, b] => Ok(Rgb::new(parse_number(r)?, parse_number(g)?, parse_number(b)?)),
         _ => Err(format!("expected 1 or 3 numbers, found {}", args.len())),

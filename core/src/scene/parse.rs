@@ -17,6 +17,7 @@ use super::error::SceneError;
 use super::field::field_at;
 use super::model::{
     Camera, CameraPath, Exposure, GridSpec, Light, Material, PatchDef, RenderSettings, Scene, SourceLoc, Spot,
+    MAX_COORDINATE, MAX_RADIOMETRIC,
 };
 use super::obj::{self, MaterialTable, MeshEntry, Transform};
 use super::shape::{check_quad, is_degenerate};
@@ -294,8 +295,19 @@ impl<'a> Ctx<'a> {
         Ok(out)
     }
 
+    /// A position or direction: three numbers within [`MAX_COORDINATE`].
     fn vec3(&self, v: &SVec, field: &str) -> Result<DVec3, SceneError> {
-        self.triple(v, field, XYZ_NAMES).map(DVec3::from_array)
+        let c = self.triple(v, field, XYZ_NAMES)?;
+        for (x, name) in c.iter().zip(XYZ_NAMES) {
+            if x.abs() > MAX_COORDINATE {
+                return Err(self.err(
+                    v,
+                    field,
+                    format!("{name} = {x:e} is out of range [-{MAX_COORDINATE:e}, {MAX_COORDINATE:e}]"),
+                ));
+            }
+        }
+        Ok(DVec3::from_array(c))
     }
 
     /// A colour whose channels lie in `[0, hi]`.
@@ -303,7 +315,7 @@ impl<'a> Ctx<'a> {
         let c = self.triple(v, field, RGB_NAMES)?;
         for (x, name) in c.iter().zip(RGB_NAMES) {
             if *x < 0.0 || *x > hi {
-                let range = if hi.is_finite() { format!("[0, {hi}]") } else { ">= 0".to_string() };
+                let range = if hi < 1e6 { format!("[0, {hi}]") } else { format!("[0, {hi:e}]") };
                 return Err(self.err(v, field, format!("{name} = {x} is out of range {range}")));
             }
         }
@@ -354,10 +366,10 @@ impl<'a> Ctx<'a> {
             s.element_size = self.float_in(v, "render.element_size", 0.0, true, f64::MAX)?;
         }
         if let Some(v) = &r.ambient {
-            s.ambient = self.rgb(v, "render.ambient", f64::INFINITY)?;
+            s.ambient = self.rgb(v, "render.ambient", MAX_RADIOMETRIC)?;
         }
         if let Some(v) = &r.background {
-            s.background = self.rgb(v, "render.background", f64::INFINITY)?;
+            s.background = self.rgb(v, "render.background", MAX_RADIOMETRIC)?;
         }
         if let Some(v) = &r.seed {
             s.seed = self.int_in(v, "render.seed", 0, i64::MAX)? as u64;
@@ -411,13 +423,20 @@ impl<'a> Ctx<'a> {
         if !x.is_finite() || x <= 0.0 {
             return Err(self.err(v, FIELD, format!("{x} is not a positive finite number")));
         }
+        if !(1.0 / MAX_RADIOMETRIC..=MAX_RADIOMETRIC).contains(&x) {
+            return Err(self.err(
+                v,
+                FIELD,
+                format!("{x} is out of range [{:e}, {MAX_RADIOMETRIC:e}]", 1.0 / MAX_RADIOMETRIC),
+            ));
+        }
         Ok(Exposure::Fixed(x))
     }
 
     fn light(&self, i: usize, l: &RawLight) -> Result<Light, SceneError> {
         let f = |name: &str| format!("light[{i}].{name}");
         let position = self.vec3(&l.position, &f("position"))?;
-        let intensity = self.rgb(&l.intensity, &f("intensity"), f64::INFINITY)?;
+        let intensity = self.rgb(&l.intensity, &f("intensity"), MAX_RADIOMETRIC)?;
         if intensity.is_black() {
             return Err(self.err(&l.intensity, f("intensity"), "intensity is zero in every channel"));
         }
@@ -524,6 +543,10 @@ impl PatchBuilder<'_, '_> {
             *o = DVec3::new(*x, *y, *z);
             if !o.is_finite() {
                 return Err(self.cx.err(&p.vertices, field, format!("vertex {k} = {:?} is not finite", v)));
+            }
+            if o.abs().max_element() > MAX_COORDINATE {
+                let msg = format!("vertex {k} = {v:?} is out of range [-{MAX_COORDINATE:e}, {MAX_COORDINATE:e}]");
+                return Err(self.cx.err(&p.vertices, field, msg));
             }
         }
         Ok(out)

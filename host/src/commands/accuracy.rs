@@ -85,7 +85,7 @@ impl Hooks for Terminal<'_> {
 }
 
 /// Runs the study.
-pub fn run(args: &AccuracyArgs) -> anyhow::Result<()> {
+pub fn run(args: &AccuracyArgs, files: &scene_file::SceneFiles) -> anyhow::Result<()> {
     if args.seeds == 0 || args.seeds > 64 {
         bail!("--seeds {}: must be 1..=64", args.seeds);
     }
@@ -94,7 +94,7 @@ pub fn run(args: &AccuracyArgs) -> anyhow::Result<()> {
             bail!("--{name} {v}: must be 1..=16384");
         }
     }
-    let mut scene = scene_file::load(&args.scene)?;
+    let mut scene = files.load(&args.scene)?;
     scene.settings.width = args.width;
     scene.settings.height = args.height;
     let out_dir = args.out_dir.clone().unwrap_or_else(|| {

@@ -5,8 +5,8 @@ use crate::scene_file;
 use magg_core::preprocess;
 
 /// Prints the counts of the prepared scene and its plan.
-pub fn run(args: &InfoArgs) -> anyhow::Result<()> {
-    let scene = scene_file::load(&args.scene)?;
+pub fn run(args: &InfoArgs, files: &scene_file::SceneFiles) -> anyhow::Result<()> {
+    let scene = files.load(&args.scene)?;
     let p = preprocess::prepare(&scene)?;
     let h = &p.header;
     let c = h.counts;

@@ -18,8 +18,8 @@ use magg_core::{preprocess, render};
 use std::sync::Arc;
 
 /// Renders per `cfg` and writes every requested output.
-pub fn run(cfg: RenderConfig) -> anyhow::Result<()> {
-    let (mut scene, path) = scene_file::load_with_path(&cfg.scene)?;
+pub fn run(cfg: RenderConfig, files: &scene_file::SceneFiles) -> anyhow::Result<()> {
+    let (mut scene, path) = files.load_with_path(&cfg.scene)?;
     if let Some(q) = cfg.quality {
         q.apply(&mut scene);
     }

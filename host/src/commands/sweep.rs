@@ -55,7 +55,7 @@ pub struct SweepArgs {
 }
 
 /// Runs the sweep.
-pub fn run(args: &SweepArgs) -> anyhow::Result<()> {
+pub fn run(args: &SweepArgs, allow_path: &[std::path::PathBuf]) -> anyhow::Result<()> {
     for s in &args.schemes {
         if magg_throttle::Scheme::parse(s).is_none() {
             bail!("--schemes: {s:?} is not \"paper\" or \"magg\"");
@@ -89,7 +89,12 @@ pub fn run(args: &SweepArgs) -> anyhow::Result<()> {
         dilation: Some(base),
         max_cpu_share: args.max_cpu_share,
         runner,
-        render_flags: args.render_flags.clone(),
+        // Every run reads the scene's meshes as this one would.
+        render_flags: allow_path
+            .iter()
+            .flat_map(|d| ["--allow-path".to_string(), d.display().to_string()])
+            .chain(args.render_flags.iter().cloned())
+            .collect(),
     };
     let done = study::run(&config, &mut |event| {
         match event {

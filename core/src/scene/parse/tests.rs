@@ -98,7 +98,7 @@ fn nan_and_infinity_are_refused() {
 #[test]
 fn negative_intensity_is_refused() {
     let e = err(&MINI.replace("intensity = [1, 1, 1]", "intensity = [-1, 1, 1]"));
-    assert_eq!(e, "t.toml:8: light[0].intensity: red = -1 is out of range >= 0");
+    assert_eq!(e, "t.toml:8: light[0].intensity: red = -1 is out of range [0, 1e30]");
     let e = err(&MINI.replace("intensity = [1, 1, 1]", "intensity = [0, 0, 0]"));
     assert!(e.starts_with("t.toml:8: light[0].intensity"), "{e}");
 }
@@ -344,4 +344,46 @@ fn mangled_input_never_panics() {
             let _ = parse(&inserted.iter().collect::<String>());
         }
     }
+}
+
+#[test]
+fn values_that_would_overflow_are_refused_with_their_field() {
+    let e = err(&format!("{MINI}\n[render]\nambient = [1e308, 0, 0]\n"));
+    assert!(e.contains("render.ambient") && e.contains("out of range [0, 1e30]"), "{e}");
+    let e = err(&format!("{MINI}\n[render]\nbackground = [0, 0, 2e30]\n"));
+    assert!(e.contains("render.background"), "{e}");
+    let e = err(&format!("{MINI}\n[render]\nexposure = 1e-31\n"));
+    assert!(e.contains("render.exposure") && e.contains("out of range"), "{e}");
+    let e = err(&MINI.replace("intensity = [1, 1, 1]", "intensity = [1e308, 1, 1]"));
+    assert!(e.starts_with("t.toml:8: light[0].intensity"), "{e}");
+    let e = err(&MINI.replace("position = [0, 1.9, 0]", "position = [0, 1.1e30, 0]"));
+    assert!(e.contains("light[0].position") && e.contains("y = 1.1e30"), "{e}");
+    let e = err(&MINI.replace("[1, 0, 0], [0, 1, 0]]", "[1, 0, 0], [0, -1e31, 0]]"));
+    assert!(e.contains("triangle[0].vertices") && e.contains("vertex 2"), "{e}");
+    // The limits themselves are fine.
+    parse(&format!("{MINI}\n[render]\nambient = [1e30, 0, 0]\nexposure = 1e30\n")).unwrap();
+}
+
+#[test]
+fn obj_coordinates_past_the_limit_name_their_line() {
+    let obj = "v 0 0 0\nv 1 0 0\nv 0 2e30 0\nf 1 2 3\n";
+    let e = parse_with(&mesh_scene("material = \"white\"\n"), &[("base/m/cube.obj", obj)]).unwrap_err().to_string();
+    assert!(e.starts_with("base/m/cube.obj:3: obj: v: 2e30 is out of range"), "{e}");
+    let obj = "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n";
+    let e = parse_with(&mesh_scene("material = \"white\"\nscale = 1e300\n"), &[("base/m/cube.obj", obj)])
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("mesh[0].scale") && e.contains("past 1e30"), "{e}");
+}
+
+#[test]
+fn obj_errors_do_not_print_what_a_foreign_file_holds() {
+    let secret = "MAGG_TOKEN=hunter2-very-secret-value\n";
+    let e = parse_with(&mesh_scene("material = \"white\"\n"), &[("base/m/cube.obj", secret)]).unwrap_err().to_string();
+    assert!(!e.contains("hunter2"), "{e}");
+    assert!(e.contains("unknown statement a token of 36 bytes"), "{e}");
+    let e = parse_with(&mesh_scene("material = \"white\"\n"), &[("base/m/cube.obj", "vn 0 0 1\nfoo 1\n")])
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("unknown statement 'foo'"), "{e}");
 }
