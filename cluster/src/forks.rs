@@ -65,21 +65,25 @@ pub struct ForkSet {
     nodes: u32,
 }
 
-async fn connect(links: &InProcess, addr: &str, token: &Token) -> Result<ForkClient<Authed>> {
-    let ch = retry::connect_with_backoff(links, addr, Backoff::default()).await?;
+/// Connects to the fork at `addr`, retrying until the fork timeout.
+async fn connect(links: &InProcess, addr: &str, token: &Token, timeout: Duration) -> Result<ForkClient<Authed>> {
+    let ch = retry::connect_with_backoff(links, addr, Backoff { deadline: timeout, ..Default::default() }).await?;
     Ok(with_message_limits!(ForkClient::with_interceptor(ch, AddToken(token.clone()))))
 }
 
-/// Sends `req` to the fork `name` behind `client`, retrying while it is unavailable
-/// (until `timeout`): a load replaces the last.
+/// Sends `req` to the fork `name` behind `client`, retrying while it is unavailable: a
+/// load replaces the last. A fork that has not answered within `timeout` (the fork
+/// timeout; e.g. a listener that accepts connections and never speaks gRPC) is named.
 async fn load_shard(client: ForkClient<Authed>, name: String, timeout: Duration, req: LoadShardRequest) -> Result<()> {
     let backoff = Backoff { deadline: timeout, ..Default::default() };
-    retry::retry("LoadShard", backoff, || {
+    let load = retry::retry("LoadShard", backoff, || {
         let (mut c, req) = (client.clone(), req.clone());
         async move { c.load_shard(req).await }
-    })
-    .await
-    .map_err(|status| {
+    });
+    let Ok(answer) = tokio::time::timeout(timeout, load).await else {
+        return Err(ClusterError::ForkSilent { fork: name, after: timeout, reason: "no answer to LoadShard".into() });
+    };
+    answer.map_err(|status| {
         let hint = magg_plumbing::tls::mismatch_hint(&status.to_string());
         ClusterError::Call { doing: "loading the shard of", fork: name, status, hint: hint.to_string() }
     })?;
@@ -96,7 +100,7 @@ impl ForkSet {
     ) -> Result<ForkSet> {
         let mut clients = Vec::with_capacity(addrs.len());
         for addr in addrs {
-            clients.push(connect(links, addr, &faults.token).await?);
+            clients.push(connect(links, addr, &faults.token, faults.fork_timeout).await?);
         }
         Ok(ForkSet {
             prepared: prepared.clone(),

@@ -12,7 +12,7 @@ pub enum NodeError {
         reason: String,
     },
     /// A peer answered an RPC with an error.
-    #[error("{what} failed: {status}")]
+    #[error("{what} failed: {} ({:?})", status.message(), status.code())]
     Rpc {
         /// Which call.
         what: &'static str,

@@ -106,7 +106,16 @@ pub fn run_with_runtime(rt: Handle, cfg: &NodeConfig) -> Result<NodeSummary, Nod
     let mut host = magg_plumbing::with_message_limits!(HostClient::with_interceptor(channel, auth.clone()));
     let req =
         RegisterRequest { protocol_version: PROTOCOL_VERSION, name: cfg.name.clone(), threads: cfg.threads.max(1) };
-    let reg = rt.block_on(host.register(req)).map_err(NodeError::rpc("Register"))?.into_inner();
+    // A listener that accepts and never answers (not a magg-host) is given up on at the
+    // connection deadline, naming it.
+    let reg = rt
+        .block_on(async { tokio::time::timeout(cfg.backoff.deadline, host.register(req)).await })
+        .map_err(|_| NodeError::Connect {
+            addr: cfg.host.clone(),
+            reason: format!("no answer to Register within {:?} (is it a magg-host?)", cfg.backoff.deadline),
+        })?
+        .map_err(NodeError::rpc("Register"))?
+        .into_inner();
     let profile = if reg.profile.is_empty() {
         Profile::native()
     } else {

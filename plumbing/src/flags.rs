@@ -56,4 +56,10 @@ pub struct ClusterArgs {
     /// More log output (-v: info, -vv: debug, -vvv: trace); RUST_LOG overrides.
     #[arg(short, long, action = clap::ArgAction::Count)]
     pub verbose: u8,
+    /// Keep serving when the process that started this one ends. Without it, a fork or
+    /// node whose parent is gone (a script killed with SIGKILL, a closed shell) exits
+    /// within a second instead of serving forever; one started by init, systemd or as a
+    /// container's first process has no such parent and serves on anyway.
+    #[arg(long, env = "MAGG_SERVE_ON")]
+    pub serve_on: bool,
 }

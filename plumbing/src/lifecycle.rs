@@ -41,10 +41,40 @@ pub fn main<E: std::fmt::Display>(
         return code;
     }
     crate::logging::init(program, cluster.verbose);
+    if !cluster.serve_on {
+        exit_when_orphaned(program);
+    }
     match run() {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => crate::logging::fail(program, format_args!("{e:#}")),
     }
+}
+
+/// Watches this process's parent: when it is gone (the process is re-parented), says so
+/// and exits with the failure code, within a second. Does nothing when the parent is
+/// init or there is none (a daemon, a container's first process: nothing to outlive).
+pub fn exit_when_orphaned(program: &str) {
+    #[cfg(unix)]
+    {
+        let parent = std::os::unix::process::parent_id();
+        if parent <= 1 {
+            return;
+        }
+        let program = program.to_string();
+        let watch = move || loop {
+            std::thread::sleep(std::time::Duration::from_millis(500));
+            if std::os::unix::process::parent_id() != parent {
+                let why = format!("the process that started it (pid {parent}) is gone; --serve-on keeps serving");
+                crate::logging::fail(&program, why);
+                std::process::exit(1);
+            }
+        };
+        if let Err(e) = std::thread::Builder::new().name("orphan-watch".into()).spawn(watch) {
+            tracing::warn!("cannot watch the parent process: {e}");
+        }
+    }
+    #[cfg(not(unix))]
+    let _ = program;
 }
 
 /// Registers for Ctrl-C and (on Unix) SIGTERM at once, and returns a future that
