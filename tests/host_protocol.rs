@@ -36,7 +36,7 @@ fn wrong_protocol_version_and_bad_requests_are_refused_and_the_render_goes_on() 
         let e = c.register(RegisterRequest { protocol_version: 99, name: "old".into(), threads: 1 }).await.unwrap_err();
         assert_eq!(e.code(), tonic::Code::FailedPrecondition, "{e}");
         assert!(e.message().contains("99"), "{e}");
-        let e = c.next_work(NextWorkRequest { node: 12345, report: None }).await.unwrap_err();
+        let e = c.next_work(NextWorkRequest { node: 12345, report: None, node_secret: 0 }).await.unwrap_err();
         assert_eq!(e.code(), tonic::Code::InvalidArgument, "{e}");
         let e = c
             .submit_rows(SubmitRowsRequest {
@@ -44,6 +44,7 @@ fn wrong_protocol_version_and_bad_requests_are_refused_and_the_render_goes_on() 
                 subscreen: 7,
                 rows: vec![Row { y: 0, rgb: vec![0u8; 12].into() }],
                 last: false,
+                node_secret: 0,
             })
             .await
             .unwrap_err();
@@ -57,6 +58,22 @@ fn wrong_protocol_version_and_bad_requests_are_refused_and_the_render_goes_on() 
             .await
             .unwrap_err();
         assert_eq!(e.code(), tonic::Code::InvalidArgument);
+        // A registered node's id is no use without its secret.
+        let reg = c
+            .register(RegisterRequest {
+                protocol_version: magg_proto::PROTOCOL_VERSION,
+                name: "victim".into(),
+                threads: 1,
+            })
+            .await
+            .unwrap()
+            .into_inner();
+        let forged = NextWorkRequest { node: reg.node, report: None, node_secret: reg.node_secret ^ 1 };
+        let e = c.next_work(forged).await.unwrap_err();
+        assert_eq!(e.code(), tonic::Code::PermissionDenied, "{e}");
+        let forged = SubmitRowsRequest { node: reg.node, subscreen: 0, rows: vec![], last: true, node_secret: 0 };
+        let e = c.submit_rows(forged).await.unwrap_err();
+        assert_eq!(e.code(), tonic::Code::PermissionDenied, "{e}");
     });
     // A proper node still gets the render done.
     let mut node = Command::new(magg_bin("magg-node")).args(["--host", &host_addr]).spawn().unwrap();

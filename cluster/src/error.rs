@@ -7,6 +7,7 @@
 //! | [`HostError::RenderOver`] (a node that came after the end: it exits quietly) | `UNAVAILABLE` |
 //! | [`HostError::NameTooLong`], [`HostError::UnknownNode`], [`HostError::Report`], [`HostError::Rows`] | `INVALID_ARGUMENT` |
 //! | [`HostError::TooManyNodes`] | `RESOURCE_EXHAUSTED` |
+//! | [`HostError::NotThatNode`] (a request without the node's secret) | `PERMISSION_DENIED` |
 
 use crate::schedule::RowError;
 use magg_proto::convert::ConvertError;
@@ -37,6 +38,9 @@ pub enum HostError {
     /// A request under a node id that never registered.
     #[error("node {0} is not registered")]
     UnknownNode(u32),
+    /// A request under node `n`'s id without its secret: another client acting for it.
+    #[error("node {0}'s requests must carry its secret: one node may not act for another")]
+    NotThatNode(u32),
     /// Rows sent while no viewing pass runs.
     #[error("no viewing ray tracing in progress")]
     NoViewPass,
@@ -57,6 +61,7 @@ impl From<HostError> for Status {
             HostError::NameTooLong | HostError::UnknownNode(_) | HostError::Report(_) | HostError::Rows(_) => {
                 Status::invalid_argument(text)
             }
+            HostError::NotThatNode(_) => Status::permission_denied(text),
             HostError::TooManyNodes => Status::resource_exhausted(text),
         }
     }

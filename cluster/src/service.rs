@@ -32,9 +32,25 @@ pub enum Phase {
     Done,
 }
 
+/// A fresh node secret: 64 bits from the operating system's random source, so that no
+/// client can guess another node's.
+fn node_secret() -> u64 {
+    let mut b = [0u8; 8];
+    if getrandom::getrandom(&mut b).is_err() {
+        // No random source: the secret still differs per node and per render.
+        use std::hash::{BuildHasher, Hasher};
+        let mut h = std::collections::hash_map::RandomState::new().build_hasher();
+        h.write_u128(std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).unwrap_or_default().as_nanos());
+        return h.finish();
+    }
+    u64::from_le_bytes(b)
+}
+
 /// A registered node.
 #[derive(Clone, Debug, Default)]
 pub struct NodeEntry {
+    /// Its secret for this render, carried by each of its requests.
+    pub secret: u64,
     /// Name it gave.
     pub name: String,
     /// Its latest cumulative report.
@@ -114,10 +130,14 @@ pub struct HostState {
 impl HostState {
     /// Counts a request of `len` encoded bytes from `node` (an RPC on the link path);
     /// returns the node's entry, or refuses a node that never registered.
-    fn count_request(&mut self, node: u32, len: usize) -> Result<&mut NodeEntry, Status> {
+    /// Counts a request of node `node`, which must carry its secret.
+    fn count_request(&mut self, node: u32, secret: u64, len: usize) -> Result<&mut NodeEntry, Status> {
         self.rpcs += 1;
         self.link_bytes += len as u64;
         let entry = self.nodes.get_mut(node as usize).ok_or(HostError::UnknownNode(node))?;
+        if entry.secret != secret {
+            return Err(HostError::NotThatNode(node).into());
+        }
         entry.link_bytes += len as u64;
         Ok(entry)
     }
@@ -248,7 +268,9 @@ impl Host for HostService {
             return Err(HostError::TooManyNodes.into());
         }
         let node = s.nodes.len() as u32;
+        let secret = node_secret();
         s.nodes.push(NodeEntry {
+            secret,
             name: r.name.clone(),
             threads: r.threads.clamp(1, 1024),
             last_seen: Some(Instant::now()),
@@ -267,6 +289,7 @@ impl Host for HostService {
             cache_blocks: magg_proto::convert::cache_size_to_wire(s.cache_blocks),
             profile: s.profile.clone(),
             scheme: s.scheme.clone(),
+            node_secret: secret,
         }))
     }
 
@@ -276,7 +299,7 @@ impl Host for HostService {
         let deadline = Instant::now() + LONG_POLL;
         {
             let mut s = self.lock();
-            let entry = s.count_request(r.node, prost::Message::encoded_len(&r))?;
+            let entry = s.count_request(r.node, r.node_secret, prost::Message::encoded_len(&r))?;
             if let Some(rep) = &r.report {
                 entry.report = NodeReport::try_from(rep).map_err(HostError::Report)?;
             }
@@ -321,7 +344,7 @@ impl Host for HostService {
     async fn submit_rows(&self, req: Request<SubmitRowsRequest>) -> Result<Response<SubmitRowsReply>, Status> {
         let r = req.into_inner();
         let mut s = self.lock();
-        s.count_request(r.node, prost::Message::encoded_len(&r))?.last_seen = Some(Instant::now());
+        s.count_request(r.node, r.node_secret, prost::Message::encoded_len(&r))?.last_seen = Some(Instant::now());
         let Some(schedule) = s.schedule.as_mut() else {
             return Err(HostError::NoViewPass.into());
         };

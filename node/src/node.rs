@@ -178,6 +178,7 @@ pub fn run_with_runtime(rt: Handle, cfg: &NodeConfig) -> Result<NodeSummary, Nod
             let worker = Worker {
                 index,
                 node: reg.node,
+                secret: reg.node_secret,
                 view: SceneView::new(header.clone(), cache),
                 rt: rt.clone(),
                 host: host.clone(),

@@ -51,6 +51,8 @@ pub struct Worker {
     pub index: usize,
     /// Node id given by the host.
     pub node: u32,
+    /// The node's secret for this render, carried by its host requests.
+    pub secret: u64,
     /// The scene as this worker sees it (its own block cache).
     pub view: SceneView,
     /// Runtime the RPCs run on.
@@ -129,7 +131,11 @@ impl Worker {
             let reply = match handed.take() {
                 Some(r) => r,
                 None => {
-                    let req = NextWorkRequest { node: self.node, report: Some((&self.totals.report()).into()) };
+                    let req = NextWorkRequest {
+                        node: self.node,
+                        report: Some((&self.totals.report()).into()),
+                        node_secret: self.secret,
+                    };
                     let sent = req.encoded_len();
                     // A lost answer is harmless: a subscreen handed out and never traced
                     // goes back to the queue when its lease expires.
@@ -167,7 +173,11 @@ impl Worker {
                     self.publish();
                     let mut host = self.host.clone();
                     // Final report, so the host's stats include everything.
-                    let req = NextWorkRequest { node: self.node, report: Some((&self.totals.report()).into()) };
+                    let req = NextWorkRequest {
+                        node: self.node,
+                        report: Some((&self.totals.report()).into()),
+                        node_secret: self.secret,
+                    };
                     let _ = self.rt.block_on(host.next_work(req));
                     return Ok(());
                 }
@@ -341,7 +351,13 @@ impl Worker {
                 self.publish();
             }
             t = PassTimes::lap(&mut self.vrt.tracing, t);
-            let req = SubmitRowsRequest { node: self.node, subscreen: s.id, rows: std::mem::take(&mut rows), last };
+            let req = SubmitRowsRequest {
+                node: self.node,
+                subscreen: s.id,
+                rows: std::mem::take(&mut rows),
+                last,
+                node_secret: self.secret,
+            };
             let sent = req.encoded_len();
             // Repeated rows are acknowledged and ignored: safe to retry.
             let call = retry("SubmitRows", self.backoff, || {

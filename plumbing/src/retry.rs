@@ -11,7 +11,7 @@
 //! ```no_run
 //! # async fn f(mut host: magg_proto::v1::host_client::HostClient<magg_plumbing::auth::Authed>) {
 //! use magg_plumbing::retry::{retry, Backoff};
-//! let req = magg_proto::v1::NextWorkRequest { node: 0, report: None };
+//! let req = magg_proto::v1::NextWorkRequest { node: 0, report: None, node_secret: 0 };
 //! let reply = retry("NextWork", Backoff::default(), || {
 //!     let (mut host, req) = (host.clone(), req.clone());
 //!     async move { host.next_work(req).await }
