@@ -127,12 +127,13 @@ impl ClusterMachine {
         let h = self.prepared.header.clone();
         let s = &h.settings;
         let f = self.forks.len();
+        let tiles = pass.tiles(&self.tiles);
         if let Some(tx) = &self.opts.events {
             let _ = tx.send(ClusterEvent::FrameBegins { index: pass.index, count: pass.count });
         }
         {
             let mut st = self.service.lock();
-            let schedule = Scheduler::new(s.width, s.height, self.tiles.clone());
+            let schedule = Scheduler::new(s.width, s.height, tiles.clone());
             let nodes = st.nodes.len() as u32;
             st.schedule = Some(if self.opts.scheme == Scheme::Magg { schedule.merging(nodes) } else { schedule });
             // Nodes hold the header's camera; another one rides on the subscreens.
@@ -140,7 +141,7 @@ impl ClusterMachine {
             st.phase = Phase::Vrt;
         }
         self.service.bump();
-        progress.begin("viewing ray tracing", s.width as u64 * s.height as u64);
+        progress.begin("viewing ray tracing", magg_core::phases::pixels(&tiles));
         let mut last_rows = (0u64, Instant::now());
         let mut last_check = Instant::now();
         loop {
@@ -192,6 +193,6 @@ impl ClusterMachine {
             // while the image is written.
             self.service.set_phase(Phase::Done);
         }
-        Ok(ViewedFrame { frame, tiles: self.tiles.len() as u64, redivisions })
+        Ok(ViewedFrame { frame, tiles: tiles.len() as u64, redivisions })
     }
 }

@@ -93,6 +93,8 @@ pub struct Scheduler {
     pub handed_out: u64,
     frame: Frame,
     pixels_done: u64,
+    /// Pixels of the subscreens (the frame's, or a crop window's).
+    pixels_total: u64,
     /// Nodes sharing the queue, when a request may get a run of adjacent subscreens (see
     /// [`Scheduler::merging`]); `None`: one subscreen per request, as in the paper.
     merge_for: Option<u32>,
@@ -102,6 +104,7 @@ impl Scheduler {
     /// A scheduler over `tiles` for a `width` x `height` frame.
     pub fn new(width: u32, height: u32, tiles: Vec<Subscreen>) -> Self {
         Scheduler {
+            pixels_total: magg_core::phases::pixels(&tiles),
             queue: tiles.into(),
             active: BTreeMap::new(),
             revoked: BTreeSet::new(),
@@ -127,9 +130,9 @@ impl Scheduler {
         self
     }
 
-    /// True when every pixel has arrived.
+    /// True when every pixel of the subscreens has arrived.
     pub fn is_done(&self) -> bool {
-        self.pixels_done >= self.frame.width as u64 * self.frame.height as u64
+        self.pixels_done >= self.pixels_total
     }
 
     /// Work for `node`.

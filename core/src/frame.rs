@@ -41,6 +41,20 @@ impl Frame {
         self.pixels[(y * self.width + x) as usize]
     }
 
+    /// The `w` x `h` pixels from (x, y), clipped to the frame, as a frame of their own
+    /// (a crop window).
+    pub fn crop(&self, x: u32, y: u32, w: u32, h: u32) -> Frame {
+        let (x, y) = (x.min(self.width), y.min(self.height));
+        let (w, h) = (w.min(self.width - x), h.min(self.height - y));
+        let mut out = Frame::new(w, h);
+        for row in 0..h {
+            let start = ((y + row) * self.width + x) as usize;
+            let dst = (row * w) as usize;
+            out.pixels[dst..dst + w as usize].copy_from_slice(&self.pixels[start..start + w as usize]);
+        }
+        out
+    }
+
     /// The multiplier applied before tone mapping: fixed, or auto (99th percentile of
     /// luminance mapped to 0.8).
     pub fn exposure_scale(&self, exposure: Exposure) -> f64 {

@@ -24,6 +24,7 @@ use crate::frame::Frame;
 use crate::lrt::LrtTally;
 use crate::scene::Camera;
 use crate::stats::{Emulation, NodeStats, Stages, Traffic};
+use crate::vrt::Subscreen;
 use std::sync::Arc;
 
 /// Why a render failed.
@@ -79,6 +80,9 @@ pub struct Sequence {
     pub energies: Option<Arc<Energies>>,
     /// One frame per camera; empty means one frame of the scene's camera.
     pub cameras: Vec<Camera>,
+    /// Trace only the pixels of this rectangle (a crop window); the rest of each frame
+    /// stays black. `None`: the whole frame.
+    pub window: Option<Subscreen>,
 }
 
 impl Sequence {
@@ -131,6 +135,15 @@ pub struct ViewPass<'a> {
     pub count: usize,
     /// The frame's camera.
     pub camera: &'a Camera,
+    /// The pixels to trace: a crop window, or `None` for the whole frame.
+    pub window: Option<Subscreen>,
+}
+
+impl ViewPass<'_> {
+    /// The subscreens of this pass: `tiles` (the whole frame's) clipped to the window.
+    pub fn tiles(&self, tiles: &[Subscreen]) -> Vec<Subscreen> {
+        crate::phases::clip(tiles, self.window)
+    }
 }
 
 impl ViewPass<'_> {

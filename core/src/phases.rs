@@ -32,6 +32,26 @@ pub fn subscreens(width: u32, height: u32, edge: u32) -> Vec<Subscreen> {
     v
 }
 
+/// The parts of `tiles` inside `window` (all of them for `None`), each cut to it: the
+/// subscreens of a crop window keep the whole frame's tiling, so that every pixel is
+/// traced as in the whole frame.
+pub fn clip(tiles: &[Subscreen], window: Option<Subscreen>) -> Vec<Subscreen> {
+    let Some(w) = window else { return tiles.to_vec() };
+    tiles
+        .iter()
+        .filter_map(|t| {
+            let (x0, y0) = (t.x.max(w.x), t.y.max(w.y));
+            let (x1, y1) = ((t.x + t.w).min(w.x + w.w), (t.y + t.h).min(w.y + w.h));
+            (x0 < x1 && y0 < y1).then_some(Subscreen { x: x0, y: y0, w: x1 - x0, h: y1 - y0 })
+        })
+        .collect()
+}
+
+/// Pixels of `tiles`.
+pub fn pixels(tiles: &[Subscreen]) -> u64 {
+    tiles.iter().map(|t| t.w as u64 * t.h as u64).sum()
+}
+
 /// Runs the phases of a render of `prepared` on `machine`: the light pass once (not at all
 /// when `seq` brings energies), then one viewing pass per camera of `seq`, each frame
 /// handed to `sink` as it is done. The output's frame is the last one.
@@ -79,7 +99,8 @@ pub fn run(
     for (index, camera) in cameras.iter().enumerate() {
         progress.frame_begins(index, cameras.len());
         let t_vrt = Instant::now();
-        let viewed = machine.view_pass(ViewPass { index, count: cameras.len(), camera }, progress)?;
+        let viewed =
+            machine.view_pass(ViewPass { index, count: cameras.len(), camera, window: seq.window }, progress)?;
         let frame_s = t_vrt.elapsed().as_secs_f64();
         times.vrt_s += frame_s;
         tiles += viewed.tiles;

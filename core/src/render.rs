@@ -161,7 +161,7 @@ fn view_pass(
     // Each worker copies a finished subscreen into the frame at once: the frame is
     // assembled while the others trace, not after the last of them.
     let frame = Mutex::new(Frame::new(s.width, s.height));
-    progress.begin("viewing ray tracing", s.width as u64 * s.height as u64);
+    progress.begin("viewing ray tracing", crate::phases::pixels(tiles));
     let vrt_results: Vec<Result<u64, RenderError>> = std::thread::scope(|sc| {
         let handles: Vec<_> = views
             .iter_mut()
@@ -282,12 +282,12 @@ impl Machine for EmbeddedMachine {
     }
 
     fn view_pass(&mut self, pass: ViewPass<'_>, progress: &dyn Progress) -> Result<ViewedFrame, RenderError> {
-        let (frame, per_node) =
-            view_pass(&mut self.views, &self.cores, &self.header, pass.camera, &self.tiles, progress)?;
+        let tiles = pass.tiles(&self.tiles);
+        let (frame, per_node) = view_pass(&mut self.views, &self.cores, &self.header, pass.camera, &tiles, progress)?;
         for (n, t) in self.node_tiles.iter_mut().zip(per_node) {
             *n += t;
         }
-        Ok(ViewedFrame { frame, tiles: self.tiles.len() as u64, redivisions: 0 })
+        Ok(ViewedFrame { frame, tiles: tiles.len() as u64, redivisions: 0 })
     }
 
     fn figures(&mut self, times: PhaseTimes) -> Result<MachineFigures, RenderError> {

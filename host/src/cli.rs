@@ -62,8 +62,8 @@ pub struct RenderArgs {
     /// Also write the linear image to this .exr, .hdr or .pfm file.
     #[arg(long)]
     pub linear: Option<PathBuf>,
-    /// Nodes started in this process (0 = one per core).
-    #[arg(long, default_value_t = 0)]
+    /// Nodes started in this process (0 = one per core); each is a thread.
+    #[arg(long, visible_alias = "threads", default_value_t = 0)]
     pub nodes: u32,
     /// Forks started in this process; the 2 KB blocks are interleaved over them (block b
     /// on fork b mod F).
@@ -160,6 +160,12 @@ pub struct RenderArgs {
     /// Scene overrides: accuracy knobs and output size.
     #[command(flatten)]
     pub knobs: Knobs,
+    /// Overrides of any scene value (`--set KEY=VALUE`).
+    #[command(flatten)]
+    pub set: crate::overrides::SetArgs,
+    /// What part to render: a crop window, a range of frames.
+    #[command(flatten)]
+    pub framing: crate::framing::FramingArgs,
     /// Fault handling and access: node leases, fork timeout, cluster token.
     #[command(flatten)]
     pub faults: crate::faults::FaultArgs,
@@ -175,7 +181,7 @@ pub struct Knobs {
     #[arg(long)]
     pub height: Option<u32>,
     /// Viewing rays per pixel.
-    #[arg(long)]
+    #[arg(long, visible_alias = "spp")]
     pub pixel_samples: Option<u32>,
     /// Light rays per (light, element) pair.
     #[arg(long)]
@@ -202,6 +208,9 @@ pub struct Knobs {
 pub struct InfoArgs {
     /// Scene file (TOML).
     pub scene: PathBuf,
+    /// Overrides of any scene value (`--set KEY=VALUE`).
+    #[command(flatten)]
+    pub set: crate::overrides::SetArgs,
     /// Print as JSON.
     #[arg(long)]
     pub json: bool,
@@ -216,6 +225,10 @@ pub struct RenderConfig {
     pub transport: magg_plumbing::transport::Mode,
     /// Scene file.
     pub scene: PathBuf,
+    /// Its values overridden (`--set`).
+    pub overrides: Vec<crate::overrides::Override>,
+    /// The crop window and the frames (checked against the scene once it is read).
+    pub framing: crate::framing::FramingArgs,
     /// Main output and its format.
     pub out: (PathBuf, ImageFormat),
     /// Extra linear output.
@@ -341,6 +354,8 @@ impl RenderArgs {
             bail!("--scheme {:?}: expected \"magg\" or \"paper\"", self.scheme);
         };
         Ok(RenderConfig {
+            overrides: self.set.overrides()?,
+            framing: self.framing,
             transport: self.transport,
             max_memory_mb: self.faults.max_memory_mb,
             scene: self.scene,
@@ -443,7 +458,7 @@ mod tests {
     #[test]
     fn explicit_knobs_override_the_preset() {
         let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/cornell.toml");
-        let mut s = crate::scene_file::SceneFiles::default().load(&path).unwrap();
+        let mut s = crate::scene_file::SceneFiles::default().load(&path, &[]).unwrap();
         magg_study::accuracy::preset::Quality::Final.apply(&mut s);
         let knobs = Knobs { light_rays: Some(4), ..Default::default() };
         knobs.apply(&mut s.settings).unwrap();

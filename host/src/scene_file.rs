@@ -4,6 +4,7 @@
 //! (`--allow-path DIR`). An error names the file and the limit; it never shows what the
 //! file holds.
 
+use crate::overrides::Override;
 use anyhow::Context;
 use magg_core::scene::{parse_scene_with_path, CameraPath, Scene};
 use std::io::{self, Read};
@@ -38,20 +39,30 @@ impl SceneFiles {
         Ok(SceneFiles { roots })
     }
 
-    /// Reads and parses the scene at `path`.
-    pub fn load(&self, path: &Path) -> anyhow::Result<Scene> {
-        self.load_with_path(path).map(|(scene, _)| scene)
+    /// Reads and parses the scene at `path`, with `overrides` applied.
+    pub fn load(&self, path: &Path, overrides: &[Override]) -> anyhow::Result<Scene> {
+        self.load_with_path(path, overrides).map(|(scene, _)| scene)
     }
 
-    /// Reads and parses the scene at `path` with its camera path, if it has one.
-    pub fn load_with_path(&self, path: &Path) -> anyhow::Result<(Scene, Option<CameraPath>)> {
+    /// Reads and parses the scene at `path` with its camera path, if it has one, with
+    /// `overrides` applied to its text first. An error that follows from them says so.
+    pub fn load_with_path(&self, path: &Path, overrides: &[Override]) -> anyhow::Result<(Scene, Option<CameraPath>)> {
         let text =
             read_capped(path, MAX_SCENE_BYTES).with_context(|| format!("cannot read scene file {}", path.display()))?;
+        if !overrides.is_empty() {
+            let text = crate::overrides::apply(&text, overrides).with_context(|| path.display().to_string())?;
+            let with: Vec<String> = overrides.iter().map(|o| o.to_string()).collect();
+            return self.parse(path, &text).with_context(|| format!("with {}", with.join(" ")));
+        }
+        self.parse(path, &text)
+    }
+
+    fn parse(&self, path: &Path, text: &str) -> anyhow::Result<(Scene, Option<CameraPath>)> {
         let base = path.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or_else(|| Path::new("."));
         let home = base.canonicalize().with_context(|| format!("the scene's folder {}", base.display()))?;
         let label = path.display().to_string();
         let read = |p: &Path| self.read_mesh(&home, p);
-        Ok(parse_scene_with_path(&label, &text, base, &read)?)
+        Ok(parse_scene_with_path(&label, text, base, &read)?)
     }
 
     /// A mesh file, if it lies in the scene's folder `home` or an allowed root.

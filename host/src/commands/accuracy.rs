@@ -94,7 +94,7 @@ pub fn run(args: &AccuracyArgs, files: &scene_file::SceneFiles) -> anyhow::Resul
             bail!("--{name} {v}: must be 1..=16384");
         }
     }
-    let mut scene = files.load(&args.scene)?;
+    let mut scene = files.load(&args.scene, &[])?;
     scene.settings.width = args.width;
     scene.settings.height = args.height;
     let out_dir = args.out_dir.clone().unwrap_or_else(|| {

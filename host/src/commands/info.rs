@@ -6,7 +6,7 @@ use magg_core::preprocess;
 
 /// Prints the counts of the prepared scene and its plan.
 pub fn run(args: &InfoArgs, files: &scene_file::SceneFiles) -> anyhow::Result<()> {
-    let scene = files.load(&args.scene)?;
+    let scene = files.load(&args.scene, &args.set.overrides()?)?;
     let p = preprocess::prepare(&scene)?;
     let h = &p.header;
     let c = h.counts;

@@ -19,11 +19,17 @@ use std::sync::Arc;
 
 /// Renders per `cfg` and writes every requested output.
 pub fn run(cfg: RenderConfig, files: &scene_file::SceneFiles) -> anyhow::Result<()> {
-    let (mut scene, path) = files.load_with_path(&cfg.scene)?;
+    let (mut scene, path) = files.load_with_path(&cfg.scene, &cfg.overrides)?;
     if let Some(q) = cfg.quality {
         q.apply(&mut scene);
     }
     cfg.knobs.apply(&mut scene.settings)?;
+    let window = cfg.framing.crop(scene.settings.width, scene.settings.height)?;
+    let path_cameras = path.as_ref().map(|p| p.cameras()).unwrap_or_default();
+    if cfg.framing.frames.is_some() && path_cameras.is_empty() {
+        anyhow::bail!("--frames: {} has no [camera_path]", cfg.scene.display());
+    }
+    let frame_numbers = cfg.framing.frames(path_cameras.len().max(1))?;
     crate::memory::check(&scene, cfg.max_memory_mb)?;
     let plan = if cfg.all_effects { EffectsPlan::forced_on(&scene) } else { EffectsPlan::for_scene(&scene) };
     // The cluster's runtime, forks and listener start while the scene is preprocessed.
@@ -62,7 +68,10 @@ pub fn run(cfg: RenderConfig, files: &scene_file::SceneFiles) -> anyhow::Result<
         (Some(p), Some(now)) => Some(Arc::new(saved_energy::load(p, now)?)),
         _ => None,
     };
-    let sequence = Sequence { energies, cameras: path.as_ref().map(|p| p.cameras()).unwrap_or_default() };
+    // The path's frames in the range, each written under its number in the whole path.
+    let n_path = path_cameras.len().max(1);
+    let cameras = path_cameras.get(frame_numbers.clone()).map(<[_]>::to_vec).unwrap_or_default();
+    let sequence = Sequence { energies, cameras, window };
     let n_frames = sequence.cameras.len().max(1);
     let opts = render::RenderOptions {
         nodes: cfg.nodes,
@@ -93,13 +102,16 @@ pub fn run(cfg: RenderConfig, files: &scene_file::SceneFiles) -> anyhow::Result<
     };
     let mut records: Vec<FrameRecord> = Vec::with_capacity(n_frames);
     let mut sink = |index: usize, frame: &Frame, vrt_s: f64| -> Result<(), String> {
-        let out = frames::numbered(&cfg.out.0, index, n_frames);
+        let number = frame_numbers.start + index;
+        let cropped = window.map(|w| frame.crop(w.x, w.y, w.w, w.h));
+        let frame = cropped.as_ref().unwrap_or(frame);
+        let out = frames::numbered(&cfg.out.0, number, n_path);
         images::write(frame, &out, cfg.out.1, exposure).map_err(|e| format!("{e:#}"))?;
         if let Some((path, fmt)) = &cfg.linear {
-            images::write(frame, &frames::numbered(path, index, n_frames), *fmt, exposure)
+            images::write(frame, &frames::numbered(path, number, n_path), *fmt, exposure)
                 .map_err(|e| format!("{e:#}"))?;
         }
-        records.push(FrameRecord { frame: index, out: out.display().to_string(), vrt_s });
+        records.push(FrameRecord { frame: number, out: out.display().to_string(), vrt_s });
         Ok(())
     };
     let out = match &cfg.mode {
