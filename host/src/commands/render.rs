@@ -24,7 +24,11 @@ pub fn run(cfg: RenderConfig) -> anyhow::Result<()> {
         q.apply(&mut scene);
     }
     cfg.knobs.apply(&mut scene.settings)?;
-    crate::memory::check(&scene, cfg.max_memory_mb)?;
+    let forks_here = match &cfg.mode {
+        Mode::Cluster { forks_at, .. } if forks_at.is_empty() => cfg.forks,
+        _ => 0,
+    };
+    crate::memory::check(&scene, cfg.max_memory_mb, forks_here)?;
     let plan = if cfg.all_effects { EffectsPlan::forced_on(&scene) } else { EffectsPlan::for_scene(&scene) };
     // The cluster's runtime, forks and listener start while the scene is preprocessed.
     let (prepared, cluster) = match &cfg.mode {
