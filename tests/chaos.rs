@@ -222,3 +222,109 @@ fn a_fork_that_does_not_come_back_stops_the_render_naming_it_and_every_process_e
     assert!(last.contains("--fork-timeout"), "{err}");
     assert!(wait_exit(&mut procs.0[n], 40).is_some(), "the node did not exit after the host stopped");
 }
+
+/// A fork-loss run in light ray tracing: 3 forks, a host and two nodes slowed so that
+/// the pass lasts a few seconds. `procs.0[i]` is fork `i`.
+struct LossRun {
+    procs: Procs,
+    forks: Vec<String>,
+    host: Child,
+    host_log: std::path::PathBuf,
+    out: Rendered,
+    /// A node's log lines (to strike at a chosen batch).
+    node_log: Receiver<String>,
+}
+
+fn start_loss_run(dir: &Path, stem: &str) -> LossRun {
+    let mut procs = Procs(Vec::new());
+    let mut forks = Vec::new();
+    for i in 0..3 {
+        let (c, a) = fork(dir, &format!("{stem}-fork{i}"), 0);
+        procs.0.push(c);
+        forks.push(a);
+    }
+    let host_addr = format!("127.0.0.1:{}", free_port());
+    let out = Rendered::at(dir, stem);
+    let host_log = dir.join(format!("{stem}-host.log"));
+    let host = out
+        .command(&scene("magg-paper.toml"))
+        .args(["--subscreen", "16", "--forks-at", &forks.join(","), "--listen", &host_addr])
+        .args(["--external-nodes", "--lease-timeout", LEASE, "--stall-timeout", "30", "--fork-timeout", "10"])
+        .args(SMALL)
+        .stdout(Stdio::null())
+        .stderr(File::create(&host_log).unwrap())
+        .spawn()
+        .unwrap();
+    let slow = ["--slow-pair-ms", "2"];
+    let (_, node_log) = node(&mut procs, &host_addr, "a", &slow);
+    node(&mut procs, &host_addr, "b", &slow);
+    LossRun { procs, forks, host, host_log, out, node_log }
+}
+
+/// Waits until the file at `path` has a line containing `what`; panics after 30 s.
+fn wait_in_file(path: &Path, what: &str) {
+    let deadline = Instant::now() + Duration::from_secs(30);
+    while !std::fs::read_to_string(path).unwrap_or_default().contains(what) {
+        assert!(Instant::now() < deadline, "no {what:?} in {}", path.display());
+        std::thread::sleep(Duration::from_millis(10));
+    }
+}
+
+/// Waits for the host of `run` and checks that it finished with the bits of `base`;
+/// returns its log.
+fn finish_loss_run(mut run: LossRun, base: &Rendered, stem: &str) -> String {
+    let status = wait_exit(&mut run.host, 90);
+    let text = std::fs::read_to_string(&run.host_log).unwrap_or_default();
+    let Some(status) = status else {
+        let _ = run.host.kill();
+        let _ = run.host.wait();
+        panic!("{stem}: the host did not finish: {text}");
+    };
+    assert!(status.success(), "{stem}: host failed: {text}");
+    assert_eq!(std::fs::read(&base.pfm).unwrap(), std::fs::read(&run.out.pfm).unwrap(), "{stem}: image differs");
+    assert_eq!(
+        std::fs::read(&base.energy).unwrap(),
+        std::fs::read(&run.out.energy).unwrap(),
+        "{stem}: energies differ"
+    );
+    text
+}
+
+#[test]
+fn a_fork_killed_again_during_its_replay_gives_the_bits_of_a_clean_run() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let base = render(&scene("magg-paper.toml"), d, "embedded", &[SMALL, &["--embedded"]].concat());
+    let mut run = start_loss_run(d, "again");
+    wait_for(&run.node_log, "tracing a batch of pairs", 2);
+    let addr = run.forks[2].clone();
+    restart(&mut run.procs, 2, d, "again-fork2-second", &addr);
+    // Loaded again: its replay is under way. Lost again in the middle of it.
+    wait_in_file(&d.join("again-fork2-second.log"), "shard loaded");
+    std::thread::sleep(Duration::from_millis(300));
+    restart(&mut run.procs, 2, d, "again-fork2-third", &addr);
+    let text = finish_loss_run(run, &base, "again");
+    assert!(text.contains("replay epoch 2"), "fork 2's second loss started no replay: {text}");
+}
+
+#[test]
+fn two_forks_lost_together_in_lrt_give_the_bits_of_a_clean_run() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let base = render(&scene("magg-paper.toml"), d, "embedded", &[SMALL, &["--embedded"]].concat());
+    let mut run = start_loss_run(d, "two");
+    wait_for(&run.node_log, "tracing a batch of pairs", 2);
+    for k in [1, 2] {
+        run.procs.0[k].kill().unwrap();
+        run.procs.0[k].wait().unwrap();
+    }
+    std::thread::sleep(Duration::from_millis(200));
+    for k in [1, 2] {
+        run.procs.0[k] = fork(d, &format!("two-fork{k}-again"), port_of(&run.forks[k])).0;
+    }
+    let text = finish_loss_run(run, &base, "two");
+    for k in [1, 2] {
+        assert!(text.contains(&format!("fork {k} at")), "fork {k}'s loss is not in the log: {text}");
+    }
+    assert!(text.contains("replay epoch 2"), "not both forks were rebuilt: {text}");
+}

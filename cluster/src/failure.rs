@@ -61,6 +61,17 @@ pub enum ClusterError {
         /// Elements in the scene.
         elements: usize,
     },
+    /// The forks' exactly-once ledgers still disagreed after rebuilding the forks in
+    /// doubt: the energy on `fork` cannot be trusted.
+    #[error("the energy on {fork} could not be verified after {rebuilds} rebuilds: {mismatch}")]
+    Unverified {
+        /// The fork in doubt ("fork I at ADDR").
+        fork: String,
+        /// The last disagreement found.
+        mismatch: magg_core::cluster::LedgerMismatch,
+        /// Rebuilds tried.
+        rebuilds: u32,
+    },
     /// No pair finished for the stall timeout.
     #[error("light ray tracing stalled at {done} of {total} pairs for {after:?} (are nodes connected?)")]
     LightStalled {

@@ -17,6 +17,23 @@
 //! the restarted fork gets every deposit once: the result is bitwise that of a run
 //! without the failure. Completions from before the epoch are not counted, so no pair
 //! whose deposit the restarted fork lost is taken for done.
+//!
+//! Several forks lost together, or one lost again during its replay, are rebuilt one
+//! after another, each in an epoch of its own ([`ForkSet::rebuild`]): a fork that
+//! answers the `Replay` of another's loss with "no scene loaded" has restarted too, and
+//! is loaded (in a later epoch) instead of failing the render. A fork loaded in an
+//! epoch needs no replay for the losses before it: its ledger starts empty with every
+//! own pair queued.
+//!
+//! The invariant the light pass ends on, checked by the host before it interpolates
+//! ([`magg_core::cluster::check_ledgers`] on every fork's ledger digests): in the
+//! current epoch, fork `j` applied the deposits of exactly those pairs of fork `k` that
+//! `k`'s complete pairs say they deposited on `j` (and every own pair, for `j == k`).
+//! A replay keeps it: a lost fork starts empty, and the others forget what they recorded
+//! as deposited on it and trace those pairs again. A fork that fails the check (a
+//! restart not seen, a load that replaced a loaded shard, a deposit no complete pair
+//! made) is rebuilt as if it had been lost, and the check runs again; a render that
+//! cannot pass it stops with an error naming the fork, never with a wrong image.
 
 use crate::failure::ClusterError;
 use crate::FaultPolicy;
@@ -31,9 +48,14 @@ use magg_proto::v1::{self, GetEnergiesRequest, LoadShardRequest, PutBlocksReques
 use magg_proto::PROTOCOL_VERSION;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
-use tonic::Code;
+use tonic::{Code, Status};
 
 type Result<T> = std::result::Result<T, ClusterError>;
+
+/// Whether a fork answered "no scene loaded": it has started or restarted since.
+fn not_loaded(status: &Status) -> bool {
+    status.code() == Code::Unavailable && status.message() == magg_proto::NOT_LOADED
+}
 
 /// Longest wait for one poll of a fork (a stalled fork counts as down).
 const POLL_TIMEOUT: Duration = Duration::from_secs(5);
@@ -193,14 +215,25 @@ impl ForkSet {
     }
 
     /// Stores the vertex-energy blocks on their forks (and keeps them, to reload a fork).
+    /// A fork that restarted since its energies were collected is loaded again, with
+    /// them.
     pub async fn put_vertex_blocks(&mut self, per_fork: Vec<Vec<v1::Block>>) -> Result<()> {
-        for (i, blocks) in per_fork.iter().enumerate() {
+        self.vertex_blocks = Some(per_fork.clone());
+        for (i, blocks) in per_fork.into_iter().enumerate() {
             let name = self.name(i);
-            self.clients[i].put_blocks(PutBlocksRequest { blocks: blocks.clone() }).await.map_err(|status| {
-                ClusterError::Call { doing: "storing vertex energies on", fork: name, status, hint: String::new() }
-            })?;
+            match self.clients[i].put_blocks(PutBlocksRequest { blocks }).await {
+                Ok(_) => {}
+                Err(s) if not_loaded(&s) => {
+                    tracing::warn!("{name} restarted: loading its shard again, with its vertex energies");
+                    self.load(i).await?;
+                    self.restarts += 1;
+                }
+                Err(status) => {
+                    let doing = "storing vertex energies on";
+                    return Err(ClusterError::Call { doing, fork: name, status, hint: String::new() });
+                }
+            }
         }
-        self.vertex_blocks = Some(per_fork);
         Ok(())
     }
 
@@ -225,19 +258,12 @@ impl ForkSet {
             Ok(Err(s)) => s,
             Err(_) => tonic::Status::deadline_exceeded(format!("no answer within {POLL_TIMEOUT:?}")),
         };
-        let restarted = status.code() == Code::Unavailable && status.message() == magg_proto::NOT_LOADED;
-        if restarted {
+        if not_loaded(&status) {
             tracing::warn!("{} restarted: loading its shard again", self.name(i));
             if lrt_pending {
-                self.epoch += 1;
-                tracing::warn!(
-                    "its energy is lost: replay epoch {}, the pairs that deposited on it are traced again",
-                    self.epoch
-                );
-            }
-            self.load(i).await?;
-            if lrt_pending {
-                self.replay_others(i).await?;
+                self.rebuild(i).await?;
+            } else {
+                self.load(i).await?;
             }
             self.restarts += 1;
             self.down_since[i] = None;
@@ -255,24 +281,60 @@ impl ForkSet {
         Ok(None)
     }
 
-    /// Tells every fork but `i` to start the current replay epoch.
-    async fn replay_others(&mut self, i: usize) -> Result<()> {
-        for j in (0..self.len()).filter(|&j| j != i) {
-            let name = self.name(j);
-            let req = v1::ReplayRequest { epoch: self.epoch, lost_fork: Some(i as u32) };
-            retry::retry("Replay", Backoff { deadline: self.timeout, ..Default::default() }, || {
-                let (mut c, req) = (self.clients[j].clone(), req.clone());
-                async move { c.replay(req).await }
-            })
-            .await
-            .map_err(|status| ClusterError::Call {
-                doing: "starting a replay on",
-                fork: name,
-                status,
-                hint: String::new(),
-            })?;
+    /// Fork `first` lost the energy on its elements during light ray tracing (it
+    /// restarted, or failed the ledger check): each lost fork in turn gets a new replay
+    /// epoch, is loaded in it (empty, every own pair queued), and every other fork is
+    /// told to replay for it. A fork that answers that `Replay` with "no scene loaded"
+    /// restarted too and is rebuilt next, in an epoch of its own.
+    pub async fn rebuild(&mut self, first: usize) -> Result<()> {
+        let mut lost = vec![first];
+        while let Some(i) = lost.pop() {
+            self.epoch += 1;
+            tracing::warn!(
+                "{}: its energy is lost: replay epoch {}, the pairs that deposited on it are traced again",
+                self.name(i),
+                self.epoch
+            );
+            self.load(i).await?;
+            for j in (0..self.len()).filter(|&j| j != i) {
+                if lost.contains(&j) {
+                    continue;
+                }
+                if !self.replay_on(j, i).await? {
+                    tracing::warn!("{} restarted too: it is loaded again after {}", self.name(j), self.name(i));
+                    self.restarts += 1;
+                    lost.push(j);
+                }
+            }
         }
         Ok(())
+    }
+
+    /// Tells fork `j` to start the current replay epoch because fork `lost` lost its
+    /// energy; false when `j` has no scene loaded (it restarted too).
+    async fn replay_on(&mut self, j: usize, lost: usize) -> Result<bool> {
+        let req = v1::ReplayRequest { epoch: self.epoch, lost_fork: Some(lost as u32) };
+        let backoff = Backoff { deadline: self.timeout, ..Default::default() };
+        let reply = retry::retry("Replay", backoff, || {
+            let (mut c, req) = (self.clients[j].clone(), req.clone());
+            // Not retried: an empty fork is not coming back with a shard by itself.
+            async move {
+                c.replay(req)
+                    .await
+                    .map_err(|s| if not_loaded(&s) { Status::failed_precondition(s.message()) } else { s })
+            }
+        })
+        .await;
+        match reply {
+            Ok(_) => Ok(true),
+            Err(s) if s.code() == Code::FailedPrecondition && s.message() == magg_proto::NOT_LOADED => Ok(false),
+            Err(status) => Err(ClusterError::Call {
+                doing: "starting a replay on",
+                fork: self.name(j),
+                status,
+                hint: String::new(),
+            }),
+        }
     }
 
     /// Polls fork `i` until it answers (loading it again if it restarted, see

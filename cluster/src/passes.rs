@@ -8,11 +8,12 @@ use super::schedule::Scheduler;
 use super::service::Phase;
 use crate::failure::ClusterError;
 use magg_core::blocks::fork_of_block;
+use magg_core::cluster::check_ledgers;
 use magg_core::color::Rgb;
 use magg_core::energy::{vertex_energy_blocks, Fixed};
 use magg_core::machine::{LightPass, ViewPass, ViewedFrame};
 use magg_core::progress::Progress;
-use magg_proto::convert::{block_to_wire, element_energies};
+use magg_proto::convert::{block_to_wire, element_energies, ledger_digest};
 use magg_proto::v1;
 use magg_throttle::Scheme;
 use std::time::{Duration, Instant};
@@ -22,6 +23,9 @@ const LRT_POLL: Duration = Duration::from_millis(25);
 /// The same under a throttled profile, where the poll sets the resolution of the
 /// modelled LRT time (the polls cost the forks nothing there).
 const LRT_POLL_THROTTLED: Duration = Duration::from_millis(5);
+/// Times the forks whose ledgers fail the check at the end of the light pass are
+/// rebuilt before the render gives up (each rebuild traces their pairs again).
+const MAX_LEDGER_REBUILDS: u32 = 3;
 /// Interval of the host's checks that every fork is alive during VRT.
 const FORK_CHECK: Duration = Duration::from_millis(500);
 /// Progress checks of the viewing pass (the end of the pass wakes the driver at once).
@@ -30,7 +34,9 @@ const VRT_POLL: Duration = Duration::from_millis(20);
 impl ClusterMachine {
     /// LRT: the nodes pull pairs from their home forks; the host waits until every fork
     /// reports all of its pairs done, then collects the energies, all within one replay
-    /// epoch (a fork that restarts meanwhile starts a new one, and the wait goes on).
+    /// epoch (a fork that restarts meanwhile starts a new one, and the wait goes on),
+    /// and checks the forks' ledgers against each other before it keeps them (a fork
+    /// that fails is rebuilt and the wait goes on; see [`crate::forks`]).
     pub(super) async fn trace_light(&mut self, progress: &dyn Progress) -> Result<LightPass, ClusterError> {
         let f = self.forks.len();
         let n_el = self.prepared.header.counts.elements as usize;
@@ -45,6 +51,7 @@ impl ClusterMachine {
         progress.begin("light ray tracing", total_pairs);
         let mut last = (0u64, Instant::now());
         let (mut returned_seen, mut epoch_seen) = (0, 0);
+        let mut rebuilds = 0;
         let mut element_flux: Vec<Fixed> = vec![[0; 3]; n_el];
         let collect_s = loop {
             let (mut done, mut returned) = (0, 0);
@@ -76,8 +83,12 @@ impl ClusterMachine {
                 // Collect the energies (interpolation time, as the paper's host spends it).
                 self.service.set_phase(Phase::Interp);
                 let t_collect = Instant::now();
+                let mut ledgers = Vec::with_capacity(f);
+                let mut complete = true;
                 for i in 0..f {
                     let r = self.forks.poll_until_up(i, false, true).await?;
+                    complete &= r.pairs_done >= r.pairs_total;
+                    ledgers.push(ledger_digest(&r, f).map_err(|source| ClusterError::Energies { fork: i, source })?);
                     let energies = element_energies(&r).map_err(|source| ClusterError::Energies { fork: i, source })?;
                     for (element, e) in energies {
                         match element_flux.get_mut(element as usize) {
@@ -86,8 +97,32 @@ impl ClusterMachine {
                         }
                     }
                 }
-                if self.forks.epoch == epoch_seen {
+                if self.forks.epoch != epoch_seen || !complete {
+                    continue;
+                }
+                // Every deposit applied exactly once on every fork, or the forks in doubt
+                // are rebuilt (see crate::forks).
+                let mismatches = check_ledgers(&ledgers, self.forks.epoch);
+                if mismatches.is_empty() {
                     break t_collect.elapsed().as_secs_f64();
+                }
+                rebuilds += 1;
+                if rebuilds > MAX_LEDGER_REBUILDS {
+                    let fork = self.forks.name(mismatches[0].fork());
+                    return Err(ClusterError::Unverified {
+                        fork,
+                        mismatch: mismatches[0].clone(),
+                        rebuilds: MAX_LEDGER_REBUILDS,
+                    });
+                }
+                let mut doubtful: Vec<usize> = mismatches.iter().map(|m| m.fork()).collect();
+                doubtful.sort_unstable();
+                doubtful.dedup();
+                for m in &mismatches {
+                    tracing::warn!("the ledgers disagree: {m}");
+                }
+                for j in doubtful {
+                    self.forks.rebuild(j).await?;
                 }
                 continue;
             }

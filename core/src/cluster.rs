@@ -105,6 +105,145 @@ pub struct ForkReport {
     pub rpcs: u64,
     /// Encoded bytes of pair and deposit messages with nodes (the link path).
     pub link_bytes: u64,
+    /// What its exactly-once ledger holds, for the host's check before interpolation.
+    pub ledger: LedgerDigest,
+}
+
+/// An order-independent digest of a set of pair ids: how many, and the wrapping sum of
+/// a 64-bit mix of each. Two forks that name the same pairs have equal digests; a pair
+/// missing or extra on one side changes both figures (the sum by a well-mixed value, so
+/// a difference cancelling out is a 1 in 2^64 event, not a pattern a fault produces).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct PairDigest {
+    /// Pairs in the set.
+    pub count: u64,
+    /// Wrapping sum of [`PairDigest::mix`] of each.
+    pub sum: u64,
+}
+
+impl PairDigest {
+    /// The splitmix64 finaliser of `pair`: neighbouring ids give unrelated values.
+    pub fn mix(pair: u64) -> u64 {
+        let mut z = pair.wrapping_add(0x9e37_79b9_7f4a_7c15);
+        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+        z ^ (z >> 31)
+    }
+
+    /// Adds `pair` (the caller adds each pair of the set once).
+    pub fn add(&mut self, pair: u64) {
+        self.count += 1;
+        self.sum = self.sum.wrapping_add(Self::mix(pair));
+    }
+
+    /// Removes `pair` (one that was added).
+    pub fn remove(&mut self, pair: u64) {
+        self.count -= 1;
+        self.sum = self.sum.wrapping_sub(Self::mix(pair));
+    }
+}
+
+/// A fork's exactly-once ledger in digests, by fork index: the pairs whose deposits it
+/// applied, grouped by the fork that owns each pair (`applied[k]`), and, for each other
+/// fork `j`, its own complete pairs that said they deposited on `j` (`recorded[j]`;
+/// `recorded[self]` is its complete own pairs). When light ray tracing is over and right,
+/// fork `j`'s `applied[k]` equals fork `k`'s `recorded[j]` for every pair of forks.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct LedgerDigest {
+    /// Replay epoch of the ledger.
+    pub epoch: u64,
+    /// Applied pairs, by owning fork.
+    pub applied: Vec<PairDigest>,
+    /// Complete own pairs that deposited on each fork (on this one: all complete ones).
+    pub recorded: Vec<PairDigest>,
+}
+
+/// Two forks' ledgers that disagree (see [`check_ledgers`]): the energy of fork `on`
+/// cannot be trusted.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum LedgerMismatch {
+    /// A fork's ledger is of another replay epoch than the host's (it restarted, or was
+    /// loaded again, unseen).
+    #[error("fork {on}'s ledger is of replay epoch {got}, not {want}")]
+    Epoch {
+        /// The fork.
+        on: usize,
+        /// Its ledger's epoch.
+        got: u64,
+        /// The host's.
+        want: u64,
+    },
+    /// A fork's ledger does not name every fork.
+    #[error("fork {on}'s ledger names {got} forks, not {want}")]
+    Shape {
+        /// The fork.
+        on: usize,
+        /// Forks its digests cover.
+        got: usize,
+        /// Forks of the render.
+        want: usize,
+    },
+    /// Fork `on` applied other deposits of fork `owner`'s pairs than `owner`'s complete
+    /// pairs say they made there: some are missing, or extra.
+    #[error(
+        "fork {on} applied the deposits of {} pairs of fork {owner}, and fork {owner}'s complete pairs \
+         made {} there (digests {:016x} and {:016x})",
+        applied.count,
+        recorded.count,
+        applied.sum,
+        recorded.sum
+    )]
+    Deposits {
+        /// The fork the deposits went to.
+        on: usize,
+        /// The fork owning the pairs.
+        owner: usize,
+        /// What `on` applied of `owner`'s pairs.
+        applied: PairDigest,
+        /// What `owner` recorded as deposited on `on`.
+        recorded: PairDigest,
+    },
+}
+
+impl LedgerMismatch {
+    /// The fork whose energy is in doubt.
+    pub fn fork(&self) -> usize {
+        match *self {
+            LedgerMismatch::Epoch { on, .. }
+            | LedgerMismatch::Shape { on, .. }
+            | LedgerMismatch::Deposits { on, .. } => on,
+        }
+    }
+}
+
+/// Checks, once every fork's pairs are complete, that every pair's deposits were applied
+/// exactly once on every fork they were made for: fork `j` applied of fork `k`'s pairs
+/// exactly those that `k`'s complete pairs recorded as deposited on `j` (on `k` itself:
+/// every complete pair, since a pair completes with its owner's deposits), all in replay
+/// `epoch`. `ledgers` is by fork index. Returns every disagreement (none: the energies
+/// are those of a run without failures).
+pub fn check_ledgers(ledgers: &[LedgerDigest], epoch: u64) -> Vec<LedgerMismatch> {
+    let forks = ledgers.len();
+    let mut out = Vec::new();
+    for (on, l) in ledgers.iter().enumerate() {
+        if l.epoch != epoch {
+            out.push(LedgerMismatch::Epoch { on, got: l.epoch, want: epoch });
+        } else if l.applied.len() != forks || l.recorded.len() != forks {
+            out.push(LedgerMismatch::Shape { on, got: l.applied.len().min(l.recorded.len()), want: forks });
+        }
+    }
+    if out.iter().any(|m| matches!(m, LedgerMismatch::Shape { .. })) {
+        return out;
+    }
+    for (on, l) in ledgers.iter().enumerate() {
+        for (owner, k) in ledgers.iter().enumerate() {
+            let (applied, recorded) = (l.applied[owner], k.recorded[on]);
+            if applied != recorded {
+                out.push(LedgerMismatch::Deposits { on, owner, applied, recorded });
+            }
+        }
+    }
+    out
 }
 
 /// What a node reports to the host: the sum over its workers so far.

@@ -6,7 +6,7 @@
 //! | [`ForkError::ProtocolVersion`], [`ForkError::ProfileMismatch`], [`ForkError::BlockNotLoaded`] | `FAILED_PRECONDITION` |
 //! | [`ForkError::NotLoaded`] (a fork just started or restarted: callers retry until the host loads it) | `UNAVAILABLE` |
 //! | [`ForkError::BadHeader`], [`ForkError::BadBlock`], [`ForkError::BadRequest`], [`ForkError::BlockOutOfRange`], [`ForkError::BlockNotOwned`], [`ForkError::PairOutOfRange`], [`ForkError::ElementOutOfRange`], [`ForkError::ElementNotOwned`] | `INVALID_ARGUMENT` |
-//! | [`ForkError::TooMany`] | `RESOURCE_EXHAUSTED` |
+//! | [`ForkError::TooMany`], [`ForkError::OverMemory`] | `RESOURCE_EXHAUSTED` |
 //! | [`ForkError::PeerUnavailable`] | `UNAVAILABLE` |
 //! | [`ForkError::Peer`] | the peer's own code |
 //! | [`ForkError::PeerReply`], [`ForkError::Internal`] | `INTERNAL` |
@@ -107,6 +107,25 @@ pub enum ForkError {
         /// The limit.
         max: u64,
     },
+    /// A `LoadShard` whose pair bookkeeping would take more memory than this fork may
+    /// use (refused before anything is allocated).
+    #[error(
+        "the shard's pair bookkeeping needs about {} MB ({pairs} pairs: {lights} lights x {elements} elements), \
+         over this fork's --max-memory-mb {limit_mb}",
+        need.div_ceil(1 << 20)
+    )]
+    OverMemory {
+        /// Bytes the shard would take.
+        need: u64,
+        /// Pairs of the scene.
+        pairs: u64,
+        /// Its lights.
+        lights: u64,
+        /// Its elements.
+        elements: u64,
+        /// The fork's limit in MiB.
+        limit_mb: u64,
+    },
     /// A peer fork could not be reached.
     #[error("fork at {addr} is unreachable: {reason}")]
     PeerUnavailable {
@@ -156,7 +175,7 @@ impl ForkError {
             | ForkError::PairOutOfRange { .. }
             | ForkError::ElementOutOfRange { .. }
             | ForkError::ElementNotOwned { .. } => Code::InvalidArgument,
-            ForkError::TooMany { .. } => Code::ResourceExhausted,
+            ForkError::TooMany { .. } | ForkError::OverMemory { .. } => Code::ResourceExhausted,
             ForkError::PeerUnavailable { .. } => Code::Unavailable,
             ForkError::Peer { status, .. } => status.code(),
             ForkError::PeerReply { .. } | ForkError::Internal(_) => Code::Internal,

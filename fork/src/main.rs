@@ -23,6 +23,11 @@ struct Args {
     /// services and the standard gRPC health service are served there.
     #[arg(long, default_value = "127.0.0.1:7100", env = "MAGG_FORK_LISTEN")]
     listen: SocketAddr,
+    /// Memory the pair bookkeeping of one shard may take, in MiB: a `LoadShard` that
+    /// would need more (many lights times many elements) is refused with
+    /// RESOURCE_EXHAUSTED and the estimate, before anything is allocated.
+    #[arg(long, default_value_t = magg_fork::shard::DEFAULT_MAX_MEMORY_MB, value_name = "MB")]
+    max_memory_mb: u64,
     /// Profile, token, TLS and log level: the flags every cluster process shares.
     #[command(flatten)]
     cluster: magg_plumbing::flags::ClusterArgs,
@@ -56,7 +61,8 @@ fn run(args: Args) -> anyhow::Result<()> {
             let profile = magg_throttle::Profile::named(p)?;
             hw = hw.pinned_to(&profile.name);
         }
-        let service = magg_fork::ForkService::with_token(token.clone()).on_hardware(hw);
+        let service =
+            magg_fork::ForkService::with_token(token.clone()).on_hardware(hw).with_memory_limit(args.max_memory_mb);
         magg_fork::serve_service(service, token, listener, magg_plumbing::lifecycle::shutdown_signal())
             .await
             .context("serving")?;

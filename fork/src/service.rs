@@ -28,11 +28,24 @@ use tonic::{Request, Response, Status};
 
 /// A fork process's service: the shard of the current render, if one is loaded, and
 /// the fork's emulated hardware (throttling layer).
-#[derive(Debug, Default)]
+#[derive(Debug)]
 pub struct ForkService {
     shard: RwLock<Option<Arc<Shard>>>,
     hw: Arc<ForkHardware>,
     access: PeerAccess,
+    /// Memory a shard's pair bookkeeping may take, in MiB.
+    max_memory_mb: u64,
+}
+
+impl Default for ForkService {
+    fn default() -> ForkService {
+        ForkService {
+            shard: RwLock::default(),
+            hw: Arc::default(),
+            access: PeerAccess::default(),
+            max_memory_mb: crate::shard::DEFAULT_MAX_MEMORY_MB,
+        }
+    }
 }
 
 impl ForkService {
@@ -59,6 +72,13 @@ impl ForkService {
         self
     }
 
+    /// The same fork refusing a `LoadShard` whose pair bookkeeping would take more than
+    /// `mb` MiB (`RESOURCE_EXHAUSTED`, with the estimate).
+    pub fn with_memory_limit(mut self, mb: u64) -> ForkService {
+        self.max_memory_mb = mb;
+        self
+    }
+
     /// The loaded shard, counting the RPC against it.
     fn shard(&self) -> Result<Arc<Shard>, ForkError> {
         let shard = read(&self.shard).clone().ok_or(ForkError::NotLoaded)?;
@@ -81,11 +101,12 @@ fn too_many(what: &'static str, got: usize, max: usize) -> ForkError {
 
 /// A shard from a `LoadShard` request: the protocol version checked first, then the
 /// request converted (header, 2 KB blocks) and the shard built (placement, ownership).
-pub fn load_shard(req: v1::LoadShardRequest, access: PeerAccess) -> Result<Shard, ForkError> {
+/// Its pair bookkeeping must fit in `max_mb` MiB.
+pub fn load_shard(req: v1::LoadShardRequest, access: PeerAccess, max_mb: u64) -> Result<Shard, ForkError> {
     if req.protocol_version != magg_proto::PROTOCOL_VERSION {
         return Err(ForkError::ProtocolVersion { got: req.protocol_version, want: magg_proto::PROTOCOL_VERSION });
     }
-    Shard::load(ShardLoad::try_from(req)?, access)
+    Shard::load_within(ShardLoad::try_from(req)?, access, max_mb)
 }
 
 /// Blocks from the wire, each checked to be 2 KB (kept as received, no copy).
@@ -211,7 +232,7 @@ impl Fork for ForkService {
             Some(Profile::from_wire(&req.profile).map_err(|e| ForkError::BadRequest(e.to_string()))?)
         };
         self.hw.check_profile(profile.as_ref())?;
-        let shard = load_shard(req, self.access.clone())?;
+        let shard = load_shard(req, self.access.clone(), self.max_memory_mb)?;
         shard.count_rpc();
         self.hw.set_profile(profile);
         // The host's upload crosses the G-bus.

@@ -36,6 +36,18 @@ pub const MAX_DEPOSIT_PAIRS: usize = 65_536;
 pub const MAX_DEPOSITS: usize = 1 << 20;
 /// Longest fork address accepted.
 pub const MAX_ADDR_LEN: usize = 256;
+/// Memory a fork may give one shard's pair bookkeeping unless told otherwise
+/// (`magg-fork --max-memory-mb`).
+pub const DEFAULT_MAX_MEMORY_MB: u64 = 4096;
+
+/// Bytes of a shard's pair bookkeeping at most, allocated at `LoadShard` or as the pass
+/// goes: one bit per pair of the scene (deposits applied), and one bit per own pair for
+/// the complete ones and for each other fork they may deposit on. The host's memory
+/// estimate charges the same.
+pub fn pair_state_bytes(pairs: u64, own_pairs: u64, forks: u64) -> u64 {
+    pairs.div_ceil(8).saturating_add(own_pairs.div_ceil(8).saturating_mul(forks.max(1)))
+}
+
 /// Pair lease when `LoadShard` gives none: a node silent this long is taken for dead.
 pub const DEFAULT_LEASE: Duration = Duration::from_secs(30);
 
@@ -100,9 +112,16 @@ pub struct Shard {
 }
 
 impl Shard {
-    /// Builds the shard of a render: checks the placement and every block, then builds
-    /// the pair queue. Other forks are reached as `access` says.
+    /// Builds the shard of a render within [`DEFAULT_MAX_MEMORY_MB`] (see
+    /// [`Shard::load_within`]).
     pub fn load(load: ShardLoad<Bytes>, access: PeerAccess) -> Result<Shard, ForkError> {
+        Shard::load_within(load, access, DEFAULT_MAX_MEMORY_MB)
+    }
+
+    /// Builds the shard of a render: checks the placement, that its pair bookkeeping
+    /// ([`pair_state_bytes`]) fits in `max_mb` MiB, and every block, then builds the pair
+    /// queue. Other forks are reached as `access` says.
+    pub fn load_within(load: ShardLoad<Bytes>, access: PeerAccess, max_mb: u64) -> Result<Shard, ForkError> {
         let forks = load.fork_addrs.len();
         if forks == 0 || forks > MAX_FORKS {
             return Err(ForkError::BadRequest(format!("fork_addrs has {forks} addresses, expected 1..={MAX_FORKS}")));
@@ -122,6 +141,16 @@ impl Shard {
         let lights = header.lights.len() as u32;
         let pair_count = lights as u64 * header.counts.elements as u64;
         let own_pairs = lights as u64 * owned.len() as u64;
+        let need = pair_state_bytes(pair_count, own_pairs, forks as u64);
+        if need > max_mb.saturating_mul(1 << 20) {
+            return Err(ForkError::OverMemory {
+                need,
+                pairs: pair_count,
+                lights: lights as u64,
+                elements: header.counts.elements as u64,
+                limit_mb: max_mb,
+            });
+        }
         let mut left_elsewhere = vec![0u64; forks];
         if header.plan.lrt {
             for e in 0..header.counts.elements {
@@ -130,7 +159,7 @@ impl Shard {
         }
         let work = Work {
             pairs: PairBook::new(PairQueue::new(lights, owned.len(), header.plan.lrt)),
-            ledger: Ledger::new(pair_count, own_pairs, forks, owned.len(), load.epoch),
+            ledger: Ledger::new(index as usize, pair_count, own_pairs, forks, owned.len(), load.epoch),
         };
         let shard = Shard {
             store: BlockStore::new(index, f, header.layout.total),
@@ -290,7 +319,7 @@ impl Shard {
     pub fn replay(&self, epoch: u64, lost: Option<u32>) -> u64 {
         let mut work = lock(&self.work);
         let Work { pairs, ledger } = &mut *work;
-        let Some(again) = ledger.replay(epoch, lost) else { return 0 };
+        let Some(again) = ledger.replay(epoch, lost, |k| self.pair_of_local(k)) else { return 0 };
         let before = pairs.remaining();
         pairs.requeue(again.into_iter().map(|k| self.pair_of_local(k)));
         pairs.recall();
@@ -389,10 +418,13 @@ impl Shard {
         let forks = self.place.forks();
         let mut slots = Vec::with_capacity(batch.deposits);
         let mut local = Vec::with_capacity(if batch.complete { n } else { 0 });
+        let mut owners = Vec::with_capacity(n);
+        let elements = self.header.counts.elements.max(1) as u64;
         for p in batch.pairs.clone() {
             if p.pair >= total_pairs {
                 return Err(ForkError::PairOutOfRange { pair: p.pair, pairs: total_pairs });
             }
+            owners.push(self.element_owner((p.pair % elements) as u32) as usize);
             if batch.complete {
                 local.push(self.local_pair(p.pair)?);
             }
@@ -413,13 +445,13 @@ impl Shard {
         let counts_done = batch.complete && ledger.counts(batch.epoch);
         for (k, p) in batch.pairs.enumerate() {
             let deposits = p.energy.chunks_exact(3).zip(slots.by_ref()).map(|(d, slot)| (slot, d));
-            if ledger.apply(p.pair, deposits) {
+            if ledger.apply(p.pair, owners[k], deposits) {
                 applied += 1;
             } else {
                 duplicates += 1;
             }
             if let (Some(&k), true) = (local.get(k), counts_done) {
-                ledger.complete(k, p.also_on);
+                ledger.complete(k, p.pair, p.also_on);
                 pairs.complete(p.pair);
             }
         }
@@ -443,6 +475,7 @@ impl Shard {
             gbus_bytes: self.traffic.gbus_bytes.load(Ordering::Relaxed),
             rpcs: self.traffic.rpcs.load(Ordering::Relaxed),
             link_bytes: self.traffic.link_bytes.load(Ordering::Relaxed),
+            ledger: work.ledger.digest(),
         }
     }
 

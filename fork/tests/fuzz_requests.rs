@@ -8,6 +8,7 @@ mod common;
 
 use common::load_request;
 use magg_fork::service::{blocks_from_wire, load_shard};
+use magg_fork::shard::DEFAULT_MAX_MEMORY_MB as MB;
 use magg_proto::deposits::DepositWriter;
 use magg_proto::v1;
 use proptest::prelude::*;
@@ -61,7 +62,7 @@ fn mutated_load_shard_requests_load_or_are_refused() {
             bytes.truncate(cut.max(head));
             decode_all(&bytes);
             if let Ok(req) = v1::LoadShardRequest::decode(bytes.as_slice()) {
-                let _ = load_shard(req, Default::default());
+                let _ = load_shard(req, Default::default(), MB);
             }
             Ok(())
         })
@@ -70,7 +71,7 @@ fn mutated_load_shard_requests_load_or_are_refused() {
 
 #[test]
 fn arbitrary_requests_on_a_loaded_shard_are_served_or_refused() {
-    let shard = load_shard(load_request(), Default::default()).unwrap();
+    let shard = load_shard(load_request(), Default::default(), MB).unwrap();
     let pairs = shard.pair_count();
     let blocks = shard.header().layout.total;
     let elements = shard.header().counts.elements;

@@ -7,6 +7,7 @@ mod common;
 
 use common::load_request;
 use magg_fork::service::{deposit, load_shard};
+use magg_fork::shard::DEFAULT_MAX_MEMORY_MB as MB;
 use magg_fork::Shard;
 use magg_proto::deposits::DepositWriter;
 use magg_proto::v1;
@@ -26,7 +27,7 @@ fn completions(pairs: &[(u64, Vec<u32>)], epoch: u64) -> v1::DepositRequest {
 }
 
 fn shard(lease_ms: u32) -> Shard {
-    load_shard(v1::LoadShardRequest { lease_ms, ..load_request() }, Default::default()).unwrap()
+    load_shard(v1::LoadShardRequest { lease_ms, ..load_request() }, Default::default(), MB).unwrap()
 }
 
 #[test]
@@ -99,7 +100,7 @@ fn a_completion_naming_a_fork_that_is_not_another_one_is_refused() {
 /// them: large while the other fork still holds its pairs, small once it said it has none.
 #[test]
 fn batches_shrink_with_the_pairs_left_in_the_cluster_not_only_here() {
-    let s = load_shard(v1::LoadShardRequest { nodes: 2, ..load_request() }, Default::default()).unwrap();
+    let s = load_shard(v1::LoadShardRequest { nodes: 2, ..load_request() }, Default::default(), MB).unwrap();
     let own = s.pairs_left();
     assert_eq!(own, 832, "magg-paper's 1664 pairs, half of them here");
     // Take all but 40 of this fork's pairs.
@@ -124,4 +125,23 @@ fn batches_shrink_with_the_pairs_left_in_the_cluster_not_only_here() {
     s.heard_pairs_left(1, 10);
     assert_eq!(s.steal_batch(64), 5);
     assert_eq!(s.steal_order(), vec![1]);
+}
+
+#[test]
+fn a_shard_whose_pairs_do_not_fit_is_refused_with_resource_exhausted_before_any_allocation() {
+    // The paper's scene (1664 elements, one light) with 65,536 lights: 109 M pairs, over
+    // 20 MB of bookkeeping on each of the 2 forks; the limit is 8 MB.
+    let mut req = load_request();
+    let header = req.header.as_mut().unwrap();
+    let light = header.lights[0].clone();
+    header.lights = vec![light; 65_536];
+    let err = load_shard(req.clone(), Default::default(), 8).unwrap_err();
+    let status = tonic::Status::from(err);
+    assert_eq!(status.code(), tonic::Code::ResourceExhausted, "{status:?}");
+    for part in
+        ["pair bookkeeping needs about", "MB (109051904 pairs: 65536 lights x 1664 elements)", "--max-memory-mb 8"]
+    {
+        assert!(status.message().contains(part), "{part:?} not in {:?}", status.message());
+    }
+    assert!(load_shard(req, Default::default(), 64).is_ok(), "refused within the limit");
 }

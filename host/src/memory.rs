@@ -4,7 +4,12 @@
 //! The estimate counts elements the way preprocessing will make them
 //! ([`subdivisions_of`]) and charges each one what a render costs per element (host
 //! tables, blocks on the forks, node caches, energies: about 400 bytes, measured 270 on
-//! the embedded path with 1 and 4 million elements), plus the frame.
+//! the embedded path with 1 and 4 million elements), plus the frame, plus the pair
+//! bookkeeping of the forks this process runs: one bit per pair of the scene on each
+//! fork for the deposits it applied, and one bit per own pair for its complete pairs and
+//! for each other fork they may deposit on ([`magg_fork::shard::pair_state_bytes`]),
+//! about `2 F` bits per pair for `F` forks. Forks of other processes check their own
+//! limit at `LoadShard`.
 
 use anyhow::bail;
 use magg_core::preprocess::subdivisions_of;
@@ -17,8 +22,9 @@ pub const BYTES_PER_PIXEL: f64 = 64.0;
 /// Default limit of `--max-memory-mb`.
 pub const DEFAULT_MAX_MEMORY_MB: u64 = 4096;
 
-/// Estimated (elements, bytes) of rendering `scene`.
-pub fn estimate(scene: &Scene) -> (f64, f64) {
+/// Estimated (elements, pairs, bytes) of rendering `scene` with `forks` forks in this
+/// process (0: none, as with `--embedded` or `--forks-at`).
+pub fn estimate(scene: &Scene, forks: u32) -> (f64, f64, f64) {
     let s = &scene.settings;
     let elements: f64 = scene
         .patches
@@ -26,13 +32,16 @@ pub fn estimate(scene: &Scene) -> (f64, f64) {
         .map(|p| subdivisions_of(&p.vertices, p.subdivisions, p.size_hint, s.element_size).powi(2))
         .sum();
     let pixels = s.width as f64 * s.height as f64;
-    (elements, elements * BYTES_PER_ELEMENT + pixels * BYTES_PER_PIXEL)
+    let pairs = elements * scene.lights.len() as f64;
+    let pair_bytes = pairs * 2.0 * forks as f64 / 8.0;
+    (elements, pairs, elements * BYTES_PER_ELEMENT + pixels * BYTES_PER_PIXEL + pair_bytes)
 }
 
-/// Refuses `scene` when its estimate is over `max_mb` MiB. A scene over its own
-/// `max_elements` is left to preprocessing, which names the largest patch.
-pub fn check(scene: &Scene, max_mb: u64) -> anyhow::Result<()> {
-    let (elements, bytes) = estimate(scene);
+/// Refuses `scene` when its estimate with `forks` forks in this process is over
+/// `max_mb` MiB. A scene over its own `max_elements` is left to preprocessing, which
+/// names the largest patch.
+pub fn check(scene: &Scene, max_mb: u64, forks: u32) -> anyhow::Result<()> {
+    let (elements, pairs, bytes) = estimate(scene, forks);
     if !(elements <= scene.settings.max_elements as f64) {
         return Ok(());
     }
@@ -40,11 +49,13 @@ pub fn check(scene: &Scene, max_mb: u64) -> anyhow::Result<()> {
     if !(mb <= max_mb as f64) {
         let s = &scene.settings;
         bail!(
-            "{}: rendering would need about {:.0} MB ({:.0} elements, {}x{} pixels), over --max-memory-mb {max_mb}; \
-             raise element_size, lower the resolution, or raise the limit",
+            "{}: rendering would need about {:.0} MB ({:.0} elements, {:.0} (light, element) pairs on {forks} forks, \
+             {}x{} pixels), over --max-memory-mb {max_mb}; raise element_size, use fewer lights, lower the \
+             resolution, or raise the limit",
             scene.name,
             mb.min(1e18),
             elements.min(1e18),
+            pairs.min(1e18),
             s.width,
             s.height
         );

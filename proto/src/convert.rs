@@ -30,6 +30,7 @@ use magg_core::plan::EffectsPlan;
 use magg_core::scene::{Camera, Exposure, GridSpec, Light, Material, RenderSettings, SourceLoc, Spot};
 
 mod cluster;
+pub use cluster::ledger_digest;
 
 /// Most blocks a scene may have (32 GiB of scene data).
 pub const MAX_BLOCKS: u32 = 1 << 24;

@@ -33,6 +33,8 @@ pub const RENDER_OVER: &str = "the render is over: this host takes no more nodes
 pub const NOT_LOADED: &str = "no scene loaded";
 
 /// Version of the protocol; processes with another version are refused at registration.
-/// 4: a node's host requests carry the secret its registration gave it; 3: a batch's deposits on a fork are packed arrays and may carry the next `TakePairs`
+/// 5: a node's host requests carry the secret its registration gave it; 4: `GetEnergies`
+/// replies carry the ledger's digests, checked by the host before it interpolates; 3: a
+/// batch's deposits on a fork are packed arrays and may carry the next `TakePairs`
 /// ([`deposits`]); 2: packed deposits per pair, `Replay` names the lost fork.
-pub const PROTOCOL_VERSION: u32 = 4;
+pub const PROTOCOL_VERSION: u32 = 5;

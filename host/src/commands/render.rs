@@ -30,7 +30,11 @@ pub fn run(cfg: RenderConfig, files: &scene_file::SceneFiles) -> anyhow::Result<
         anyhow::bail!("--frames: {} has no [camera_path]", cfg.scene.display());
     }
     let frame_numbers = cfg.framing.frames(path_cameras.len().max(1))?;
-    crate::memory::check(&scene, cfg.max_memory_mb)?;
+    let forks_here = match &cfg.mode {
+        Mode::Cluster { forks_at, .. } if forks_at.is_empty() => cfg.forks,
+        _ => 0,
+    };
+    crate::memory::check(&scene, cfg.max_memory_mb, forks_here)?;
     let plan = if cfg.all_effects { EffectsPlan::forced_on(&scene) } else { EffectsPlan::for_scene(&scene) };
     // The cluster's runtime, forks and listener start while the scene is preprocessed.
     let (prepared, cluster) = match &cfg.mode {

@@ -9,7 +9,7 @@ use super::{block_bytes_from_wire, finite, invalid, require, rgb_from_wire, rgb_
 use crate::deposits::{DepositError, Pairs};
 use crate::v1;
 use magg_core::blocks::CacheStats;
-use magg_core::cluster::{DepositBatch, ForkReport, NodeReport, PairLease, ShardLoad};
+use magg_core::cluster::{DepositBatch, ForkReport, LedgerDigest, NodeReport, PairDigest, PairLease, ShardLoad};
 use magg_core::header::SceneHeader;
 use magg_core::lrt::LrtTally;
 use magg_core::view::OpCounters;
@@ -78,9 +78,33 @@ impl From<ForkReport> for v1::GetEnergiesReply {
             rpcs: r.rpcs,
             link_bytes: r.link_bytes,
             pairs_returned: r.pairs_returned,
+            ledger_epoch: r.ledger.epoch,
+            applied: digests_to_wire(&r.ledger.applied),
+            recorded: digests_to_wire(&r.ledger.recorded),
             ..Default::default()
         }
     }
+}
+
+fn digests_to_wire(d: &[PairDigest]) -> Vec<u64> {
+    d.iter().flat_map(|d| [d.count, d.sum]).collect()
+}
+
+fn digests_from_wire(v: &[u64], field: &str, forks: usize) -> Result<Vec<PairDigest>, ConvertError> {
+    if v.len() != 2 * forks {
+        return Err(invalid(field, v.len(), format!("2 values for each of {forks} forks")));
+    }
+    Ok(v.chunks_exact(2).map(|c| PairDigest { count: c[0], sum: c[1] }).collect())
+}
+
+/// The ledger digests of a fork's `GetEnergies` reply, checked to name each of `forks`
+/// forks once.
+pub fn ledger_digest(r: &v1::GetEnergiesReply, forks: usize) -> Result<LedgerDigest, ConvertError> {
+    Ok(LedgerDigest {
+        epoch: r.ledger_epoch,
+        applied: digests_from_wire(&r.applied, "GetEnergiesReply.applied", forks)?,
+        recorded: digests_from_wire(&r.recorded, "GetEnergiesReply.recorded", forks)?,
+    })
 }
 
 impl From<&NodeReport> for v1::NodeReport {
@@ -202,5 +226,16 @@ mod tests {
         let r = ForkReport { elements: vec![1, 4], energy: vec![[1, 2, 3], [4, 5, 6]], rpcs: 7, ..Default::default() };
         let w = v1::GetEnergiesReply::from(r);
         assert_eq!((w.energy, w.rpcs), (vec![1, 2, 3, 4, 5, 6], 7));
+    }
+
+    #[test]
+    fn ledger_digests_round_trip_and_must_name_every_fork() {
+        let d = |count, sum| PairDigest { count, sum };
+        let ledger =
+            LedgerDigest { epoch: 3, applied: vec![d(1, 2), d(3, 4)], recorded: vec![d(5, 6), d(7, u64::MAX)] };
+        let w = v1::GetEnergiesReply::from(ForkReport { ledger: ledger.clone(), ..Default::default() });
+        assert_eq!(ledger_digest(&w, 2).unwrap(), ledger);
+        let e = ledger_digest(&w, 3).unwrap_err();
+        assert!(e.to_string().contains("2 values for each of 3 forks"), "{e}");
     }
 }
