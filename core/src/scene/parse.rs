@@ -15,7 +15,7 @@ use toml::Spanned;
 
 use super::error::SceneError;
 use super::model::{
-    Camera, CameraPath, Exposure, GridSpec, Light, Material, PatchDef, RenderSettings, Scene, SourceLoc, Spot,
+    Accel, Camera, CameraPath, Exposure, GridSpec, Light, Material, PatchDef, RenderSettings, Scene, SourceLoc, Spot,
 };
 use super::obj::{self, MaterialTable, MeshEntry, Transform};
 use crate::color::Rgb;
@@ -64,6 +64,7 @@ struct RawRender {
     vrt_depth: Option<Spanned<i64>>,
     diffuse_bounces: Option<Spanned<i64>>,
     ambient: Option<SVec>,
+    accel: Option<Spanned<String>>,
     grid: Option<Spanned<toml::Value>>,
     seed: Option<Spanned<i64>>,
     exposure: Option<Spanned<toml::Value>>,
@@ -366,6 +367,11 @@ impl<'a> Ctx<'a> {
         }
         if let Some(v) = &r.max_elements {
             s.max_elements = self.int_in(v, "render.max_elements", 1, i64::MAX)? as u64;
+        }
+        if let Some(v) = &r.accel {
+            s.accel = Accel::parse(v.get_ref()).ok_or_else(|| {
+                self.err(v, "render.accel", format!("expected \"bvh\" or \"grid\", found {:?}", v.get_ref()))
+            })?;
         }
         if let Some(v) = &r.grid {
             s.grid = self.grid(v)?;
@@ -823,6 +829,17 @@ material = \"white\"
         assert!(e.starts_with("t.toml:12: material[0].colour: unknown field `colour`"), "{e}");
         let e = err(&format!("{MINI}[render]\nwidht = 3\n"));
         assert!(e.starts_with("t.toml:18: render.widht: unknown field `widht`"), "{e}");
+    }
+
+    #[test]
+    fn accel_is_bvh_unless_the_scene_asks_for_the_grid() {
+        assert_eq!(parse(MINI).unwrap().settings.accel, Accel::Bvh);
+        let grid = parse(&format!("{MINI}[render]\naccel = \"grid\"\n")).unwrap().settings;
+        assert_eq!(grid.accel, Accel::Grid);
+        let e = err(&format!("{MINI}[render]\naccel = \"kd-tree\"\n"));
+        assert_eq!(e, "t.toml:18: render.accel: expected \"bvh\" or \"grid\", found \"kd-tree\"");
+        let e = err(&format!("{MINI}[render]\naccel = 2\n"));
+        assert!(e.starts_with("t.toml:18: render.accel: "), "{e}");
     }
 
     #[test]

@@ -24,7 +24,7 @@ pub fn run(cfg: RenderConfig) -> anyhow::Result<()> {
     if let Some(q) = cfg.quality {
         q.apply(&mut scene);
     }
-    cfg.knobs.apply(&mut scene.settings)?;
+    cfg.knobs.apply_for(cfg.scheme, &mut scene.settings)?;
     crate::memory::check(&scene, cfg.max_memory_mb)?;
     let plan = if cfg.all_effects { EffectsPlan::forced_on(&scene) } else { EffectsPlan::for_scene(&scene) };
     // The cluster's runtime, forks and listener start while the scene is preprocessed.
