@@ -10,7 +10,7 @@
 use super::{Hit, NextUp, TraceScratch};
 use crate::blocks::bvh::{BvhChild, BvhTriangle, BVH_NO_CHILD, BVH_TRIANGLE_RECORD};
 use crate::blocks::BlockError;
-use crate::geometry::{intersect_watertight, Ray};
+use crate::geometry::{Ray, WatertightRay};
 use crate::view::SceneView;
 
 /// `1 + 2 gamma(3)`, gamma(n) = n eps / (1 - n eps) with eps = 2^-53.
@@ -59,16 +59,21 @@ pub(super) fn cast(
     if !o.is_finite() || !d.is_finite() || d.length_squared() == 0.0 || tmin.is_nan() || tmax.is_nan() {
         return Ok(None);
     }
+    // The per-ray part of the watertight test, once (a finite, non-zero direction has one).
+    let Some(wray) = WatertightRay::new(ray) else {
+        return Ok(None);
+    };
     let t0 = tmin.max(0.0);
     let slab = SlabRay { origin: o.to_array(), inv: [1.0 / d.x, 1.0 / d.y, 1.0 / d.z] };
     let mut best: Option<Hit> = None;
     let (mut steps, mut tests) = (0u64, 0u64);
     let mut stack = std::mem::take(&mut scratch.stack);
     stack.clear();
-    // (node index or first triangle address, leaf triangle count (0: a node), entry t).
-    stack.push((0, 0, t0));
+    // (node index or first triangle address, leaf triangle count (0: a node), entry t):
+    // the entry visited next (the nearer child of the last node), then the stack.
+    let mut next = Some((0, 0, t0));
     let result = 'walk: loop {
-        let Some((index, count, near)) = stack.pop() else {
+        let Some((index, count, near)) = next.take().or_else(|| stack.pop()) else {
             break Ok(best);
         };
         let bound = best.map_or(tmax, |b| b.t);
@@ -88,7 +93,7 @@ pub(super) fn cast(
                 tests += 1;
                 let bound = best.map_or(tmax, |b| b.t);
                 // Allow equal distance so that ties can go to the lower id.
-                if let Some(h) = intersect_watertight(ray, &tri.v, tmin, bound.next_up_or(bound)) {
+                if let Some(h) = wray.intersect(&tri.v, tmin, bound.next_up_or(bound)) {
                     let better = match best {
                         None => true,
                         Some(b) => h.t < b.t || (h.t == b.t && tri.patch < b.patch),
@@ -121,14 +126,14 @@ pub(super) fn cast(
         match (slab.enter(a, t0, bound), slab.enter(b, t0, bound)) {
             (Some(ta), Some(tb)) if ta <= tb => {
                 stack.push(entry(b, tb));
-                stack.push(entry(a, ta));
+                next = Some(entry(a, ta));
             }
             (Some(ta), Some(tb)) => {
                 stack.push(entry(a, ta));
-                stack.push(entry(b, tb));
+                next = Some(entry(b, tb));
             }
-            (Some(ta), None) => stack.push(entry(a, ta)),
-            (None, Some(tb)) => stack.push(entry(b, tb)),
+            (Some(ta), None) => next = Some(entry(a, ta)),
+            (None, Some(tb)) => next = Some(entry(b, tb)),
             (None, None) => {}
         }
     };

@@ -6,7 +6,7 @@
 
 use super::{Hit, NextUp, TraceScratch};
 use crate::blocks::BlockError;
-use crate::geometry::{intersect_watertight, Ray};
+use crate::geometry::{Ray, WatertightRay};
 use crate::view::SceneView;
 
 /// [`super::cast`] through the grid.
@@ -24,6 +24,10 @@ pub(super) fn cast(
     if !o.is_finite() || !d.is_finite() || d.length_squared() == 0.0 || tmin.is_nan() || tmax.is_nan() {
         return Ok(None);
     }
+    // The per-ray part of the watertight test, once (a finite, non-zero direction has one).
+    let Some(wray) = WatertightRay::new(ray) else {
+        return Ok(None);
+    };
     let (gmin, gmax, dims, cs) = {
         let g = &view.header.grid;
         (g.min, g.max, g.dims, g.cell_size())
@@ -92,7 +96,7 @@ pub(super) fn cast(
             };
             let bound = best.map_or(limit, |b| b.t);
             // Allow equal distance so that ties can go to the lower id.
-            if let Some(h) = intersect_watertight(ray, &rec.v, tmin, bound.next_up_or(bound)) {
+            if let Some(h) = wray.intersect(&rec.v, tmin, bound.next_up_or(bound)) {
                 let better = match best {
                     None => true,
                     Some(b) => h.t < b.t || (h.t == b.t && pid < b.patch),
