@@ -8,7 +8,7 @@
 //! no division on the traversal path. A triangle record carries the patch's corners in
 //! f64, exactly as the patch block does, so the watertight test gives the same bits.
 
-use super::layout::{get_f32, get_f64, get_u32, put_f64, put_u32, Block};
+use super::layout::{get_corners, get_f32, get_u32, put_corners, put_u32, Block};
 use glam::DVec3;
 
 /// Bytes of one node record: 2 x (6 x f32 bounds) + 2 x (index, count).
@@ -105,20 +105,14 @@ pub struct BvhTriangle {
 impl BvhTriangle {
     /// Writes the record at byte offset `at`.
     pub fn encode(&self, b: &mut Block, at: usize) {
-        for (i, p) in self.v.iter().enumerate() {
-            put_f64(b, at + 24 * i, p.x);
-            put_f64(b, at + 24 * i + 8, p.y);
-            put_f64(b, at + 24 * i + 16, p.z);
-        }
+        put_corners(b, at, &self.v);
         put_u32(b, at + 72, self.patch);
     }
 
     /// Reads the record at byte offset `at` of `b` (a block or a slice of one).
     #[inline]
     pub fn decode(b: &[u8], at: usize) -> BvhTriangle {
-        let p =
-            |i: usize| DVec3::new(get_f64(b, at + 24 * i), get_f64(b, at + 24 * i + 8), get_f64(b, at + 24 * i + 16));
-        BvhTriangle { v: [p(0), p(1), p(2)], patch: get_u32(b, at + 72) }
+        BvhTriangle { v: get_corners(b, at), patch: get_u32(b, at + 72) }
     }
 }
 

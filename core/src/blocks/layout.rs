@@ -141,6 +141,20 @@ pub(super) fn get_f64(b: &[u8], at: usize) -> f64 {
     a.copy_from_slice(&b[at..at + 8]);
     f64::from_le_bytes(a)
 }
+/// Writes three corners (9 x f64, 72 bytes) at byte offset `at`.
+pub(super) fn put_corners(b: &mut [u8], at: usize, v: &[DVec3; 3]) {
+    for (i, p) in v.iter().enumerate() {
+        put_f64(b, at + 24 * i, p.x);
+        put_f64(b, at + 24 * i + 8, p.y);
+        put_f64(b, at + 24 * i + 16, p.z);
+    }
+}
+/// Reads three corners written by [`put_corners`].
+#[inline]
+pub(super) fn get_corners(b: &[u8], at: usize) -> [DVec3; 3] {
+    let p = |i: usize| DVec3::new(get_f64(b, at + 24 * i), get_f64(b, at + 24 * i + 8), get_f64(b, at + 24 * i + 16));
+    [p(0), p(1), p(2)]
+}
 pub(super) fn get_f32(b: &[u8], at: usize) -> f32 {
     let mut a = [0u8; 4];
     a.copy_from_slice(&b[at..at + 4]);
@@ -150,21 +164,15 @@ pub(super) fn get_f32(b: &[u8], at: usize) -> f32 {
 impl PatchRecord {
     /// Writes the record at byte offset `at`.
     pub fn encode(&self, b: &mut Block, at: usize) {
-        for (i, p) in self.v.iter().enumerate() {
-            put_f64(b, at + 24 * i, p.x);
-            put_f64(b, at + 24 * i + 8, p.y);
-            put_f64(b, at + 24 * i + 16, p.z);
-        }
+        put_corners(b, at, &self.v);
         put_u32(b, at + 72, self.material);
         put_u32(b, at + 76, self.subdivisions);
         put_u32(b, at + 80, self.first_element);
     }
     /// Reads the record at byte offset `at`.
     pub fn decode(b: &Block, at: usize) -> PatchRecord {
-        let p =
-            |i: usize| DVec3::new(get_f64(b, at + 24 * i), get_f64(b, at + 24 * i + 8), get_f64(b, at + 24 * i + 16));
         PatchRecord {
-            v: [p(0), p(1), p(2)],
+            v: get_corners(b, at),
             material: get_u32(b, at + 72),
             subdivisions: get_u32(b, at + 76),
             first_element: get_u32(b, at + 80),

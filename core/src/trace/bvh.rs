@@ -7,10 +7,9 @@
 //! can go to the lower patch id. The patch test itself is the f64 watertight one, on the
 //! same corners as the patch records: the grid's answer, bit for bit.
 
-use super::{Hit, NextUp, TraceScratch};
+use super::{Hit, Query, TraceScratch};
 use crate::blocks::bvh::{BvhChild, BvhTriangle, BVH_NO_CHILD, BVH_TRIANGLE_RECORD};
 use crate::blocks::BlockError;
-use crate::geometry::{Ray, WatertightRay};
 use crate::view::SceneView;
 
 /// `1 + 2 gamma(3)`, gamma(n) = n eps / (1 - n eps) with eps = 2^-53.
@@ -45,25 +44,9 @@ impl SlabRay {
 }
 
 /// [`super::cast`] through the BVH.
-pub(super) fn cast(
-    view: &mut SceneView,
-    scratch: &mut TraceScratch,
-    ray: &Ray,
-    tmin: f64,
-    tmax: f64,
-    exclude: u32,
-    any: bool,
-) -> Result<Option<Hit>, BlockError> {
-    let o = ray.origin;
-    let d = ray.direction;
-    if !o.is_finite() || !d.is_finite() || d.length_squared() == 0.0 || tmin.is_nan() || tmax.is_nan() {
-        return Ok(None);
-    }
-    // The per-ray part of the watertight test, once (a finite, non-zero direction has one).
-    let Some(wray) = WatertightRay::new(ray) else {
-        return Ok(None);
-    };
-    let t0 = tmin.max(0.0);
+pub(super) fn cast(view: &mut SceneView, scratch: &mut TraceScratch, q: &Query) -> Result<Option<Hit>, BlockError> {
+    let (o, d) = (q.ray.origin, q.ray.direction);
+    let t0 = q.tmin.max(0.0);
     let slab = SlabRay { origin: o.to_array(), inv: [1.0 / d.x, 1.0 / d.y, 1.0 / d.z] };
     let mut best: Option<Hit> = None;
     let (mut steps, mut tests) = (0u64, 0u64);
@@ -76,7 +59,7 @@ pub(super) fn cast(
         let Some((index, count, near)) = next.take().or_else(|| stack.pop()) else {
             break Ok(best);
         };
-        let bound = best.map_or(tmax, |b| b.t);
+        let bound = best.map_or(q.tmax, |b| b.t);
         if near > bound {
             continue;
         }
@@ -87,23 +70,12 @@ pub(super) fn cast(
             };
             for k in 0..count as usize {
                 let tri = BvhTriangle::decode(leaf, k * BVH_TRIANGLE_RECORD);
-                if tri.patch == exclude {
+                if tri.patch == q.exclude {
                     continue;
                 }
                 tests += 1;
-                let bound = best.map_or(tmax, |b| b.t);
-                // Allow equal distance so that ties can go to the lower id.
-                if let Some(h) = wray.intersect(&tri.v, tmin, bound.next_up_or(bound)) {
-                    let better = match best {
-                        None => true,
-                        Some(b) => h.t < b.t || (h.t == b.t && tri.patch < b.patch),
-                    };
-                    if better {
-                        best = Some(Hit { t: h.t, patch: tri.patch, bary: h.bary });
-                        if any {
-                            break 'walk Ok(best);
-                        }
-                    }
+                if q.test(&tri.v, tri.patch, q.tmax, &mut best) && q.any {
+                    break 'walk Ok(best);
                 }
             }
             continue;

@@ -4,30 +4,14 @@
 //! it is kept as a candidate and only accepted once traversal has passed its distance,
 //! so a nearer patch in a later subspace still wins.
 
-use super::{Hit, NextUp, TraceScratch};
+use super::{Hit, Query, TraceScratch};
 use crate::blocks::BlockError;
-use crate::geometry::{Ray, WatertightRay};
 use crate::view::SceneView;
 
 /// [`super::cast`] through the grid.
-pub(super) fn cast(
-    view: &mut SceneView,
-    scratch: &mut TraceScratch,
-    ray: &Ray,
-    tmin: f64,
-    tmax: f64,
-    exclude: u32,
-    any: bool,
-) -> Result<Option<Hit>, BlockError> {
-    let o = ray.origin;
-    let d = ray.direction;
-    if !o.is_finite() || !d.is_finite() || d.length_squared() == 0.0 || tmin.is_nan() || tmax.is_nan() {
-        return Ok(None);
-    }
-    // The per-ray part of the watertight test, once (a finite, non-zero direction has one).
-    let Some(wray) = WatertightRay::new(ray) else {
-        return Ok(None);
-    };
+pub(super) fn cast(view: &mut SceneView, scratch: &mut TraceScratch, q: &Query) -> Result<Option<Hit>, BlockError> {
+    let (ray, tmin, tmax, exclude) = (q.ray, q.tmin, q.tmax, q.exclude);
+    let (o, d) = (ray.origin, ray.direction);
     let (gmin, gmax, dims, cs) = {
         let g = &view.header.grid;
         (g.min, g.max, g.dims, g.cell_size())
@@ -94,25 +78,14 @@ pub(super) fn cast(
                     break;
                 }
             };
-            let bound = best.map_or(limit, |b| b.t);
-            // Allow equal distance so that ties can go to the lower id.
-            if let Some(h) = wray.intersect(&rec.v, tmin, bound.next_up_or(bound)) {
-                let better = match best {
-                    None => true,
-                    Some(b) => h.t < b.t || (h.t == b.t && pid < b.patch),
-                };
-                if better {
-                    best = Some(Hit { t: h.t, patch: pid, bary: h.bary });
-                    if any {
-                        break;
-                    }
-                }
+            if q.test(&rec.v, pid, limit, &mut best) && q.any {
+                break;
             }
         }
         if let Some(e) = failed {
             break Err(e);
         }
-        if any && best.is_some() {
+        if q.any && best.is_some() {
             break Ok(best);
         }
         let exit = next_t[0].min(next_t[1]).min(next_t[2]);

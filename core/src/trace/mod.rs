@@ -12,9 +12,10 @@ mod bvh;
 mod grid;
 
 use crate::blocks::BlockError;
-use crate::geometry::Ray;
+use crate::geometry::{Ray, WatertightRay};
 use crate::scene::Accel;
 use crate::view::SceneView;
+use glam::DVec3;
 
 /// Marks "exclude no patch".
 pub const NO_PATCH: u32 = u32::MAX;
@@ -69,9 +70,51 @@ pub fn cast(
     exclude: u32,
     any: bool,
 ) -> Result<Option<Hit>, BlockError> {
+    let (o, d) = (ray.origin, ray.direction);
+    if !o.is_finite() || !d.is_finite() || d.length_squared() == 0.0 || tmin.is_nan() || tmax.is_nan() {
+        return Ok(None);
+    }
+    // The per-ray part of the watertight test, once (a finite, non-zero direction has one).
+    let Some(wray) = WatertightRay::new(ray) else {
+        return Ok(None);
+    };
+    let q = Query { ray, wray, tmin, tmax, exclude, any };
     match view.header.settings.accel {
-        Accel::Bvh => bvh::cast(view, scratch, ray, tmin, tmax, exclude, any),
-        Accel::Grid => grid::cast(view, scratch, ray, tmin, tmax, exclude, any),
+        Accel::Bvh => bvh::cast(view, scratch, &q),
+        Accel::Grid => grid::cast(view, scratch, &q),
+    }
+}
+
+/// A query of [`cast`], checked (finite origin and direction, no NaN bound): what both
+/// kernels answer.
+struct Query<'a> {
+    ray: &'a Ray,
+    wray: WatertightRay,
+    tmin: f64,
+    tmax: f64,
+    exclude: u32,
+    any: bool,
+}
+
+impl Query<'_> {
+    /// Tests patch `pid` (corners `v`) against the best hit so far, or against `limit`
+    /// when there is none; keeps it when nearer, or as near with a lower id. Returns
+    /// whether it was kept.
+    #[inline]
+    fn test(&self, v: &[DVec3; 3], pid: u32, limit: f64, best: &mut Option<Hit>) -> bool {
+        let bound = best.map_or(limit, |b| b.t);
+        // Allow equal distance so that ties can go to the lower id.
+        let Some(h) = self.wray.intersect(v, self.tmin, bound.next_up_or(bound)) else {
+            return false;
+        };
+        let better = match best {
+            None => true,
+            Some(b) => h.t < b.t || (h.t == b.t && pid < b.patch),
+        };
+        if better {
+            *best = Some(Hit { t: h.t, patch: pid, bary: h.bary });
+        }
+        better
     }
 }
 
