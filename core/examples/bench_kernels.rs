@@ -48,10 +48,12 @@ struct Args {
     pairs: u64,
     pixels: u64,
     min_time: f64,
+    accel: Option<scene::Accel>,
 }
 
 fn usage() -> &'static str {
     "usage: bench_kernels [--scenes A.toml[,B.toml...]] [--cache BLOCKS] [--pairs N] [--pixels N] [--min-time S]\n\
+     [--accel bvh|grid] (default: each scene's own)\n\
      defaults: scenes/magg-paper.toml,scenes/large.toml; cache 40; pairs 20000; pixels 60000;\n\
      min-time 1"
 }
@@ -64,6 +66,7 @@ fn parse_args() -> Result<Args, String> {
         pairs: 20_000,
         pixels: 60_000,
         min_time: 1.0,
+        accel: None,
     };
     let mut it = std::env::args().skip(1);
     while let Some(flag) = it.next() {
@@ -74,6 +77,10 @@ fn parse_args() -> Result<Args, String> {
             "--pairs" => a.pairs = value()?.parse().map_err(|e| format!("--pairs: {e}"))?,
             "--pixels" => a.pixels = value()?.parse().map_err(|e| format!("--pixels: {e}"))?,
             "--min-time" => a.min_time = value()?.parse().map_err(|e| format!("--min-time: {e}"))?,
+            "--accel" => {
+                let v = value()?;
+                a.accel = Some(scene::Accel::parse(&v).ok_or_else(|| format!("--accel {v:?}: bvh or grid"))?);
+            }
             "-h" | "--help" => return Err(usage().into()),
             other => return Err(format!("unknown argument {other}\n{}", usage())),
         }
@@ -88,12 +95,15 @@ struct Fixture {
     store: Arc<MemStore>,
 }
 
-fn load(path: &Path) -> Result<Fixture, String> {
+fn load(path: &Path, accel: Option<scene::Accel>) -> Result<Fixture, String> {
     let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
     let base = path.parent().unwrap_or(Path::new("."));
     let label = path.display().to_string();
-    let sc = scene::parse_scene_str(&label, &text, base, &|p: &Path| std::fs::read_to_string(p))
+    let mut sc = scene::parse_scene_str(&label, &text, base, &|p: &Path| std::fs::read_to_string(p))
         .map_err(|e| e.to_string())?;
+    if let Some(a) = accel {
+        sc.settings.accel = a;
+    }
     let prepared = prepare(&sc).map_err(|e| e.to_string())?;
     // One full render on all cores, only for the vertex energies VRT reads.
     let out = render(&prepared, &RenderOptions::default(), &NoProgress).map_err(|e| e.to_string())?;
@@ -222,7 +232,7 @@ fn main() -> ExitCode {
     let mut notes = Vec::new();
     for path in &args.scenes {
         let t = Instant::now();
-        let f = match load(path) {
+        let f = match load(path, args.accel) {
             Ok(f) => f,
             Err(e) => {
                 eprintln!("bench_kernels: {e}");

@@ -1,5 +1,6 @@
 //! The resident part of a prepared scene: what the paper's forks send to every node once
-//! and never expire (lights, materials, camera, settings, grid header, block layout).
+//! and never expire (lights, materials, camera, settings, grid and BVH headers, block
+//! layout).
 
 use crate::blocks::BlockLayout;
 use crate::plan::EffectsPlan;
@@ -35,6 +36,21 @@ impl GridHeader {
     }
 }
 
+/// Where the bounding volume hierarchy lies in the BVH blocks ([`crate::blocks::bvh`]):
+/// `node_blocks` node blocks from `layout.bvh_base` (the root is node 0), then the leaf
+/// triangle blocks. All zero for a scene traced through the grid.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
+pub struct BvhHeader {
+    /// Node records (the last node block may be partly used).
+    pub nodes: u32,
+    /// Blocks of node records.
+    pub node_blocks: u32,
+    /// Leaf triangle records (one per patch of non-zero area).
+    pub triangles: u32,
+    /// Blocks of leaf triangle records.
+    pub triangle_blocks: u32,
+}
+
 /// Counts of scene entities.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
 pub struct Counts {
@@ -48,6 +64,8 @@ pub struct Counts {
     pub subspaces: u32,
     /// Blocks of patch-id lists.
     pub subspace_blocks: u32,
+    /// Blocks of BVH nodes and leaf triangles.
+    pub bvh_blocks: u32,
     /// Blocks of patch records.
     pub patch_blocks: u32,
     /// Blocks of element records.
@@ -67,8 +85,11 @@ pub struct SceneHeader {
     pub lights: Vec<Light>,
     /// Materials.
     pub materials: Vec<Material>,
-    /// The subspace grid.
+    /// The subspace grid (with `settings.accel` BVH: the scene's bounds, one empty
+    /// subspace).
     pub grid: GridHeader,
+    /// The bounding volume hierarchy (with `settings.accel` grid: all zero).
+    pub bvh: BvhHeader,
     /// Where each kind of block starts.
     pub layout: BlockLayout,
     /// Entity and block counts.

@@ -20,7 +20,7 @@ use crate::rng::{hammersley, Rng};
 use crate::scatter::{offset_scale, Arrival, Dielectric};
 use crate::scene::Light;
 use crate::subdivision::{element_triangle, locate};
-use crate::trace::{cast, TraceScratch};
+use crate::trace::{cast, occluded, TraceScratch};
 use crate::view::SceneView;
 use glam::DVec3;
 
@@ -165,7 +165,9 @@ pub fn trace_pair(
             continue;
         }
         let ray = Ray::new(l.position, w);
-        if cast(view, scratch, &ray, eps0, t_plane * (1.0 - 1e-9), erec.patch, true)?.is_some() {
+        // An occlusion query up to (just short of) the element; secondary rays below are
+        // nearest-hit queries. Both go through the scene's acceleration structure.
+        if occluded(view, scratch, &ray, eps0, t_plane * (1.0 - 1e-9), erec.patch)? {
             out.tally.occluded = out.tally.occluded.add(flux);
             continue;
         }

@@ -2,6 +2,9 @@
 //! node's LRU cache. All scene access of the kernels goes through here, so the cache's
 //! hit ratio is the real one.
 
+use crate::blocks::bvh::{
+    BvhNode, BVH_NODE_RECORD, BVH_NODE_SHIFT, BVH_TRIANGLES_PER_BLOCK, BVH_TRIANGLE_RECORD, BVH_TRIANGLE_SHIFT,
+};
 use crate::blocks::*;
 use crate::color::Rgb;
 use crate::header::SceneHeader;
@@ -10,7 +13,8 @@ use std::sync::Arc;
 /// Operation counts of the kernels (the basis of the compute cost model).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
 pub struct OpCounters {
-    /// Subspaces entered by rays.
+    /// Traversal steps of the acceleration structure: subspaces entered by rays through
+    /// the grid, node records read by rays through the BVH.
     pub grid_steps: u64,
     /// Ray/patch intersection tests.
     pub patch_tests: u64,
@@ -105,6 +109,33 @@ impl SceneView {
         }
         let (b, at) = self.header.layout.vertex_slot(id);
         Ok(decode_vertex_energy(self.cache.get(b)?, at))
+    }
+
+    /// BVH node `n` (node 0 is the root), read in place from its node block.
+    #[inline]
+    pub fn bvh_node(&mut self, n: u32) -> Result<BvhNode, BlockError> {
+        let bvh = self.header.bvh;
+        if n >= bvh.nodes {
+            return Err(BlockError::BadId { kind: "BVH node", id: n as u64, count: bvh.nodes as u64 });
+        }
+        let b = self.header.layout.bvh_base + (n >> BVH_NODE_SHIFT);
+        let at = (n & ((1 << BVH_NODE_SHIFT) - 1)) as usize * BVH_NODE_RECORD;
+        Ok(BvhNode::decode(self.cache.get(b)?, at))
+    }
+
+    /// The bytes of the `count` leaf-triangle records from address `first` (all in one
+    /// block), to be read in place with [`bvh::BvhTriangle::decode`].
+    #[inline]
+    pub fn bvh_leaf(&mut self, first: u32, count: u32) -> Result<&[u8], BlockError> {
+        let bvh = self.header.bvh;
+        let (block, slot) = (first >> BVH_TRIANGLE_SHIFT, (first & ((1 << BVH_TRIANGLE_SHIFT) - 1)) as usize);
+        if block >= bvh.triangle_blocks || slot + count as usize > BVH_TRIANGLES_PER_BLOCK {
+            let id = first as u64;
+            return Err(BlockError::BadId { kind: "BVH leaf", id, count: bvh.triangle_blocks as u64 });
+        }
+        let b = self.header.layout.bvh_base + bvh.node_blocks + block;
+        let at = slot * BVH_TRIANGLE_RECORD;
+        Ok(&self.cache.get(b)?[at..at + count as usize * BVH_TRIANGLE_RECORD])
     }
 
     /// Replaces `out` with the patch ids of subspace `cell`, following its block chain.

@@ -22,6 +22,7 @@ fn split_square(swap: bool) -> Scene {
     let patches = if swap { vec![upper, lower] } else { vec![lower, upper] };
     let mut s = scene(patches, vec![material("white", 0.5, 0.0, 0.0)], vec![light(v(0.5, 0.5, 2.0), 1.0)]);
     s.settings.grid = GridSpec::Fixed([2, 2, 1]);
+    s.settings.accel = magg_core::scene::Accel::Grid;
     s
 }
 

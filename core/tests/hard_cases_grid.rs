@@ -13,6 +13,7 @@ use glam::DVec3;
 use hard::*;
 use magg_core::geometry::Ray;
 use magg_core::preprocess::{prepare, PreparedScene};
+use magg_core::scene::Accel;
 use magg_core::trace::{cast, TraceScratch, NO_PATCH};
 use magg_core::view::SceneView;
 
@@ -29,9 +30,22 @@ fn prepared() -> PreparedScene {
     prepare(&random_scene(11, 40, DIMS)).unwrap()
 }
 
+/// The same scene traced through the grid, then through the BVH: the rays of the tests
+/// below are as hostile to one as to the other.
+fn both() -> [PreparedScene; 2] {
+    let mut s = random_scene(11, 40, DIMS);
+    s.settings.accel = Accel::Bvh;
+    [prepared(), prepare(&s).unwrap()]
+}
+
 #[test]
 fn signed_zero_subnormal_and_huge_direction_components_agree_with_brute_force() {
-    let p = prepared();
+    for p in both() {
+        signed_zero_subnormal_and_huge_direction_components_agree_with_brute_force_on(&p);
+    }
+}
+
+fn signed_zero_subnormal_and_huge_direction_components_agree_with_brute_force_on(p: &PreparedScene) {
     let mut view = view_of(&p);
     let comps = [0.0, -0.0, 5e-324, -5e-324, 1e-300, 0.37, -0.61, 1.0, -1.0, 1e300];
     let origins = [v(0.05, -0.1, 0.2), v(-1.3, 0.7, 0.4), v(1.9, 1.9, -1.9)];
@@ -65,7 +79,12 @@ fn signed_zero_subnormal_and_huge_direction_components_agree_with_brute_force() 
 
 #[test]
 fn nan_and_infinite_inputs_hit_nothing_and_do_not_panic() {
-    let p = prepared();
+    for p in both() {
+        nan_and_infinite_inputs_hit_nothing_and_do_not_panic_on(&p);
+    }
+}
+
+fn nan_and_infinite_inputs_hit_nothing_and_do_not_panic_on(p: &PreparedScene) {
     let mut view = view_of(&p);
     let mut scratch = TraceScratch::default();
     let (nan, inf) = (f64::NAN, f64::INFINITY);
@@ -99,14 +118,23 @@ fn nan_and_infinite_inputs_hit_nothing_and_do_not_panic() {
 
 #[test]
 fn rays_lying_in_subspace_boundary_planes_and_grid_faces_agree_with_brute_force() {
-    let p = prepared();
+    let grid = prepared();
+    for p in both() {
+        rays_lying_in_subspace_boundary_planes_and_grid_faces_agree_with_brute_force_on(&p, &grid);
+    }
+}
+
+fn rays_lying_in_subspace_boundary_planes_and_grid_faces_agree_with_brute_force_on(
+    p: &PreparedScene,
+    grid: &PreparedScene,
+) {
     let g = p.header.grid.clone();
     let mut view = view_of(&p);
     let mut rng = magg_core::rng::Rng::from_words(&[0x9d1d, 2]);
     let mut n = 0;
     for axis in 0..3 {
-        // Interior boundaries as the traversal computes them, plus both grid faces.
-        let mut planes = cell_planes(&p, axis);
+        // Interior boundaries as the grid traversal computes them, plus both grid faces.
+        let mut planes = cell_planes(grid, axis);
         planes.push(g.min[axis]);
         planes.push(g.max[axis]);
         for &x in &planes {
@@ -135,7 +163,12 @@ fn rays_lying_in_subspace_boundary_planes_and_grid_faces_agree_with_brute_force(
 
 #[test]
 fn origins_inside_outside_and_on_the_grid_boundary_agree_with_brute_force() {
-    let p = prepared();
+    for p in both() {
+        origins_inside_outside_and_on_the_grid_boundary_agree_with_brute_force_on(&p);
+    }
+}
+
+fn origins_inside_outside_and_on_the_grid_boundary_agree_with_brute_force_on(p: &PreparedScene) {
     let g = p.header.grid.clone();
     let mut view = view_of(&p);
     let mut rng = magg_core::rng::Rng::from_words(&[0x0819, 3]);
@@ -213,6 +246,7 @@ fn a_hit_beyond_its_subspace_loses_to_a_nearer_one_in_the_last_subspace_before_i
         let patches = if swap { vec![small_at(2.55), long] } else { vec![long, small_at(2.55)] };
         let mut s = scene(patches, vec![material("white", 0.5, 0.0, 0.0)], vec![light(v(0.0, 3.0, 0.0), 1.0)]);
         s.settings.grid = magg_core::scene::GridSpec::Fixed([16, 1, 1]);
+        s.settings.accel = magg_core::scene::Accel::Grid;
         let p = prepare(&s).unwrap();
         let mut view = view_of(&p);
         let small = if swap { 0 } else { 1 };
@@ -254,6 +288,7 @@ fn every_subspace_lists_every_patch_touching_it_even_from_a_cell_face() {
     );
     diamond.patches.push(tri(px, ny, nz, 0, 1));
     diamond.settings.grid = magg_core::scene::GridSpec::Fixed([4, 4, 4]);
+    diamond.settings.accel = magg_core::scene::Accel::Grid;
     for (label, s) in [("octahedron", diamond), ("random", random_scene(13, 30, DIMS))] {
         let p = prepare(&s).unwrap();
         let g = p.header.grid.clone();
@@ -289,6 +324,7 @@ fn every_subspace_lists_every_patch_touching_it_even_from_a_cell_face() {
             vec![light(v(0.0, 0.0, 0.0), 1.0)],
         );
         s.settings.grid = magg_core::scene::GridSpec::Fixed([4, 4, 4]);
+        s.settings.accel = magg_core::scene::Accel::Grid;
         s
     })
     .unwrap();

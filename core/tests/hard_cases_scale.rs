@@ -216,6 +216,7 @@ fn transmitted_rays_leave_from_the_far_side() {
             vec![light(f(0.0, 2.0, 0.0), 1.0)],
         );
         s.settings.grid = magg_core::scene::GridSpec::Fixed([3, 3, 3]);
+        s.settings.accel = magg_core::scene::Accel::Grid;
         let p = prepare(&s).unwrap();
         let mut view = view_of(&p);
         let normal = v(0.0, 1.0, 0.0);

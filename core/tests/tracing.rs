@@ -115,6 +115,7 @@ fn a_hit_beyond_its_subspace_does_not_hide_a_nearer_one() {
     };
     let mut s = scene(vec![long, small], vec![material("white", 0.5, 0.0, 0.0)], vec![light(v(0.0, 3.0, 0.0), 1.0)]);
     s.settings.grid = GridSpec::Fixed([16, 1, 1]);
+    s.settings.accel = magg_core::scene::Accel::Grid;
     let p = prepare(&s).unwrap();
     let mut view = view_of(&p);
     let mut scratch = TraceScratch::default();

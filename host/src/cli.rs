@@ -201,6 +201,11 @@ pub struct Knobs {
     /// Seed of every random choice.
     #[arg(long)]
     pub seed: Option<u64>,
+    /// Acceleration structure: "bvh" (the default) or "grid" (the paper's uniform grid
+    /// of subspaces; the default with --scheme paper). Same image, bit for bit.
+    // Text until `apply`: a bad value is then one error line.
+    #[arg(long)]
+    pub accel: Option<String>,
 }
 
 /// Arguments of `info`.
@@ -431,7 +436,26 @@ impl Knobs {
         if let Some(v) = self.seed {
             s.seed = v;
         }
+        if let Some(v) = &self.accel {
+            let Some(a) = magg_core::scene::Accel::parse(v) else {
+                bail!("--accel {v:?}: expected \"bvh\" or \"grid\"");
+            };
+            s.accel = a;
+        }
         Ok(())
+    }
+
+    /// [`Knobs::apply`] for a render under `scheme`: the paper's scheme traces through the
+    /// paper's grid unless `--accel` says otherwise.
+    pub fn apply_for(
+        &self,
+        scheme: magg_throttle::Scheme,
+        s: &mut magg_core::scene::RenderSettings,
+    ) -> anyhow::Result<()> {
+        if scheme == magg_throttle::Scheme::Paper && self.accel.is_none() {
+            s.accel = magg_core::scene::Accel::Grid;
+        }
+        self.apply(s)
     }
 }
 
@@ -464,5 +488,21 @@ mod tests {
         knobs.apply(&mut s.settings).unwrap();
         assert_eq!(s.settings.light_rays, 4);
         assert_eq!(s.settings.pixel_samples, 16);
+    }
+
+    #[test]
+    fn accel_is_a_knob_and_the_paper_scheme_keeps_the_grid() {
+        use magg_core::scene::{Accel, RenderSettings};
+        use magg_throttle::Scheme;
+        let mut s = RenderSettings::default();
+        Knobs::default().apply_for(Scheme::Magg, &mut s).unwrap();
+        assert_eq!(s.accel, Accel::Bvh);
+        Knobs::default().apply_for(Scheme::Paper, &mut s).unwrap();
+        assert_eq!(s.accel, Accel::Grid);
+        let bvh = Knobs { accel: Some("bvh".into()), ..Default::default() };
+        bvh.apply_for(Scheme::Paper, &mut s).unwrap();
+        assert_eq!(s.accel, Accel::Bvh);
+        let e = Knobs { accel: Some("octree".into()), ..Default::default() }.apply(&mut s).unwrap_err();
+        assert_eq!(e.to_string(), "--accel \"octree\": expected \"bvh\" or \"grid\"");
     }
 }

@@ -21,13 +21,14 @@
 use crate::v1;
 use glam::DVec3;
 use magg_core::blocks::{
+    bvh::{BVH_NODES_PER_BLOCK, BVH_TRIANGLES_PER_BLOCK},
     Block, BlockLayout, CacheSize, BLOCK_SIZE, ELEMENTS_PER_BLOCK, NO_BLOCK, PATCHES_PER_BLOCK, VERTICES_PER_BLOCK,
 };
 use magg_core::color::Rgb;
-use magg_core::header::{Counts, GridHeader, SceneHeader};
+use magg_core::header::{BvhHeader, Counts, GridHeader, SceneHeader};
 use magg_core::math::Normalized;
 use magg_core::plan::EffectsPlan;
-use magg_core::scene::{Camera, Exposure, GridSpec, Light, Material, RenderSettings, SourceLoc, Spot};
+use magg_core::scene::{Accel, Camera, Exposure, GridSpec, Light, Material, RenderSettings, SourceLoc, Spot};
 
 mod cluster;
 pub use cluster::ledger_digest;
@@ -279,6 +280,10 @@ fn settings_to_wire(s: &RenderSettings) -> v1::RenderSettings {
             GridSpec::Auto => Vec::new(),
             GridSpec::Fixed(d) => d.to_vec(),
         },
+        accel: match s.accel {
+            Accel::Bvh => v1::Accel::Bvh,
+            Accel::Grid => v1::Accel::Grid,
+        } as i32,
     }
 }
 
@@ -317,7 +322,13 @@ fn settings_from_wire(s: v1::RenderSettings) -> Result<RenderSettings, ConvertEr
         }
         GridSpec::Fixed(d)
     };
+    let accel = match v1::Accel::try_from(s.accel) {
+        Ok(v1::Accel::Bvh) => Accel::Bvh,
+        Ok(v1::Accel::Grid) => Accel::Grid,
+        Err(_) => return Err(invalid("settings.accel", s.accel, "ACCEL_BVH (0) or ACCEL_GRID (1)")),
+    };
     Ok(RenderSettings {
+        accel,
         width,
         height,
         pixel_samples,
@@ -379,6 +390,7 @@ fn counts_from_wire(c: v1::Counts) -> Counts {
         vertices: c.vertices,
         subspaces: c.subspaces,
         subspace_blocks: c.subspace_blocks,
+        bvh_blocks: c.bvh_blocks,
         patch_blocks: c.patch_blocks,
         element_blocks: c.element_blocks,
         vertex_blocks: c.vertex_blocks,
@@ -386,18 +398,34 @@ fn counts_from_wire(c: v1::Counts) -> Counts {
 }
 
 /// Checks that the layout's bases are ordered, that each kind's block count matches the
-/// entity counts, and that the total is bounded.
-fn check_layout(l: &BlockLayout, c: &Counts) -> Result<(), ConvertError> {
+/// entity counts (and the BVH header), that only the scene's acceleration structure has
+/// blocks, and that the total is bounded.
+fn check_layout(l: &BlockLayout, c: &Counts, bvh: &BvhHeader, accel: Accel) -> Result<(), ConvertError> {
     if l.total > MAX_BLOCKS {
         return Err(invalid("layout.total", l.total, format!("at most {MAX_BLOCKS} blocks")));
     }
-    if !(l.patch_base <= l.element_base && l.element_base <= l.vertex_base && l.vertex_base < l.total) {
-        let v = format!("patch {} element {} vertex {} total {}", l.patch_base, l.element_base, l.vertex_base, l.total);
-        return Err(invalid("layout", v, "patch_base <= element_base <= vertex_base < total"));
+    if !(l.bvh_base <= l.patch_base
+        && l.patch_base <= l.element_base
+        && l.element_base <= l.vertex_base
+        && l.vertex_base < l.total)
+    {
+        let v = format!(
+            "bvh {} patch {} element {} vertex {} total {}",
+            l.bvh_base, l.patch_base, l.element_base, l.vertex_base, l.total
+        );
+        return Err(invalid("layout", v, "bvh_base <= patch_base <= element_base <= vertex_base < total"));
     }
     let blocks_for = |n: u32, per: usize| (n as usize).div_ceil(per) as u64;
-    let checks: [(&str, u64, u64); 8] = [
-        ("counts.subspace_blocks", c.subspace_blocks as u64, l.patch_base as u64),
+    let (grid, uses_bvh) = (accel == Accel::Grid, accel == Accel::Bvh);
+    let checks: [(&str, u64, u64); 13] = [
+        ("counts.subspace_blocks", c.subspace_blocks as u64, l.bvh_base as u64),
+        ("counts.bvh_blocks", c.bvh_blocks as u64, (l.patch_base - l.bvh_base) as u64),
+        ("counts.bvh_blocks", c.bvh_blocks as u64, bvh.node_blocks as u64 + bvh.triangle_blocks as u64),
+        ("bvh.node_blocks", bvh.node_blocks as u64, blocks_for(bvh.nodes, BVH_NODES_PER_BLOCK)),
+        // Grid scenes have no BVH; BVH scenes have a root and no subspace block, and at
+        // most one leaf-triangle block per triangle, at least as many as they fill (below).
+        ("bvh.nodes", (bvh.nodes > 0) as u64, uses_bvh as u64),
+        ("counts.subspace_blocks", (c.subspace_blocks > 0 && uses_bvh) as u64, 0),
         ("counts.patch_blocks", c.patch_blocks as u64, (l.element_base - l.patch_base) as u64),
         ("counts.element_blocks", c.element_blocks as u64, (l.vertex_base - l.element_base) as u64),
         ("counts.vertex_blocks", c.vertex_blocks as u64, (l.total - l.vertex_base) as u64),
@@ -405,12 +433,23 @@ fn check_layout(l: &BlockLayout, c: &Counts) -> Result<(), ConvertError> {
         ("counts.element_blocks", c.element_blocks as u64, blocks_for(c.elements, ELEMENTS_PER_BLOCK)),
         ("counts.vertex_blocks", c.vertex_blocks as u64, blocks_for(c.vertices, VERTICES_PER_BLOCK).max(1)),
         // A subspace block holds at least one patch id of a non-empty subspace.
-        ("counts.subspace_blocks", (c.subspace_blocks > 0) as u64, (c.subspaces > 0 && c.patches > 0) as u64),
+        (
+            "counts.subspace_blocks",
+            (c.subspace_blocks > 0 || !grid) as u64,
+            (c.subspaces > 0 && c.patches > 0 || !grid) as u64,
+        ),
     ];
     for (field, got, want) in checks {
         if got != want {
             return Err(invalid(field, got, format!("{want} (from the layout and the counts)")));
         }
+    }
+    if bvh.triangles > c.patches {
+        return Err(invalid("bvh.triangles", bvh.triangles, format!("at most counts.patches = {}", c.patches)));
+    }
+    let (lo, hi) = (blocks_for(bvh.triangles, BVH_TRIANGLES_PER_BLOCK), bvh.triangles as u64);
+    if !(lo..=hi).contains(&(bvh.triangle_blocks as u64)) {
+        return Err(invalid("bvh.triangle_blocks", bvh.triangle_blocks, format!("{lo}..={hi} (from bvh.triangles)")));
     }
     if c.elements > MAX_ELEMENTS {
         return Err(invalid("counts.elements", c.elements, format!("at most {MAX_ELEMENTS}")));
@@ -452,8 +491,7 @@ fn grid_from_wire(g: v1::GridHeader, layout: &BlockLayout, counts: &Counts) -> R
             format!("{cells} entries"),
         ));
     }
-    if let Some((i, b)) = g.cell_first_block.iter().enumerate().find(|&(_, &b)| b != NO_BLOCK && b >= layout.patch_base)
-    {
+    if let Some((i, b)) = g.cell_first_block.iter().enumerate().find(|&(_, &b)| b != NO_BLOCK && b >= layout.bvh_base) {
         return Err(invalid(format!("grid.cell_first_block[{i}]"), b, "a subspace block id or NO_BLOCK"));
     }
     Ok(GridHeader { min, max, dims, cell_first_block: g.cell_first_block })
@@ -475,7 +513,14 @@ impl From<&SceneHeader> for v1::SceneHeader {
                 dims: h.grid.dims.to_vec(),
                 cell_first_block: h.grid.cell_first_block.clone(),
             }),
+            bvh: Some(v1::BvhHeader {
+                nodes: h.bvh.nodes,
+                node_blocks: h.bvh.node_blocks,
+                triangles: h.bvh.triangles,
+                triangle_blocks: h.bvh.triangle_blocks,
+            }),
             layout: Some(v1::BlockLayout {
+                bvh_base: l.bvh_base,
                 patch_base: l.patch_base,
                 element_base: l.element_base,
                 vertex_base: l.vertex_base,
@@ -487,6 +532,7 @@ impl From<&SceneHeader> for v1::SceneHeader {
                 vertices: c.vertices,
                 subspaces: c.subspaces,
                 subspace_blocks: c.subspace_blocks,
+                bvh_blocks: c.bvh_blocks,
                 patch_blocks: c.patch_blocks,
                 element_blocks: c.element_blocks,
                 vertex_blocks: c.vertex_blocks,
@@ -521,12 +567,21 @@ impl TryFrom<v1::SceneHeader> for SceneHeader {
         let counts = counts_from_wire(require(h.counts, "counts")?);
         let l = require(h.layout, "layout")?;
         let layout = BlockLayout {
+            bvh_base: l.bvh_base,
             patch_base: l.patch_base,
             element_base: l.element_base,
             vertex_base: l.vertex_base,
             total: l.total,
         };
-        check_layout(&layout, &counts)?;
+        // A scene traced through the grid may leave the BVH header out (all zero).
+        let b = h.bvh.unwrap_or_default();
+        let bvh = BvhHeader {
+            nodes: b.nodes,
+            node_blocks: b.node_blocks,
+            triangles: b.triangles,
+            triangle_blocks: b.triangle_blocks,
+        };
+        check_layout(&layout, &counts, &bvh, settings.accel)?;
         if counts.elements as u64 > settings.max_elements {
             let expected = format!("at most settings.max_elements = {}", settings.max_elements);
             return Err(invalid("counts.elements", counts.elements, expected));
@@ -537,7 +592,7 @@ impl TryFrom<v1::SceneHeader> for SceneHeader {
             return Err(invalid("energy_quantum", q, "a positive number"));
         }
         let plan = plan_from_wire(require(h.plan, "plan")?)?;
-        Ok(SceneHeader { camera, settings, lights, materials, grid, layout, counts, energy_quantum: q, plan })
+        Ok(SceneHeader { camera, settings, lights, materials, grid, bvh, layout, counts, energy_quantum: q, plan })
     }
 }
 

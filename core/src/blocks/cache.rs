@@ -1,11 +1,11 @@
 //! The node's block cache: C blocks of local memory, least recently used evicted first
-//! (paper §4.3), counting hits and misses.
+//! (paper §4.3), counting hits and misses. Block ids are dense, so both the bounded and
+//! the unlimited cache find a block through a table indexed by its id: no hashing, and
+//! no division on a hit.
 
 use super::layout::{Block, BLOCK_SIZE};
 use super::owner::fork_of_block;
 use super::store::{BlockError, BlockSource};
-use lru::LruCache;
-use std::num::NonZeroUsize;
 use std::sync::Arc;
 
 /// Hit and miss counts of a cache.
@@ -44,10 +44,134 @@ impl CacheStats {
     }
 }
 
+/// Marks "no slot" / "no block" in [`Lru`]'s tables.
+const NIL: u32 = u32::MAX;
+
+/// A bounded LRU set of blocks without hashing: block ids are dense (`0..total`), so a
+/// table indexed by block id gives each cached block's slot, and the recency order is a
+/// doubly linked list through the slots. A hit is two table reads and a relink.
+struct Lru {
+    capacity: usize,
+    /// Slot -> block data.
+    blocks: Vec<Box<Block>>,
+    /// Slot -> block id (NIL for a free slot).
+    ids: Vec<u32>,
+    /// Slot -> more recently used slot, less recently used slot.
+    prev: Vec<u32>,
+    next: Vec<u32>,
+    /// Most and least recently used slots.
+    head: u32,
+    tail: u32,
+    /// Block id -> slot (NIL when not cached); grown to the largest id fetched.
+    slot_of: Vec<u32>,
+    /// Slots emptied by invalidation.
+    free: Vec<u32>,
+}
+
+impl Lru {
+    fn new(capacity: usize) -> Self {
+        Lru {
+            capacity: capacity.max(1),
+            blocks: Vec::new(),
+            ids: Vec::new(),
+            prev: Vec::new(),
+            next: Vec::new(),
+            head: NIL,
+            tail: NIL,
+            slot_of: Vec::new(),
+            free: Vec::new(),
+        }
+    }
+
+    /// The slot of block `id` when cached.
+    #[inline]
+    fn slot(&self, id: u32) -> Option<u32> {
+        self.slot_of.get(id as usize).copied().filter(|&s| s != NIL)
+    }
+
+    fn unlink(&mut self, s: u32) {
+        let (p, n) = (self.prev[s as usize], self.next[s as usize]);
+        if p == NIL {
+            self.head = n;
+        } else {
+            self.next[p as usize] = n;
+        }
+        if n == NIL {
+            self.tail = p;
+        } else {
+            self.prev[n as usize] = p;
+        }
+    }
+
+    fn push_front(&mut self, s: u32) {
+        self.prev[s as usize] = NIL;
+        self.next[s as usize] = self.head;
+        if self.head == NIL {
+            self.tail = s;
+        } else {
+            self.prev[self.head as usize] = s;
+        }
+        self.head = s;
+    }
+
+    /// Marks slot `s` most recently used.
+    #[inline]
+    fn touch(&mut self, s: u32) {
+        if self.head != s {
+            self.unlink(s);
+            self.push_front(s);
+        }
+    }
+
+    /// A slot for a new block: a free one, a new one while under capacity, or the least
+    /// recently used one (forgetting its block). The slot is unlinked and owns no id.
+    fn take_slot(&mut self) -> u32 {
+        if let Some(s) = self.free.pop() {
+            return s;
+        }
+        if self.blocks.len() < self.capacity {
+            self.blocks.push(Box::new([0u8; BLOCK_SIZE]));
+            self.ids.push(NIL);
+            self.prev.push(NIL);
+            self.next.push(NIL);
+            return self.blocks.len() as u32 - 1;
+        }
+        let s = self.tail;
+        self.unlink(s);
+        self.slot_of[self.ids[s as usize] as usize] = NIL;
+        self.ids[s as usize] = NIL;
+        s
+    }
+
+    /// Records that slot `s` (taken by [`Lru::take_slot`]) now holds block `id`.
+    fn bind(&mut self, s: u32, id: u32) {
+        let i = id as usize;
+        if self.slot_of.len() <= i {
+            self.slot_of.resize(i + 1, NIL);
+        }
+        self.slot_of[i] = s;
+        self.ids[s as usize] = id;
+        self.push_front(s);
+    }
+
+    fn forget(&mut self, id: u32) {
+        if let Some(s) = self.slot(id) {
+            self.unlink(s);
+            self.slot_of[id as usize] = NIL;
+            self.ids[s as usize] = NIL;
+            self.free.push(s);
+        }
+    }
+
+    fn len(&self) -> usize {
+        self.blocks.len() - self.free.len()
+    }
+}
+
 /// Storage of the cached blocks: an LRU list when bounded; a table indexed by block id
 /// when unlimited (nothing is ever evicted, so no recency needs tracking).
 enum Slots {
-    Bounded(LruCache<u32, Box<Block>>),
+    Bounded(Lru),
     Unlimited { table: Vec<Option<Box<Block>>>, held: usize },
 }
 
@@ -68,7 +192,7 @@ impl BlockCache {
     /// A cache of `capacity` blocks (at least 1), or unlimited for `None`.
     pub fn new(source: Arc<dyn BlockSource>, capacity: Option<usize>) -> Self {
         let slots = match capacity {
-            Some(c) => Slots::Bounded(LruCache::new(NonZeroUsize::new(c.max(1)).unwrap_or(NonZeroUsize::MIN))),
+            Some(c) => Slots::Bounded(Lru::new(c)),
             None => Slots::Unlimited { table: Vec::new(), held: 0 },
         };
         BlockCache { source, slots, stats: CacheStats::default(), home: (0, 1), prefetch: (1, 1, Vec::new()) }
@@ -94,29 +218,30 @@ impl BlockCache {
     }
 
     /// Block `id`, from the cache or fetched from the source (evicting the least
-    /// recently used block when full).
+    /// recently used block when full). A hit hashes nothing and divides nothing.
+    #[inline]
     pub fn get(&mut self, id: u32) -> Result<&Block, BlockError> {
-        let remote = fork_of_block(id, self.home.1) != self.home.0;
         match &mut self.slots {
             Slots::Bounded(lru) => {
-                if lru.contains(&id) {
-                    self.stats.hits += 1;
-                } else {
-                    self.stats.misses += 1;
-                    self.stats.remote_misses += remote as u64;
-                    // Reuse the evicted block's memory when the cache is full.
-                    let mut buf = if lru.len() == lru.cap().get() {
-                        lru.pop_lru().map(|(_, b)| b).unwrap_or_else(|| Box::new([0u8; BLOCK_SIZE]))
-                    } else {
-                        Box::new([0u8; BLOCK_SIZE])
-                    };
-                    self.source.fetch(id, &mut buf)?;
-                    lru.put(id, buf);
-                }
-                match lru.get(&id) {
-                    Some(b) => Ok(&**b),
-                    None => Err(BlockError::Unavailable { id, reason: "cache lost a block it just stored".into() }),
-                }
+                let s = match lru.slot(id) {
+                    Some(s) => {
+                        self.stats.hits += 1;
+                        lru.touch(s);
+                        s
+                    }
+                    None => {
+                        self.stats.misses += 1;
+                        self.stats.remote_misses += (fork_of_block(id, self.home.1) != self.home.0) as u64;
+                        let s = lru.take_slot();
+                        if let Err(e) = self.source.fetch(id, &mut lru.blocks[s as usize]) {
+                            lru.free.push(s);
+                            return Err(e);
+                        }
+                        lru.bind(s, id);
+                        s
+                    }
+                };
+                Ok(&*lru.blocks[s as usize])
             }
             Slots::Unlimited { table, held } => {
                 let i = id as usize;
@@ -138,7 +263,7 @@ impl BlockCache {
                     let mut bufs: Vec<Box<Block>> = ids.iter().map(|_| Box::new([0u8; BLOCK_SIZE])).collect();
                     self.source.fetch_batch(&ids, &mut bufs)?;
                     self.stats.misses += 1;
-                    self.stats.remote_misses += remote as u64;
+                    self.stats.remote_misses += (fork_of_block(id, self.home.1) != self.home.0) as u64;
                     self.stats.prefetched += ids.len() as u64 - 1;
                     for (b, buf) in ids.iter().zip(bufs) {
                         let k = *b as usize;
@@ -164,7 +289,7 @@ impl BlockCache {
         match &mut self.slots {
             Slots::Bounded(lru) => {
                 for id in ids {
-                    lru.pop(&id);
+                    lru.forget(id);
                 }
             }
             Slots::Unlimited { table, held } => {
@@ -260,6 +385,54 @@ mod tests {
         assert_eq!(c.stats().prefetched, 2);
         assert_eq!(c.len(), 3);
         assert_eq!(c.get(7).unwrap()[0], 7);
+    }
+
+    #[test]
+    fn the_bounded_cache_is_exactly_lru_over_random_accesses_and_invalidations() {
+        // Reference: a recency list, most recent first.
+        let mut rng = crate::rng::Rng::from_words(&[0x10, 0xca]);
+        for cap in [1usize, 2, 5, 17] {
+            let mut c = BlockCache::new(store(40), Some(cap));
+            let mut model: Vec<u32> = Vec::new();
+            let (mut hits, mut misses) = (0, 0);
+            for _ in 0..5000 {
+                if rng.next_f64() < 0.02 {
+                    let lo = (rng.next_f64() * 40.0) as u32;
+                    c.invalidate_range(lo..lo + 3);
+                    model.retain(|&b| !(lo..lo + 3).contains(&b));
+                    assert_eq!(c.len(), model.len());
+                    continue;
+                }
+                // Skewed towards low ids so that there are hits.
+                let id = (rng.next_f64() * rng.next_f64() * 40.0) as u32;
+                assert_eq!(c.get(id).unwrap()[0], id as u8);
+                match model.iter().position(|&b| b == id) {
+                    Some(i) => {
+                        hits += 1;
+                        model.remove(i);
+                    }
+                    None => {
+                        misses += 1;
+                        model.truncate(cap - 1);
+                    }
+                }
+                model.insert(0, id);
+                assert_eq!((c.stats().hits, c.stats().misses), (hits, misses), "capacity {cap}");
+                assert_eq!(c.len(), model.len());
+            }
+            assert!(hits > 100 && misses > 100, "capacity {cap}: {hits} hits, {misses} misses");
+        }
+    }
+
+    #[test]
+    fn a_failed_fetch_leaves_the_cache_usable() {
+        let mut c = BlockCache::new(store(3), Some(2));
+        c.get(0).unwrap();
+        c.get(1).unwrap();
+        assert!(c.get(9).is_err());
+        assert_eq!(c.get(2).unwrap()[0], 2);
+        assert_eq!(c.get(1).unwrap()[0], 1);
+        assert_eq!(c.len(), 2);
     }
 
     #[test]

@@ -33,6 +33,8 @@ pub const SUBSPACE_IDS_PER_BLOCK: usize = (BLOCK_SIZE - SUBSPACE_HEADER) / 4;
 pub enum BlockKind {
     /// Patch-id list of a subspace.
     Subspace,
+    /// Nodes or leaf triangles of the bounding volume hierarchy ([`super::bvh`]).
+    Bvh,
     /// Patch records.
     Patch,
     /// Element records.
@@ -42,9 +44,13 @@ pub enum BlockKind {
 }
 
 /// Where each kind of block starts in the global id space:
-/// `[subspace blocks][patch blocks][element blocks][vertex-energy blocks]`.
+/// `[subspace blocks][BVH blocks][patch blocks][element blocks][vertex-energy blocks]`.
+/// A scene traced through the grid has no BVH block, one traced through the BVH no
+/// subspace block.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct BlockLayout {
+    /// First BVH block (the subspace blocks are those before it).
+    pub bvh_base: u32,
     /// First patch block.
     pub patch_base: u32,
     /// First element block.
@@ -66,6 +72,8 @@ impl BlockLayout {
             Some(BlockKind::Element)
         } else if id >= self.patch_base {
             Some(BlockKind::Patch)
+        } else if id >= self.bvh_base {
+            Some(BlockKind::Bvh)
         } else {
             Some(BlockKind::Subspace)
         }
@@ -117,23 +125,37 @@ pub struct ElementRecord {
     pub area: f64,
 }
 
-fn put_u32(b: &mut [u8], at: usize, v: u32) {
+pub(super) fn put_u32(b: &mut [u8], at: usize, v: u32) {
     b[at..at + 4].copy_from_slice(&v.to_le_bytes());
 }
-fn put_f64(b: &mut [u8], at: usize, v: f64) {
+pub(super) fn put_f64(b: &mut [u8], at: usize, v: f64) {
     b[at..at + 8].copy_from_slice(&v.to_le_bytes());
 }
-fn get_u32(b: &[u8], at: usize) -> u32 {
+pub(super) fn get_u32(b: &[u8], at: usize) -> u32 {
     let mut a = [0u8; 4];
     a.copy_from_slice(&b[at..at + 4]);
     u32::from_le_bytes(a)
 }
-fn get_f64(b: &[u8], at: usize) -> f64 {
+pub(super) fn get_f64(b: &[u8], at: usize) -> f64 {
     let mut a = [0u8; 8];
     a.copy_from_slice(&b[at..at + 8]);
     f64::from_le_bytes(a)
 }
-fn get_f32(b: &[u8], at: usize) -> f32 {
+/// Writes three corners (9 x f64, 72 bytes) at byte offset `at`.
+pub(super) fn put_corners(b: &mut [u8], at: usize, v: &[DVec3; 3]) {
+    for (i, p) in v.iter().enumerate() {
+        put_f64(b, at + 24 * i, p.x);
+        put_f64(b, at + 24 * i + 8, p.y);
+        put_f64(b, at + 24 * i + 16, p.z);
+    }
+}
+/// Reads three corners written by [`put_corners`].
+#[inline]
+pub(super) fn get_corners(b: &[u8], at: usize) -> [DVec3; 3] {
+    let p = |i: usize| DVec3::new(get_f64(b, at + 24 * i), get_f64(b, at + 24 * i + 8), get_f64(b, at + 24 * i + 16));
+    [p(0), p(1), p(2)]
+}
+pub(super) fn get_f32(b: &[u8], at: usize) -> f32 {
     let mut a = [0u8; 4];
     a.copy_from_slice(&b[at..at + 4]);
     f32::from_le_bytes(a)
@@ -142,21 +164,15 @@ fn get_f32(b: &[u8], at: usize) -> f32 {
 impl PatchRecord {
     /// Writes the record at byte offset `at`.
     pub fn encode(&self, b: &mut Block, at: usize) {
-        for (i, p) in self.v.iter().enumerate() {
-            put_f64(b, at + 24 * i, p.x);
-            put_f64(b, at + 24 * i + 8, p.y);
-            put_f64(b, at + 24 * i + 16, p.z);
-        }
+        put_corners(b, at, &self.v);
         put_u32(b, at + 72, self.material);
         put_u32(b, at + 76, self.subdivisions);
         put_u32(b, at + 80, self.first_element);
     }
     /// Reads the record at byte offset `at`.
     pub fn decode(b: &Block, at: usize) -> PatchRecord {
-        let p =
-            |i: usize| DVec3::new(get_f64(b, at + 24 * i), get_f64(b, at + 24 * i + 8), get_f64(b, at + 24 * i + 16));
         PatchRecord {
-            v: [p(0), p(1), p(2)],
+            v: get_corners(b, at),
             material: get_u32(b, at + 72),
             subdivisions: get_u32(b, at + 76),
             first_element: get_u32(b, at + 80),

@@ -22,60 +22,85 @@ pub struct TriHit {
 /// zero (on an edge or vertex) count as a hit. Returns a hit with `tmin < t < tmax`.
 /// Degenerate triangles (zero determinant) and non-finite rays never hit.
 pub fn intersect_watertight(ray: &Ray, v: &[DVec3; 3], tmin: f64, tmax: f64) -> Option<TriHit> {
-    let d = ray.direction;
-    let ad = d.abs();
-    // Axis of the largest direction component becomes z.
-    let kz = if ad.x >= ad.y && ad.x >= ad.z {
-        0
-    } else if ad.y >= ad.z {
-        1
-    } else {
-        2
-    };
-    let mut kx = (kz + 1) % 3;
-    let mut ky = (kx + 1) % 3;
-    if d[kz] < 0.0 {
-        std::mem::swap(&mut kx, &mut ky);
-    }
-    let dz = d[kz];
-    if dz == 0.0 || !dz.is_finite() {
-        return None; // zero or non-finite direction
-    }
-    let sx = d[kx] / dz;
-    let sy = d[ky] / dz;
-    let sz = 1.0 / dz;
+    WatertightRay::new(ray)?.intersect(v, tmin, tmax)
+}
 
-    let a = v[0] - ray.origin;
-    let b = v[1] - ray.origin;
-    let c = v[2] - ray.origin;
-    let ax = a[kx] - sx * a[kz];
-    let ay = a[ky] - sy * a[kz];
-    let bx = b[kx] - sx * b[kz];
-    let by = b[ky] - sy * b[kz];
-    let cx = c[kx] - sx * c[kz];
-    let cy = c[ky] - sy * c[kz];
+/// The per-ray part of [`intersect_watertight`] (axis permutation and shear), computed
+/// once for a ray tested against many triangles. `WatertightRay::new(ray)?.intersect(..)`
+/// is `intersect_watertight`, the same operations in the same order: the same bits.
+#[derive(Clone, Copy, Debug)]
+pub struct WatertightRay {
+    origin: DVec3,
+    kx: usize,
+    ky: usize,
+    kz: usize,
+    sx: f64,
+    sy: f64,
+    sz: f64,
+}
 
-    let u = cx * by - cy * bx;
-    let vv = ax * cy - ay * cx;
-    let w = bx * ay - by * ax;
-    if (u < 0.0 || vv < 0.0 || w < 0.0) && (u > 0.0 || vv > 0.0 || w > 0.0) {
-        return None;
+impl WatertightRay {
+    /// The sheared ray; `None` for a zero or non-finite direction (which hits nothing).
+    #[inline]
+    pub fn new(ray: &Ray) -> Option<WatertightRay> {
+        let d = ray.direction;
+        let ad = d.abs();
+        // Axis of the largest direction component becomes z.
+        let kz = if ad.x >= ad.y && ad.x >= ad.z {
+            0
+        } else if ad.y >= ad.z {
+            1
+        } else {
+            2
+        };
+        let mut kx = (kz + 1) % 3;
+        let mut ky = (kx + 1) % 3;
+        if d[kz] < 0.0 {
+            std::mem::swap(&mut kx, &mut ky);
+        }
+        let dz = d[kz];
+        if dz == 0.0 || !dz.is_finite() {
+            return None; // zero or non-finite direction
+        }
+        Some(WatertightRay { origin: ray.origin, kx, ky, kz, sx: d[kx] / dz, sy: d[ky] / dz, sz: 1.0 / dz })
     }
-    let det = u + vv + w;
-    if det == 0.0 || !det.is_finite() {
-        return None;
+
+    /// The hit of triangle `v` with `tmin < t < tmax`, as [`intersect_watertight`].
+    #[inline]
+    pub fn intersect(&self, v: &[DVec3; 3], tmin: f64, tmax: f64) -> Option<TriHit> {
+        let WatertightRay { origin, kx, ky, kz, sx, sy, sz } = *self;
+        let a = v[0] - origin;
+        let b = v[1] - origin;
+        let c = v[2] - origin;
+        let ax = a[kx] - sx * a[kz];
+        let ay = a[ky] - sy * a[kz];
+        let bx = b[kx] - sx * b[kz];
+        let by = b[ky] - sy * b[kz];
+        let cx = c[kx] - sx * c[kz];
+        let cy = c[ky] - sy * c[kz];
+
+        let u = cx * by - cy * bx;
+        let vv = ax * cy - ay * cx;
+        let w = bx * ay - by * ax;
+        if (u < 0.0 || vv < 0.0 || w < 0.0) && (u > 0.0 || vv > 0.0 || w > 0.0) {
+            return None;
+        }
+        let det = u + vv + w;
+        if det == 0.0 || !det.is_finite() {
+            return None;
+        }
+        let az = sz * a[kz];
+        let bz = sz * b[kz];
+        let cz = sz * c[kz];
+        let t_scaled = u * az + vv * bz + w * cz;
+        let t = t_scaled / det;
+        if !(t > tmin && t < tmax) {
+            return None;
+        }
+        // Divide rather than multiply by 1 / det: for a sliver whose det is subnormal,
+        // 1 / det overflows and the weights would be inf or NaN.
+        Some(TriHit { t, bary: [u / det, vv / det, w / det] })
     }
-    let az = sz * a[kz];
-    let bz = sz * b[kz];
-    let cz = sz * c[kz];
-    let t_scaled = u * az + vv * bz + w * cz;
-    let t = t_scaled / det;
-    if !(t > tmin && t < tmax) {
-        return None;
-    }
-    // Divide rather than multiply by 1 / det: for a sliver whose det is subnormal,
-    // 1 / det overflows and the weights would be inf or NaN.
-    Some(TriHit { t, bary: [u / det, vv / det, w / det] })
 }
 
 /// Unit geometric normal of a triangle, by its winding (right hand, `v0 -> v1 -> v2`);

@@ -58,6 +58,14 @@ fn dims_for(spec: GridSpec, patches: usize, ext: DVec3) -> [u32; 3] {
     d
 }
 
+/// The grid of a scene traced through the BVH: the scene's bounds as one empty subspace
+/// (no subspace block is written).
+pub(super) fn bounds_only(mesh: &Mesh) -> Grid {
+    let b = bounds(mesh);
+    Grid { min: b.min, max: b.max, dims: [1, 1, 1], cells: vec![Vec::new()], box_tests: 0 }
+}
+
+/// The grid of subspaces of `scene`, each listing the patches that overlap it.
 pub(super) fn build(scene: &Scene, mesh: &Mesh) -> Grid {
     let b = bounds(mesh);
     let dims = dims_for(scene.settings.grid, mesh.patches.len(), b.extent());

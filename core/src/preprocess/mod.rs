@@ -1,10 +1,12 @@
 //! Preprocessing (paper §3.1 and §4.3): subdivide patches into elements, weld element
-//! vertices, build the uniform grid of subspaces and pack everything into 2 KB blocks.
+//! vertices, build the acceleration structure (the uniform grid of subspaces, or a BVH)
+//! and pack everything into 2 KB blocks.
 //!
 //! The paper ran this stage on one fork processor and named it the main obstacle to
 //! speed-up; here every step runs in parallel (rayon), and the result does not depend on
 //! the number of threads.
 
+mod bvh;
 mod grid;
 mod mesh;
 mod pack;
@@ -13,7 +15,7 @@ mod weld;
 use crate::blocks::Block;
 use crate::header::SceneHeader;
 use crate::plan::EffectsPlan;
-use crate::scene::Scene;
+use crate::scene::{Accel, Scene};
 use glam::DVec3;
 use std::sync::Arc;
 use std::time::Instant;
@@ -87,7 +89,8 @@ pub struct PreparedScene {
 /// the paper's fork processor would have spent it. Deterministic for a scene.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct PrepareOps {
-    /// Triangle/subspace overlap tests.
+    /// Triangle/subspace overlap tests (grid), or primitive binnings of the SAH build
+    /// (BVH).
     pub box_tests: u64,
     /// Elements made.
     pub elements: u64,
@@ -124,21 +127,26 @@ fn prepare_here(scene: &Scene, plan: EffectsPlan, start: Instant) -> Result<Prep
         return Err(PrepareError::Empty { file: scene.name.clone() });
     }
     let mesh = mesh::build(scene)?;
-    let grid = grid::build(scene, &mesh);
-    let packed = pack::pack(&mesh, &grid);
+    let (grid, bvh) = match scene.settings.accel {
+        Accel::Grid => (grid::build(scene, &mesh), None),
+        Accel::Bvh => (grid::bounds_only(&mesh), Some(bvh::build_and_pack(&mesh))),
+    };
+    let binnings = bvh.as_ref().map_or(0, |b| b.binnings);
+    let packed = pack::pack(&mesh, &grid, bvh);
     let header = SceneHeader {
         camera: scene.camera.clone(),
         settings: scene.settings.clone(),
         lights: scene.lights.clone(),
         materials: scene.materials.clone(),
         grid: packed.grid,
+        bvh: packed.bvh,
         layout: packed.layout,
         counts: packed.counts,
         energy_quantum: crate::energy::quantum_for(&scene.lights),
         plan,
     };
     let ops = PrepareOps {
-        box_tests: grid.box_tests,
+        box_tests: grid.box_tests + binnings,
         elements: mesh.elements.len() as u64,
         vertices: mesh.vertex_positions.len() as u64,
         blocks: packed.blocks.len() as u64,

@@ -1,14 +1,16 @@
 //! Packing of the prepared scene into 2 KB blocks.
 
+use super::bvh::Bvh;
 use super::grid::Grid;
 use super::mesh::Mesh;
 use crate::blocks::*;
-use crate::header::{Counts, GridHeader};
+use crate::header::{BvhHeader, Counts, GridHeader};
 
 pub(super) struct Packed {
     pub blocks: Vec<Box<Block>>,
     pub layout: BlockLayout,
     pub grid: GridHeader,
+    pub bvh: BvhHeader,
     pub counts: Counts,
 }
 
@@ -16,7 +18,9 @@ fn zero_block() -> Box<Block> {
     Box::new([0u8; BLOCK_SIZE])
 }
 
-pub(super) fn pack(mesh: &Mesh, grid: &Grid) -> Packed {
+/// Packs the subspace lists of `grid` (none for a scene traced through the BVH), the
+/// BVH's blocks if any, then the patches, elements and vertex energies.
+pub(super) fn pack(mesh: &Mesh, grid: &Grid, bvh: Option<Bvh>) -> Packed {
     let mut blocks: Vec<Box<Block>> = Vec::new();
     // Subspace blocks: one chain per non-empty cell.
     let mut cell_first_block = vec![NO_BLOCK; grid.cells.len()];
@@ -39,6 +43,14 @@ pub(super) fn pack(mesh: &Mesh, grid: &Grid) -> Packed {
     }
     let subspace_blocks = blocks.len() as u32;
 
+    let bvh_base = blocks.len() as u32;
+    let bvh_header = match bvh {
+        Some(mut b) => {
+            blocks.append(&mut b.blocks);
+            b.header
+        }
+        None => BvhHeader::default(),
+    };
     let patch_base = blocks.len() as u32;
     for chunk in (0..mesh.patches.len()).collect::<Vec<_>>().chunks(PATCHES_PER_BLOCK) {
         let mut b = zero_block();
@@ -69,13 +81,14 @@ pub(super) fn pack(mesh: &Mesh, grid: &Grid) -> Packed {
     for _ in 0..vertex_blocks {
         blocks.push(zero_block());
     }
-    let layout = BlockLayout { patch_base, element_base, vertex_base, total: blocks.len() as u32 };
+    let layout = BlockLayout { bvh_base, patch_base, element_base, vertex_base, total: blocks.len() as u32 };
     let counts = Counts {
         patches: mesh.patches.len() as u32,
         elements: mesh.elements.len() as u32,
         vertices: mesh.vertex_positions.len() as u32,
         subspaces: grid.cells.len() as u32,
         subspace_blocks,
+        bvh_blocks: patch_base - bvh_base,
         patch_blocks: element_base - patch_base,
         element_blocks: vertex_base - element_base,
         vertex_blocks: vertex_blocks as u32,
@@ -84,6 +97,7 @@ pub(super) fn pack(mesh: &Mesh, grid: &Grid) -> Packed {
         blocks,
         layout,
         grid: GridHeader { min: grid.min, max: grid.max, dims: grid.dims, cell_first_block },
+        bvh: bvh_header,
         counts,
     }
 }

@@ -16,7 +16,7 @@ use toml::Spanned;
 use super::error::SceneError;
 use super::field::field_at;
 use super::model::{
-    Camera, CameraPath, Exposure, GridSpec, Light, Material, PatchDef, RenderSettings, Scene, SourceLoc, Spot,
+    Accel, Camera, CameraPath, Exposure, GridSpec, Light, Material, PatchDef, RenderSettings, Scene, SourceLoc, Spot,
     MAX_COORDINATE, MAX_RADIOMETRIC,
 };
 use super::obj::{self, MaterialTable, MeshEntry, Transform};
@@ -67,6 +67,7 @@ struct RawRender {
     vrt_depth: Option<Spanned<i64>>,
     diffuse_bounces: Option<Spanned<i64>>,
     ambient: Option<SVec>,
+    accel: Option<Spanned<String>>,
     grid: Option<Spanned<toml::Value>>,
     seed: Option<Spanned<i64>>,
     exposure: Option<Spanned<toml::Value>>,
@@ -376,6 +377,11 @@ impl<'a> Ctx<'a> {
         }
         if let Some(v) = &r.max_elements {
             s.max_elements = self.int_in(v, "render.max_elements", 1, i64::MAX)? as u64;
+        }
+        if let Some(v) = &r.accel {
+            s.accel = Accel::parse(v.get_ref()).ok_or_else(|| {
+                self.err(v, "render.accel", format!("expected \"bvh\" or \"grid\", found {:?}", v.get_ref()))
+            })?;
         }
         if let Some(v) = &r.grid {
             s.grid = self.grid(v)?;

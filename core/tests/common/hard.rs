@@ -98,7 +98,7 @@ pub fn transform(s: &Scene, scale: f64, offset: DVec3) -> Scene {
 }
 
 /// A seeded scene of `count` random triangles (edges up to about 1) inside an
-/// enclosing, inward-facing box [-2, 2]^3, on a fixed `dims` grid. The enclosing box
+/// enclosing, inward-facing box [-2, 2]^3, traced through a fixed `dims` grid. The enclosing box
 /// fixes the grid's bounds, so patches added later inside it leave the grid unchanged.
 pub fn random_scene(seed: u64, count: usize, dims: [u32; 3]) -> Scene {
     let mut rng = magg_core::rng::Rng::from_words(&[seed, 0x7261_6e64]);
@@ -112,6 +112,7 @@ pub fn random_scene(seed: u64, count: usize, dims: [u32; 3]) -> Scene {
     }
     let mut s = scene(patches, vec![material("white", 0.5, 0.0, 0.0)], vec![light(v(0.0, 0.0, 0.0), 1.0)]);
     s.settings.grid = magg_core::scene::GridSpec::Fixed(dims);
+    s.settings.accel = magg_core::scene::Accel::Grid;
     s
 }
 

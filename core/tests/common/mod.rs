@@ -113,8 +113,8 @@ pub fn tri(a: DVec3, b: DVec3, c: DVec3, material: u32, n: u32) -> PatchDef {
 }
 
 /// A closed octahedron of 8 patches (vertices at +-1 on each axis, outward winding),
-/// n elements per patch edge, one white material, one light at `light_at`, and a fixed
-/// `grid` of subspaces.
+/// n elements per patch edge, one white material, one light at `light_at`, traced
+/// through a fixed `grid` of subspaces.
 pub fn octahedron(n: u32, light_at: DVec3, grid: [u32; 3]) -> Scene {
     let (px, nx, py, ny, pz, nz) =
         (v(1.0, 0.0, 0.0), v(-1.0, 0.0, 0.0), v(0.0, 1.0, 0.0), v(0.0, -1.0, 0.0), v(0.0, 0.0, 1.0), v(0.0, 0.0, -1.0));
@@ -131,5 +131,6 @@ pub fn octahedron(n: u32, light_at: DVec3, grid: [u32; 3]) -> Scene {
     let patches = faces.iter().map(|f| tri(f[0], f[1], f[2], 0, n)).collect();
     let mut s = scene(patches, vec![material("white", 0.5, 0.0, 0.0)], vec![light(light_at, 1.0)]);
     s.settings.grid = GridSpec::Fixed(grid);
+    s.settings.accel = magg_core::scene::Accel::Grid;
     s
 }

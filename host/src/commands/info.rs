@@ -16,7 +16,9 @@ pub fn run(args: &InfoArgs, files: &scene_file::SceneFiles) -> anyhow::Result<()
             "lights": h.lights.len(),
             "materials": h.materials.len(),
             "counts": c,
+            "accel": h.settings.accel.name(),
             "grid": h.grid.dims,
+            "bvh": h.bvh,
             "blocks": h.layout.total,
             "plan": { "passes": h.plan.passes(), "reasons": h.plan.reasons },
             "preprocess_s": p.preprocess_s,
@@ -35,6 +37,14 @@ pub fn run(args: &InfoArgs, files: &scene_file::SceneFiles) -> anyhow::Result<()
         "subspaces  {:>9}  in {:>6} subspace blocks (grid {}x{}x{})",
         c.subspaces, c.subspace_blocks, g[0], g[1], g[2]
     );
+    if c.bvh_blocks > 0 {
+        let b = h.bvh;
+        println!(
+            "bvh nodes  {:>9}  in {:>6} node blocks, {} leaf triangles in {} blocks",
+            b.nodes, b.node_blocks, b.triangles, b.triangle_blocks
+        );
+    }
+    println!("accel      {}", h.settings.accel.name());
     println!("blocks     {:>9}  (2 KB each, {:.1} MB)", h.layout.total, h.layout.total as f64 * 2048.0 / 1e6);
     println!(
         "image      {}x{}, {} samples/pixel, {} light rays/pair",

@@ -23,7 +23,7 @@ pub fn run(cfg: RenderConfig, files: &scene_file::SceneFiles) -> anyhow::Result<
     if let Some(q) = cfg.quality {
         q.apply(&mut scene);
     }
-    cfg.knobs.apply(&mut scene.settings)?;
+    cfg.knobs.apply_for(cfg.scheme, &mut scene.settings)?;
     let window = cfg.framing.crop(scene.settings.width, scene.settings.height)?;
     let path_cameras = path.as_ref().map(|p| p.cameras()).unwrap_or_default();
     if cfg.framing.frames.is_some() && path_cameras.is_empty() {

@@ -119,6 +119,32 @@ fn inconsistent_layouts_are_refused() {
 }
 
 #[test]
+fn the_acceleration_structure_and_its_blocks_must_agree() {
+    let h = paper_header();
+    let wire = v1::SceneHeader::from(&*h);
+    assert_eq!(wire.settings.as_ref().unwrap().accel, v1::Accel::Bvh as i32);
+    assert!(h.bvh.nodes > 0 && h.counts.bvh_blocks > 0);
+    // The grid's header goes and comes back too.
+    let text = include_str!("../../../scenes/magg-paper.toml").replace("[render]", "[render]\naccel = \"grid\"");
+    let read = |p: &std::path::Path| std::fs::read_to_string(p);
+    let scene = magg_core::scene::parse_scene_str("magg-paper.toml", &text, "scenes".as_ref(), &read).unwrap();
+    let grid = magg_core::preprocess::prepare(&scene).unwrap().header;
+    assert!(grid.counts.subspace_blocks > 0 && grid.bvh == Default::default());
+    let back = SceneHeader::try_from(v1::SceneHeader::from(&*grid)).unwrap();
+    assert_eq!(back, as_received(&grid));
+    assert_eq!(field_of(&refused(|h| h.settings.as_mut().unwrap().accel = 7)), "settings.accel");
+    // A BVH scene announced as a grid one (and the reverse) is refused.
+    let e = refused(|h| h.settings.as_mut().unwrap().accel = v1::Accel::Grid as i32);
+    assert_eq!(field_of(&e), "bvh.nodes");
+    assert_eq!(field_of(&refused(|h| h.bvh = None)), "counts.bvh_blocks");
+    assert_eq!(field_of(&refused(|h| h.bvh.as_mut().unwrap().nodes += 32)), "bvh.node_blocks");
+    let e = refused(|h| h.bvh.as_mut().unwrap().triangles = h.counts.as_ref().unwrap().patches + 1);
+    assert_eq!(field_of(&e), "bvh.triangles");
+    assert_eq!(field_of(&refused(|h| h.bvh.as_mut().unwrap().triangles = 0)), "bvh.triangle_blocks");
+    assert_eq!(field_of(&refused(|h| h.layout.as_mut().unwrap().bvh_base += 1)), "counts.subspace_blocks");
+}
+
+#[test]
 fn bad_materials_and_lights_are_refused() {
     fn m(h: &mut v1::SceneHeader) -> &mut v1::Material {
         &mut h.materials[0]

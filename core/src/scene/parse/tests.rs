@@ -112,6 +112,17 @@ fn unknown_key_names_file_line_and_key() {
 }
 
 #[test]
+fn accel_is_bvh_unless_the_scene_asks_for_the_grid() {
+    assert_eq!(parse(MINI).unwrap().settings.accel, Accel::Bvh);
+    let grid = parse(&format!("{MINI}[render]\naccel = \"grid\"\n")).unwrap().settings;
+    assert_eq!(grid.accel, Accel::Grid);
+    let e = err(&format!("{MINI}[render]\naccel = \"kd-tree\"\n"));
+    assert_eq!(e, "t.toml:18: render.accel: expected \"bvh\" or \"grid\", found \"kd-tree\"");
+    let e = err(&format!("{MINI}[render]\naccel = 2\n"));
+    assert!(e.starts_with("t.toml:18: render.accel: "), "{e}");
+}
+
+#[test]
 fn wrong_types_name_the_line() {
     let e = err(&format!("{MINI}[render]\nwidth = \"big\"\n"));
     assert!(e.starts_with("t.toml:18: render.width: "), "{e}");

@@ -1,70 +1,17 @@
-//! Ray casting through the subspace grid: 3D-DDA traversal (Amanatides and Woo 1987)
-//! with watertight patch tests.
+//! Ray casting through the subspace grid: 3D-DDA traversal (Amanatides and Woo 1987).
 //!
 //! A hit found in one subspace may lie beyond it (the patch spans several subspaces);
 //! it is kept as a candidate and only accepted once traversal has passed its distance,
-//! so a nearer patch in a later subspace still wins. Ties in distance go to the lower
-//! patch id, so a ray through an edge shared by two patches hits exactly one of them.
+//! so a nearer patch in a later subspace still wins.
 
+use super::{Hit, Query, TraceScratch};
 use crate::blocks::BlockError;
-use crate::geometry::{intersect_watertight, Ray};
 use crate::view::SceneView;
 
-/// Marks "exclude no patch".
-pub const NO_PATCH: u32 = u32::MAX;
-
-/// The nearest patch a ray hits.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Hit {
-    /// Distance along the ray (unit direction).
-    pub t: f64,
-    /// Patch id.
-    pub patch: u32,
-    /// Barycentric weights of the patch corners.
-    pub bary: [f64; 3],
-}
-
-/// Scratch buffers reused across rays.
-#[derive(Default)]
-pub struct TraceScratch {
-    ids: Vec<u32>,
-    recent: [u32; 16],
-    recent_len: usize,
-    recent_pos: usize,
-}
-
-impl TraceScratch {
-    fn reset(&mut self) {
-        self.recent_len = 0;
-        self.recent_pos = 0;
-    }
-    fn seen(&mut self, id: u32) -> bool {
-        if self.recent[..self.recent_len].contains(&id) {
-            return true;
-        }
-        self.recent[self.recent_pos] = id;
-        self.recent_pos = (self.recent_pos + 1) % self.recent.len();
-        self.recent_len = (self.recent_len + 1).min(self.recent.len());
-        false
-    }
-}
-
-/// Nearest hit of `ray` with `tmin < t < tmax`, skipping patch `exclude`. With `any`, the
-/// first hit found is returned (shadow rays). Non-finite or zero directions hit nothing.
-pub fn cast(
-    view: &mut SceneView,
-    scratch: &mut TraceScratch,
-    ray: &Ray,
-    tmin: f64,
-    tmax: f64,
-    exclude: u32,
-    any: bool,
-) -> Result<Option<Hit>, BlockError> {
-    let o = ray.origin;
-    let d = ray.direction;
-    if !o.is_finite() || !d.is_finite() || d.length_squared() == 0.0 || tmin.is_nan() || tmax.is_nan() {
-        return Ok(None);
-    }
+/// [`super::cast`] through the grid.
+pub(super) fn cast(view: &mut SceneView, scratch: &mut TraceScratch, q: &Query) -> Result<Option<Hit>, BlockError> {
+    let (ray, tmin, tmax, exclude) = (q.ray, q.tmin, q.tmax, q.exclude);
+    let (o, d) = (ray.origin, ray.direction);
     let (gmin, gmax, dims, cs) = {
         let g = &view.header.grid;
         (g.min, g.max, g.dims, g.cell_size())
@@ -131,25 +78,14 @@ pub fn cast(
                     break;
                 }
             };
-            let bound = best.map_or(limit, |b| b.t);
-            // Allow equal distance so that ties can go to the lower id.
-            if let Some(h) = intersect_watertight(ray, &rec.v, tmin, bound.next_up_or(bound)) {
-                let better = match best {
-                    None => true,
-                    Some(b) => h.t < b.t || (h.t == b.t && pid < b.patch),
-                };
-                if better {
-                    best = Some(Hit { t: h.t, patch: pid, bary: h.bary });
-                    if any {
-                        break;
-                    }
-                }
+            if q.test(&rec.v, pid, limit, &mut best) && q.any {
+                break;
             }
         }
         if let Some(e) = failed {
             break Err(e);
         }
-        if any && best.is_some() {
+        if q.any && best.is_some() {
             break Ok(best);
         }
         let exit = next_t[0].min(next_t[1]).min(next_t[2]);
@@ -176,26 +112,4 @@ pub fn cast(
     };
     scratch.ids = ids;
     result
-}
-
-/// `next_up` for finite values; infinities stay.
-trait NextUp {
-    fn next_up_or(self, fallback: f64) -> f64;
-}
-impl NextUp for f64 {
-    fn next_up_or(self, fallback: f64) -> f64 {
-        if self.is_finite() {
-            let bits = self.to_bits();
-            let up = if self > 0.0 {
-                f64::from_bits(bits + 1)
-            } else if self == 0.0 {
-                f64::from_bits(1)
-            } else {
-                f64::from_bits(bits - 1)
-            };
-            up
-        } else {
-            fallback
-        }
-    }
 }

@@ -1,0 +1,222 @@
+//! The rays of `deploy/bench-embree.sh`: times magg's kernel on one thread over a scene's
+//! primary rays and occlusion rays, and writes the same triangles and rays to a file for
+//! the Embree harness (`deploy/embree/harness.c`) to trace.
+//!
+//! - **primary**: one ray through each pixel centre, nearest hit (`trace::cast`);
+//! - **occlusion**: from each light to the centroid of every k-th element, stopped
+//!   1e-4 of the distance short of it (`trace::occluded`; Embree's f32 cannot stop
+//!   closer), about `--occlusion` rays in all.
+//!
+//! Each is traced once to warm the block cache (unlimited), then timed `--repeats` times;
+//! the median rate is printed as `magg primary MRAYS occlusion MRAYS hits P O`.
+//!
+//! ```text
+//! cargo run --release -p magg-core --example embree_rays -- scenes/large.toml --out /tmp/r.bin
+//! cargo run --release -p magg-core --example embree_rays -- --random 50000 --out /tmp/r.bin
+//! ```
+//! File (little-endian): u32 triangles, u32 primary rays, u32 occlusion rays; then 9 x f32
+//! per triangle; then 7 x f32 per ray (origin, direction, tmax).
+
+use glam::DVec3;
+use magg_core::blocks::{BlockCache, MemStore};
+use magg_core::camera::CameraRig;
+use magg_core::color::Rgb;
+use magg_core::geometry::Ray;
+use magg_core::preprocess::{prepare, PreparedScene};
+use magg_core::rng::Rng;
+use magg_core::scene::*;
+use magg_core::trace::{cast, occluded, TraceScratch, NO_PATCH};
+use magg_core::view::SceneView;
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+use std::sync::Arc;
+use std::time::Instant;
+
+struct Args {
+    scene: Option<PathBuf>,
+    random: usize,
+    out: PathBuf,
+    size: u32,
+    occlusion: usize,
+    repeats: usize,
+}
+
+fn parse_args() -> Result<Args, String> {
+    let mut a =
+        Args { scene: None, random: 0, out: PathBuf::from("rays.bin"), size: 400, occlusion: 200_000, repeats: 5 };
+    let mut it = std::env::args().skip(1);
+    while let Some(flag) = it.next() {
+        let mut value = || it.next().ok_or_else(|| format!("{flag} needs a value"));
+        let num = |v: String| v.parse::<usize>().map_err(|e| format!("{flag}: {e}"));
+        match flag.as_str() {
+            "--random" => a.random = num(value()?)?,
+            "--out" => a.out = PathBuf::from(value()?),
+            "--size" => a.size = num(value()?)?.clamp(1, 16384) as u32,
+            "--occlusion" => a.occlusion = num(value()?)?,
+            "--repeats" => a.repeats = num(value()?)?.max(1),
+            f if !f.starts_with("--") => a.scene = Some(PathBuf::from(f)),
+            other => return Err(format!("unknown argument {other}")),
+        }
+    }
+    if a.scene.is_none() && a.random == 0 {
+        return Err(
+            "usage: embree_rays (SCENE.toml | --random N) [--out FILE] [--size PX] [--occlusion N] [--repeats N]"
+                .into(),
+        );
+    }
+    Ok(a)
+}
+
+/// `n` random triangles (edges up to about 0.3) in a closed box [-4, 4]^3, one light.
+fn random_scene(n: usize) -> Scene {
+    let loc = SourceLoc { file: "<random>".into(), line: 0 };
+    let mut rng = Rng::from_words(&[n as u64, 0xe5b]);
+    let mut u = move || rng.next_f64() * 2.0 - 1.0;
+    let tri =
+        |v: [DVec3; 3]| PatchDef { vertices: v, material: 0, subdivisions: Some(1), size_hint: None, loc: loc.clone() };
+    let mut patches = Vec::new();
+    let (lo, hi) = (-4.0, 4.0);
+    let c = |x: f64, y: f64, z: f64| DVec3::new(x, y, z);
+    // The box, facing in.
+    for [a, b, cc, d] in [
+        [c(lo, lo, lo), c(hi, lo, lo), c(hi, lo, hi), c(lo, lo, hi)],
+        [c(lo, hi, lo), c(lo, hi, hi), c(hi, hi, hi), c(hi, hi, lo)],
+        [c(lo, lo, lo), c(lo, lo, hi), c(lo, hi, hi), c(lo, hi, lo)],
+        [c(hi, lo, lo), c(hi, hi, lo), c(hi, hi, hi), c(hi, lo, hi)],
+        [c(lo, lo, lo), c(lo, hi, lo), c(hi, hi, lo), c(hi, lo, lo)],
+        [c(lo, lo, hi), c(hi, lo, hi), c(hi, hi, hi), c(lo, hi, hi)],
+    ] {
+        patches.push(tri([a, b, cc]));
+        patches.push(tri([a, cc, d]));
+    }
+    while patches.len() < n {
+        let p = c(u() * 3.0, u() * 3.0, u() * 3.0);
+        let mut corner = || p + c(u(), u(), u()) * 0.15;
+        patches.push(tri([corner(), corner(), corner()]));
+    }
+    Scene {
+        name: format!("random-{n}"),
+        camera: Camera { eye: c(0.0, 0.0, 3.9), look_at: c(0.0, 0.0, 0.0), up: c(0.0, 1.0, 0.0), fov_y_deg: 60.0 },
+        settings: RenderSettings { max_elements: u64::MAX, ..RenderSettings::default() },
+        lights: vec![Light { position: c(0.5, 3.5, 0.5), intensity: Rgb::splat(1.0), spot: None, loc: loc.clone() }],
+        materials: vec![Material {
+            name: "white".into(),
+            diffuse: Rgb::splat(0.5),
+            mirror: Rgb::BLACK,
+            transmit: Rgb::BLACK,
+            ior: 1.5,
+            loc: loc.clone(),
+        }],
+        patches,
+    }
+}
+
+fn load(a: &Args) -> Result<Scene, String> {
+    let Some(path) = &a.scene else {
+        return Ok(random_scene(a.random));
+    };
+    let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
+    let base = path.parent().unwrap_or(Path::new("."));
+    parse_scene_str(&path.display().to_string(), &text, base, &|p: &Path| std::fs::read_to_string(p))
+        .map_err(|e| e.to_string())
+}
+
+/// The primary rays, and the occlusion rays with their tmax.
+fn rays(p: &PreparedScene, size: u32, occlusion: usize) -> (Vec<Ray>, Vec<(Ray, f64)>) {
+    let rig = CameraRig::new(&p.header.camera, size, size);
+    let primary = (0..size * size).map(|i| rig.ray((i % size) as f64 + 0.5, (i / size) as f64 + 0.5)).collect();
+    let pairs = p.header.lights.len() * p.elements.len();
+    let step = (pairs / occlusion.max(1)).max(1);
+    let mut shadow = Vec::new();
+    for l in &p.header.lights {
+        for e in p.elements.iter().step_by(step) {
+            let d = e.centroid - l.position;
+            let dist = d.length();
+            if dist > 0.0 && dist.is_finite() {
+                // 1e-4 short: Embree's f32 tfar could not stop shorter of the element.
+                shadow.push((Ray::new(l.position, d / dist), dist * (1.0 - 1e-4)));
+            }
+        }
+    }
+    (primary, shadow)
+}
+
+/// Median seconds of `repeats` timed runs of `f` (after one untimed warm-up run), and
+/// what `f` returned.
+fn time<T>(repeats: usize, mut f: impl FnMut() -> T) -> (f64, T) {
+    let warm = f();
+    let mut secs: Vec<f64> = (0..repeats)
+        .map(|_| {
+            let t = Instant::now();
+            std::hint::black_box(f());
+            t.elapsed().as_secs_f64()
+        })
+        .collect();
+    secs.sort_by(f64::total_cmp);
+    (secs[secs.len() / 2], warm)
+}
+
+fn write(path: &Path, p: &PreparedScene, primary: &[Ray], shadow: &[(Ray, f64)]) -> std::io::Result<usize> {
+    let mut out = Vec::new();
+    let tris: Vec<[DVec3; 3]> = {
+        let mut view = view(p);
+        (0..p.header.counts.patches)
+            .filter_map(|i| view.patch(i).ok().map(|r| r.v))
+            .filter(|v| (v[1] - v[0]).cross(v[2] - v[0]) != DVec3::ZERO)
+            .collect()
+    };
+    for n in [tris.len(), primary.len(), shadow.len()] {
+        out.extend((n as u32).to_le_bytes());
+    }
+    let mut f32s = |xs: &[f64]| xs.iter().for_each(|x| out.extend((*x as f32).to_le_bytes()));
+    for v in &tris {
+        for c in v {
+            f32s(&c.to_array());
+        }
+    }
+    for (r, tmax) in primary.iter().map(|r| (r, f64::INFINITY)).chain(shadow.iter().map(|(r, t)| (r, *t))) {
+        f32s(&[r.origin.x, r.origin.y, r.origin.z, r.direction.x, r.direction.y, r.direction.z, tmax]);
+    }
+    std::fs::File::create(path)?.write_all(&out)?;
+    Ok(tris.len())
+}
+
+fn view(p: &PreparedScene) -> SceneView {
+    SceneView::new(p.header.clone(), BlockCache::new(Arc::new(MemStore::new(p.blocks.clone())), None))
+}
+
+fn main() -> ExitCode {
+    let run = || -> Result<(), String> {
+        let a = parse_args()?;
+        let mut scene = load(&a)?;
+        scene.settings.accel = Accel::Bvh;
+        let p = prepare(&scene).map_err(|e| e.to_string())?;
+        let (primary, shadow) = rays(&p, a.size, a.occlusion);
+        let triangles = write(&a.out, &p, &primary, &shadow).map_err(|e| format!("{}: {e}", a.out.display()))?;
+        let mut v = view(&p);
+        let mut scratch = TraceScratch::default();
+        let (tp, hits_p) = time(a.repeats, || {
+            primary
+                .iter()
+                .filter(|r| cast(&mut v, &mut scratch, r, 0.0, f64::INFINITY, NO_PATCH, false).ok().flatten().is_some())
+                .count()
+        });
+        let (to, hits_o) = time(a.repeats, || {
+            shadow.iter().filter(|(r, t)| occluded(&mut v, &mut scratch, r, 0.0, *t, NO_PATCH).unwrap_or(false)).count()
+        });
+        println!(
+            "magg triangles {triangles} primary {:.3} occlusion {:.3} hits {hits_p} {hits_o}",
+            primary.len() as f64 / tp / 1e6,
+            shadow.len() as f64 / to / 1e6
+        );
+        Ok(())
+    };
+    match run() {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("embree_rays: {e}");
+            ExitCode::FAILURE
+        }
+    }
+}

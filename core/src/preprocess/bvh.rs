@@ -1,0 +1,389 @@
+//! The bounding volume hierarchy over the patches: a binned SAH build (Wald 2007; pbrt-v4
+//! builds the same way), then node and leaf-triangle blocks ([`crate::blocks::bvh`]).
+//!
+//! The build splits the two halves of a large node on two threads (rayon), but every
+//! split depends only on the primitives of its node, in the order the partition left
+//! them, so the tree and its blocks are the same whatever the number of threads. Nodes
+//! are written in depth-first order (a node's first child follows it) and leaves in the
+//! same order, a leaf never straddling two triangle blocks.
+
+use super::mesh::Mesh;
+use crate::blocks::bvh::*;
+use crate::blocks::{Block, BLOCK_SIZE};
+use crate::geometry::Aabb;
+use crate::header::BvhHeader;
+use glam::DVec3;
+
+/// SAH bins per axis.
+const BINS: usize = 16;
+/// Nodes with at least this many primitives build their halves in parallel.
+const PARALLEL_MIN: usize = 4096;
+/// Below this depth the split is the SAH's; deeper (a pathological distribution), the
+/// node is halved at its median so that the depth stays logarithmic.
+const SAH_DEPTH: u32 = 48;
+
+/// A patch as the build sees it.
+#[derive(Clone, Copy)]
+struct Prim {
+    bounds: Aabb,
+    centroid: DVec3,
+    id: u32,
+}
+
+/// The built tree, before packing.
+enum Tree {
+    /// Patch ids, ascending.
+    Leaf(Vec<u32>),
+    /// Two children and their bounds.
+    Inner(Box<[(Aabb, Tree); 2]>),
+}
+
+/// The packed hierarchy.
+pub(super) struct Bvh {
+    /// Node blocks, then leaf-triangle blocks.
+    pub blocks: Vec<Box<Block>>,
+    /// Where they are.
+    pub header: BvhHeader,
+    /// Primitive binnings made (the build's work, for the cost model).
+    pub binnings: u64,
+}
+
+fn area(b: &Aabb) -> f64 {
+    let e = b.extent();
+    if e.min_element() < 0.0 {
+        0.0
+    } else {
+        2.0 * (e.x * e.y + e.y * e.z + e.z * e.x)
+    }
+}
+
+fn bounds_of(prims: &[Prim]) -> (Aabb, Aabb) {
+    prims.iter().fold((Aabb::EMPTY, Aabb::EMPTY), |(b, c), p| (b.union(p.bounds), c.grow(p.centroid)))
+}
+
+fn leaf(prims: &[Prim]) -> Tree {
+    let mut ids: Vec<u32> = prims.iter().map(|p| p.id).collect();
+    ids.sort_unstable();
+    Tree::Leaf(ids)
+}
+
+/// In-place partition: the primitives for which `left` holds first; returns their count.
+fn partition(prims: &mut [Prim], left: impl Fn(&Prim) -> bool) -> usize {
+    let mut mid = 0;
+    for i in 0..prims.len() {
+        if left(&prims[i]) {
+            prims.swap(i, mid);
+            mid += 1;
+        }
+    }
+    mid
+}
+
+/// The best SAH split of `prims`: (cost, axis, first bin of the right side), the
+/// lowest axis and bin among equal costs.
+fn best_split(prims: &[Prim], cb: &Aabb, node_area: f64) -> Option<(f64, usize, usize)> {
+    let mut best: Option<(f64, usize, usize)> = None;
+    for axis in 0..3 {
+        let (lo, ext) = (cb.min[axis], cb.extent()[axis]);
+        if !(ext > 0.0) {
+            continue;
+        }
+        let scale = BINS as f64 / ext;
+        let mut count = [0usize; BINS];
+        let mut bbox = [Aabb::EMPTY; BINS];
+        for p in prims {
+            let b = (((p.centroid[axis] - lo) * scale) as usize).min(BINS - 1);
+            count[b] += 1;
+            bbox[b] = bbox[b].union(p.bounds);
+        }
+        // Right-side sweep, then left-side sweep evaluating each split.
+        let mut right_area = [0.0; BINS];
+        let mut right_count = [0usize; BINS];
+        let (mut acc, mut n) = (Aabb::EMPTY, 0);
+        for b in (1..BINS).rev() {
+            acc = acc.union(bbox[b]);
+            n += count[b];
+            right_area[b] = area(&acc);
+            right_count[b] = n;
+        }
+        let (mut acc, mut n) = (Aabb::EMPTY, 0);
+        for split in 1..BINS {
+            acc = acc.union(bbox[split - 1]);
+            n += count[split - 1];
+            if n == 0 || right_count[split] == 0 {
+                continue;
+            }
+            let cost = 1.0 + (area(&acc) * n as f64 + right_area[split] * right_count[split] as f64) / node_area;
+            if best.is_none_or(|(c, _, _)| cost < c) {
+                best = Some((cost, axis, split));
+            }
+        }
+    }
+    best
+}
+
+/// Builds the subtree of `prims` (reordering them); returns it and the binnings made.
+fn build(prims: &mut [Prim], depth: u32) -> (Tree, u64) {
+    let n = prims.len();
+    if n <= 2 {
+        return (leaf(prims), 0);
+    }
+    let (bounds, cb) = bounds_of(prims);
+    let node_area = area(&bounds);
+    let split = if depth < SAH_DEPTH && node_area > 0.0 { best_split(prims, &cb, node_area) } else { None };
+    let mid = match split {
+        Some((cost, _, _)) if cost >= n as f64 && n <= BVH_MAX_LEAF as usize => return (leaf(prims), n as u64),
+        Some((_, axis, split)) => {
+            let (lo, scale) = (cb.min[axis], BINS as f64 / cb.extent()[axis]);
+            partition(prims, |p| ((((p.centroid[axis] - lo) * scale) as usize).min(BINS - 1)) < split)
+        }
+        None if n <= BVH_MAX_LEAF as usize => return (leaf(prims), 0),
+        None => {
+            // No SAH split (centroids all equal, or too deep): halve at the median of
+            // the longest axis of the centroids, ties by patch id.
+            let e = cb.extent();
+            let axis = if e.x >= e.y && e.x >= e.z {
+                0
+            } else if e.y >= e.z {
+                1
+            } else {
+                2
+            };
+            prims.sort_unstable_by(|a, b| a.centroid[axis].total_cmp(&b.centroid[axis]).then(a.id.cmp(&b.id)));
+            n / 2
+        }
+    };
+    let (l, r) = prims.split_at_mut(mid);
+    let ((lt, lo), (rt, ro)) = if n >= PARALLEL_MIN {
+        rayon::join(|| build(l, depth + 1), || build(r, depth + 1))
+    } else {
+        (build(l, depth + 1), build(r, depth + 1))
+    };
+    let (lb, rb) = (bounds_of(l).0, bounds_of(r).0);
+    (Tree::Inner(Box::new([(lb, lt), (rb, rt)])), n as u64 + lo + ro)
+}
+
+/// Writes nodes and leaves depth first.
+struct Packer<'a> {
+    mesh: &'a Mesh,
+    /// Outward padding of every box (absolute, from the scene's scale).
+    pad: f64,
+    nodes: Vec<BvhNode>,
+    triangle_blocks: Vec<Box<Block>>,
+    /// Records used in the last triangle block.
+    used: usize,
+    triangles: u32,
+}
+
+impl Packer<'_> {
+    fn child(&mut self, bounds: &Aabb, t: &Tree) -> BvhChild {
+        let (lo, hi) = (bounds.min - DVec3::splat(self.pad), bounds.max + DVec3::splat(self.pad));
+        let lo = [f32_down(lo.x), f32_down(lo.y), f32_down(lo.z)];
+        let hi = [f32_up(hi.x), f32_up(hi.y), f32_up(hi.z)];
+        match t {
+            Tree::Leaf(ids) => {
+                if self.triangle_blocks.is_empty() || self.used + ids.len() > BVH_TRIANGLES_PER_BLOCK {
+                    self.triangle_blocks.push(Box::new([0u8; BLOCK_SIZE]));
+                    self.used = 0;
+                }
+                let block = self.triangle_blocks.len() - 1;
+                let first = ((block as u32) << BVH_TRIANGLE_SHIFT) | self.used as u32;
+                for &id in ids {
+                    let rec = BvhTriangle { v: self.mesh.patches[id as usize], patch: id };
+                    rec.encode(&mut self.triangle_blocks[block], self.used * BVH_TRIANGLE_RECORD);
+                    self.used += 1;
+                }
+                self.triangles += ids.len() as u32;
+                BvhChild { lo, hi, index: first, count: ids.len() as u32 }
+            }
+            Tree::Inner(children) => BvhChild { lo, hi, index: self.inner(children), count: 0 },
+        }
+    }
+
+    /// Writes an inner node and its subtree; returns its index.
+    fn inner(&mut self, children: &[(Aabb, Tree); 2]) -> u32 {
+        let at = self.nodes.len();
+        self.nodes.push(BvhNode { children: [BvhChild::NONE; 2] });
+        let first = self.child(&children[0].0, &children[0].1);
+        let second = self.child(&children[1].0, &children[1].1);
+        self.nodes[at] = BvhNode { children: [first, second] };
+        at as u32
+    }
+}
+
+/// Builds the hierarchy of `mesh`'s patches and packs it. Patches of zero area are left
+/// out (as the grid lists them in no subspace: they can carry no light).
+pub(super) fn build_and_pack(mesh: &Mesh) -> Bvh {
+    let mut prims: Vec<Prim> = mesh
+        .patches
+        .iter()
+        .enumerate()
+        .filter(|(_, v)| (v[1] - v[0]).cross(v[2] - v[0]) != DVec3::ZERO)
+        .map(|(i, v)| {
+            let bounds = Aabb::of_triangle(v);
+            Prim { bounds, centroid: (bounds.min + bounds.max) * 0.5, id: i as u32 }
+        })
+        .collect();
+    let (all, _) = bounds_of(&prims);
+    let scale = if prims.is_empty() { 1.0 } else { all.min.abs().max(all.max.abs()).max_element().max(1e-30) };
+    let (tree, binnings) = build(&mut prims, 0);
+    let mut p = Packer {
+        mesh,
+        pad: scale * 2f64.powi(-20),
+        nodes: Vec::new(),
+        triangle_blocks: Vec::new(),
+        used: 0,
+        triangles: 0,
+    };
+    // The root record holds the whole tree's two children; a tree that is one leaf has
+    // it as the first child, and no patch at all leaves both empty.
+    match &tree {
+        Tree::Inner(children) => {
+            p.inner(children);
+        }
+        Tree::Leaf(ids) if ids.is_empty() => p.nodes.push(BvhNode { children: [BvhChild::NONE; 2] }),
+        Tree::Leaf(_) => {
+            p.nodes.push(BvhNode { children: [BvhChild::NONE; 2] });
+            let only = p.child(&all, &tree);
+            p.nodes[0].children[0] = only;
+        }
+    }
+    let mut blocks: Vec<Box<Block>> = p
+        .nodes
+        .chunks(BVH_NODES_PER_BLOCK)
+        .map(|chunk| {
+            let mut b = Box::new([0u8; BLOCK_SIZE]);
+            for (k, n) in chunk.iter().enumerate() {
+                n.encode(&mut b, k * BVH_NODE_RECORD);
+            }
+            b
+        })
+        .collect();
+    let header = BvhHeader {
+        nodes: p.nodes.len() as u32,
+        node_blocks: blocks.len() as u32,
+        triangles: p.triangles,
+        triangle_blocks: p.triangle_blocks.len() as u32,
+    };
+    blocks.append(&mut p.triangle_blocks);
+    Bvh { blocks, header, binnings }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::rng::Rng;
+
+    fn mesh(n: usize, seed: u64) -> Mesh {
+        let mut rng = Rng::from_words(&[seed, 0xb0]);
+        let mut u = move || rng.next_f64() * 2.0 - 1.0;
+        let mut patches = Vec::new();
+        for i in 0..n {
+            let c = DVec3::new(u(), u(), u()) * 10.0;
+            let mut corner = || c + DVec3::new(u(), u(), u()) * 0.5;
+            patches.push([corner(), corner(), corner()]);
+            if i % 97 == 0 {
+                // Coincident copies and a zero-area sliver.
+                patches.push(patches[patches.len() - 1]);
+                patches.push([c, c + DVec3::X, c + 2.0 * DVec3::X]);
+            }
+        }
+        Mesh {
+            patches,
+            materials: Vec::new(),
+            subdivisions: Vec::new(),
+            first_element: Vec::new(),
+            elements: Vec::new(),
+            vertex_positions: Vec::new(),
+        }
+    }
+
+    fn contains(outer: &BvhChild, inner_lo: [f32; 3], inner_hi: [f32; 3]) -> bool {
+        (0..3).all(|a| outer.lo[a] <= inner_lo[a] && inner_hi[a] <= outer.hi[a])
+    }
+
+    /// Walks the packed tree from the root; returns the patch ids found in its leaves
+    /// and the number of node records visited, checking bounds and packing on the way.
+    fn walk(bvh: &Bvh) -> (Vec<u32>, u32) {
+        let h = bvh.header;
+        let node = |n: u32| {
+            let b = &bvh.blocks[(n >> BVH_NODE_SHIFT) as usize];
+            BvhNode::decode(b, (n & 31) as usize * BVH_NODE_RECORD)
+        };
+        let (mut ids, mut visited) = (Vec::new(), 0);
+        let mut stack = vec![(0u32, None::<BvhChild>)];
+        while let Some((n, parent)) = stack.pop() {
+            assert!(n < h.nodes, "node {n} of {}", h.nodes);
+            visited += 1;
+            for c in node(n).children {
+                if c.index == BVH_NO_CHILD {
+                    continue;
+                }
+                if let Some(p) = parent {
+                    assert!(contains(&p, c.lo, c.hi), "child box outside its parent's");
+                }
+                if c.count == 0 {
+                    stack.push((c.index, Some(c)));
+                    continue;
+                }
+                assert!(c.count <= BVH_MAX_LEAF, "leaf of {}", c.count);
+                let (block, slot) = ((c.index >> BVH_TRIANGLE_SHIFT) as usize, (c.index & 31) as usize);
+                assert!(slot + c.count as usize <= BVH_TRIANGLES_PER_BLOCK, "leaf straddles a block");
+                assert!(block < h.triangle_blocks as usize);
+                let b = &bvh.blocks[h.node_blocks as usize + block];
+                for k in 0..c.count as usize {
+                    let t = BvhTriangle::decode(&b[..], (slot + k) * BVH_TRIANGLE_RECORD);
+                    for p in t.v {
+                        let q = [p.x as f32, p.y as f32, p.z as f32];
+                        assert!(contains(&c, q, q), "corner {p} outside its leaf's box");
+                    }
+                    ids.push(t.patch);
+                }
+            }
+        }
+        (ids, visited)
+    }
+
+    #[test]
+    fn every_patch_of_non_zero_area_is_in_exactly_one_leaf() {
+        for n in [0, 1, 2, 7, 300, 5000] {
+            let m = mesh(n, n as u64);
+            let bvh = build_and_pack(&m);
+            let (mut ids, visited) = walk(&bvh);
+            assert_eq!(visited, bvh.header.nodes, "{n}: every node record reachable once");
+            ids.sort_unstable();
+            let want: Vec<u32> = (0..m.patches.len() as u32)
+                .filter(|&i| {
+                    let v = m.patches[i as usize];
+                    (v[1] - v[0]).cross(v[2] - v[0]) != DVec3::ZERO
+                })
+                .collect();
+            assert_eq!(ids, want, "{n}");
+            assert_eq!(bvh.header.triangles as usize, want.len());
+        }
+    }
+
+    #[test]
+    fn blocks_are_2_kb_and_counted_in_the_header() {
+        let bvh = build_and_pack(&mesh(3000, 5));
+        let h = bvh.header;
+        assert_eq!(bvh.blocks.len() as u32, h.node_blocks + h.triangle_blocks);
+        assert_eq!(h.node_blocks as usize, (h.nodes as usize).div_ceil(BVH_NODES_PER_BLOCK));
+        assert!(bvh.blocks.iter().all(|b| b.len() == BLOCK_SIZE));
+        // Leaves pack densely: at most one block in 4 wasted on leaves that do not fit.
+        assert!((h.triangle_blocks as usize) < (h.triangles as usize).div_ceil(BVH_TRIANGLES_PER_BLOCK) * 5 / 4 + 1);
+    }
+
+    #[test]
+    fn the_tree_does_not_depend_on_the_thread_count() {
+        let m = mesh(20_000, 3);
+        let on = |threads: usize| {
+            let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+            pool.install(|| build_and_pack(&m))
+        };
+        let (one, four) = (on(1), on(4));
+        assert_eq!(one.header, four.header);
+        assert!(one.blocks == four.blocks, "blocks differ between 1 and 4 threads");
+        assert_eq!(one.binnings, four.binnings);
+    }
+}

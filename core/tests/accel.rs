@@ -1,0 +1,220 @@
+//! The BVH and the uniform grid give the same hits, bit for bit: against a brute-force
+//! nearest hit over random rays (with edge, vertex and tie hits), and on every shipped
+//! scene, whose frames and element energies must be identical with either structure.
+
+mod common;
+#[path = "common/hard.rs"]
+mod hard;
+use common::*;
+use glam::DVec3;
+use hard::random_scene;
+use magg_core::geometry::{intersect_watertight, Ray};
+use magg_core::preprocess::{prepare, PreparedScene};
+use magg_core::render::{render, RenderOptions};
+use magg_core::rng::Rng;
+use magg_core::scene::{parse_scene_with_path, Accel, Scene};
+use magg_core::trace::{cast, Hit, TraceScratch, NO_PATCH};
+use magg_core::view::SceneView;
+use std::path::{Path, PathBuf};
+
+/// The contract of `trace::cast`, by brute force: among the patches of non-zero area
+/// other than `exclude`, hit with `tmin < t <= tmax`, the nearest, ties to the lower id.
+fn brute_force(view: &mut SceneView, ray: &Ray, tmin: f64, tmax: f64, exclude: u32) -> Option<Hit> {
+    let up = if tmax.is_finite() { next_up(tmax) } else { tmax };
+    let mut best: Option<Hit> = None;
+    for pid in 0..view.header.counts.patches {
+        let v = view.patch(pid).expect("patch").v;
+        if pid == exclude || (v[1] - v[0]).cross(v[2] - v[0]) == DVec3::ZERO {
+            continue;
+        }
+        if let Some(h) = intersect_watertight(ray, &v, tmin, up) {
+            if best.is_none_or(|b| h.t < b.t) {
+                best = Some(Hit { t: h.t, patch: pid, bary: h.bary });
+            }
+        }
+    }
+    best
+}
+
+fn next_up(x: f64) -> f64 {
+    if x > 0.0 {
+        f64::from_bits(x.to_bits() + 1)
+    } else if x == 0.0 {
+        f64::from_bits(1)
+    } else {
+        f64::from_bits(x.to_bits() - 1)
+    }
+}
+
+fn with_accel(s: &Scene, accel: Accel) -> PreparedScene {
+    let mut s = s.clone();
+    s.settings.accel = accel;
+    prepare(&s).expect("prepare")
+}
+
+/// A flat 8 x 8 sheet of quads (two triangles each, shared edges and vertices), a
+/// second sheet exactly on top of part of it (coincident patches: ties), random
+/// triangles, and an enclosing box.
+fn tie_scene(seed: u64) -> Scene {
+    let mut s = random_scene(seed, 300, [5, 4, 6]);
+    for i in 0..8 {
+        for j in 0..8 {
+            let (x, z) = (-1.0 + 0.25 * i as f64, -1.0 + 0.25 * j as f64);
+            s.patches.extend(quad(
+                v(x, 0.1, z),
+                v(x + 0.25, 0.1, z),
+                v(x + 0.25, 0.1, z + 0.25),
+                v(x, 0.1, z + 0.25),
+                0,
+                1,
+            ));
+        }
+    }
+    for i in 0..3 {
+        let x = -1.0 + 0.25 * i as f64;
+        s.patches.extend(quad(
+            v(x, 0.1, -1.0),
+            v(x + 0.25, 0.1, -1.0),
+            v(x + 0.25, 0.1, -0.75),
+            v(x, 0.1, -0.75),
+            0,
+            1,
+        ));
+    }
+    // A zero-area patch is never hit.
+    s.patches.push(tri(v(0.0, 0.5, 0.0), v(0.5, 0.5, 0.0), v(1.0, 0.5, 0.0), 0, 1));
+    s
+}
+
+#[test]
+fn bvh_and_grid_agree_with_brute_force_on_random_rays() {
+    for seed in 1..=3u64 {
+        let s = tie_scene(seed);
+        let (bvh, grid) = (with_accel(&s, Accel::Bvh), with_accel(&s, Accel::Grid));
+        assert!(bvh.header.bvh.nodes > 1 && grid.header.bvh.nodes == 0);
+        let (mut vb, mut vg) = (view_of(&bvh), view_of(&grid));
+        // Every vertex of the sheet is a target: rays through shared vertices and edges.
+        let mut targets: Vec<DVec3> = Vec::new();
+        for i in 0..=8 {
+            for j in 0..=8 {
+                targets.push(v(-1.0 + 0.25 * i as f64, 0.1, -1.0 + 0.25 * j as f64));
+                targets.push(v(-1.0 + 0.25 * i as f64 + 0.125, 0.1, -1.0 + 0.25 * j as f64));
+            }
+        }
+        let mut rng = Rng::from_words(&[seed, 0xacce1]);
+        let mut u = move || rng.next_f64() * 2.0 - 1.0;
+        let (mut sb, mut sg) = (TraceScratch::default(), TraceScratch::default());
+        let mut hits = 0;
+        for k in 0..3000 {
+            let o = v(u() * 1.9, u() * 1.9, u() * 1.9);
+            let target = if k % 2 == 0 { targets[k / 2 % targets.len()] } else { v(u(), u(), u()) * 1.5 };
+            let Some(ray) = (target != o).then(|| Ray::new(o, (target - o).normalize())) else { continue };
+            let (tmin, tmax) = match k % 4 {
+                0 => (0.0, f64::INFINITY),
+                1 => (1e-9, (target - o).length()),
+                2 => (0.3, 2.0),
+                _ => (0.0, (target - o).length() * 0.5),
+            };
+            let exclude = if k % 5 == 0 { (k as u32 * 7) % s.patches.len() as u32 } else { NO_PATCH };
+            let want = brute_force(&mut vb, &ray, tmin, tmax, exclude);
+            let got_b = cast(&mut vb, &mut sb, &ray, tmin, tmax, exclude, false).unwrap();
+            let got_g = cast(&mut vg, &mut sg, &ray, tmin, tmax, exclude, false).unwrap();
+            assert_eq!(got_b, want, "BVH, seed {seed}, ray {k}: {ray:?} [{tmin}, {tmax}] exclude {exclude}");
+            assert_eq!(got_g, want, "grid, seed {seed}, ray {k}: {ray:?} [{tmin}, {tmax}] exclude {exclude}");
+            let any = cast(&mut vb, &mut sb, &ray, tmin, tmax, exclude, true).unwrap();
+            assert_eq!(any.is_some(), want.is_some(), "BVH occlusion, seed {seed}, ray {k}");
+            hits += want.is_some() as u32;
+        }
+        assert!(hits > 1000, "too few hits to mean anything: {hits}");
+    }
+}
+
+#[test]
+fn a_tie_goes_to_the_lower_patch_id_in_the_bvh() {
+    // Two coincident triangles, the higher id first in the file: the lower id wins.
+    let mut s = scene(
+        vec![tri(v(-1.0, 0.0, -1.0), v(1.0, 0.0, -1.0), v(0.0, 0.0, 1.0), 0, 1)],
+        vec![material("white", 0.5, 0.0, 0.0)],
+        vec![light(v(0.0, 1.0, 0.0), 1.0)],
+    );
+    for k in 0..40 {
+        let z = -0.9 + 0.05 * k as f64;
+        s.patches.push(tri(v(-1.0, 0.0, z), v(1.0, 0.0, z), v(0.0, 0.0, z + 0.05), 0, 1));
+    }
+    s.patches.push(tri(v(-1.0, 0.0, -1.0), v(1.0, 0.0, -1.0), v(0.0, 0.0, 1.0), 0, 1));
+    let p = with_accel(&s, Accel::Bvh);
+    let mut view = view_of(&p);
+    let last = s.patches.len() as u32 - 1;
+    let ray = Ray::new(v(0.0, 1.0, -0.5), v(0.0, -1.0, 0.0));
+    let hit = cast(&mut view, &mut TraceScratch::default(), &ray, 0.0, f64::INFINITY, NO_PATCH, false).unwrap();
+    assert_eq!(hit.map(|h| h.patch), Some(0));
+    assert_eq!(hit, brute_force(&mut view, &ray, 0.0, f64::INFINITY, NO_PATCH));
+    // Without patch 0, the lowest of the others at the same distance.
+    let hit = cast(&mut view, &mut TraceScratch::default(), &ray, 0.0, f64::INFINITY, 0, false).unwrap().unwrap();
+    assert!(hit.patch > 0 && hit.patch < last, "{hit:?}");
+    assert_eq!(Some(hit), brute_force(&mut view, &ray, 0.0, f64::INFINITY, 0));
+}
+
+fn scenes_dir() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("..").join("scenes")
+}
+
+/// Every shipped scene: `scenes/*.toml` and `scenes/paths/*.toml`, sorted.
+fn shipped_scenes() -> Vec<PathBuf> {
+    let mut v = Vec::new();
+    for dir in [scenes_dir(), scenes_dir().join("paths")] {
+        v.extend(
+            std::fs::read_dir(&dir)
+                .unwrap()
+                .map(|e| e.unwrap().path())
+                .filter(|p| p.extension().is_some_and(|e| e == "toml")),
+        );
+    }
+    v.sort();
+    v
+}
+
+#[test]
+fn every_shipped_scene_renders_the_same_bits_with_the_grid_and_the_bvh() {
+    let scenes = shipped_scenes();
+    assert!(scenes.len() >= 7, "expected the shipped scenes, found {scenes:?}");
+    for path in scenes {
+        let text = std::fs::read_to_string(&path).unwrap();
+        let label = path.display().to_string();
+        let dir = path.parent().unwrap();
+        let (mut s, _) = parse_scene_with_path(&label, &text, dir, &|p: &Path| std::fs::read_to_string(p))
+            .unwrap_or_else(|e| panic!("{e}"));
+        s.settings.width = 48;
+        s.settings.height = 48;
+        s.settings.pixel_samples = 1;
+        s.settings.light_rays = s.settings.light_rays.min(4);
+        let opts =
+            RenderOptions { nodes: 2, forks: 3, cache_blocks: magg_core::blocks::CacheSize::Unlimited, subscreen: 16 };
+        let mut outs = Vec::new();
+        for accel in [Accel::Grid, Accel::Bvh] {
+            let p = with_accel(&s, accel);
+            let o = render(&p, &opts, &magg_core::progress::NoProgress).unwrap();
+            assert!(o.stats.light.reached.0[0] > 0.0, "{label} ({accel:?}): no light reached an element");
+            outs.push(o);
+        }
+        assert_eq!(outs[0].element_flux, outs[1].element_flux, "{label}: element energies differ");
+        assert_eq!(outs[0].vertex_irradiance, outs[1].vertex_irradiance, "{label}: vertex irradiance differs");
+        assert_eq!(outs[0].frame, outs[1].frame, "{label}: frames differ");
+    }
+}
+
+#[test]
+fn a_bounded_cache_reads_bvh_blocks_like_any_other() {
+    let s = random_scene(9, 400, [4, 4, 4]);
+    let p = with_accel(&s, Accel::Bvh);
+    let unlimited = run(&p, 1, None);
+    let bounded = run(&p, 1, Some(8));
+    assert_eq!(unlimited.frame, bounded.frame);
+    assert_eq!(unlimited.element_flux, bounded.element_flux);
+    assert!(bounded.stats.cache.misses > unlimited.stats.cache.misses);
+    // The grid of a BVH scene is one empty subspace: no subspace block at all.
+    assert_eq!((p.header.grid.dims, p.header.counts.subspace_blocks), ([1, 1, 1], 0));
+    assert_eq!(p.header.counts.bvh_blocks, p.header.bvh.node_blocks + p.header.bvh.triangle_blocks);
+    let g = with_accel(&s, Accel::Grid);
+    assert_eq!((g.header.counts.bvh_blocks, g.header.grid.dims), (0, [4, 4, 4]));
+}

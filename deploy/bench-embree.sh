@@ -1,0 +1,60 @@
+#!/usr/bin/env bash
+# magg's ray kernel against Intel Embree 3 (Debian's libembree-dev), one thread, the same
+# triangles and the same rays: primary rays (one per pixel centre, nearest hit) and
+# occlusion rays (light to element centroids). Prints one markdown table of Mrays/s and
+# the ratio magg / Embree, the median over ROUNDS interleaved rounds (each the median of
+# REPEATS timed runs). docs/PERFORMANCE.md records it.
+#
+#   deploy/bench-embree.sh                      # large, cornell, magg-paper, 50k random
+#   SIZE=200 ROUNDS=3 deploy/bench-embree.sh scenes/cornell.toml
+#
+# Installs libembree-dev with apt-get when missing (as root); where there is no apt, says
+# so and exits 0 without measuring.
+set -euo pipefail
+root=$(cd "$(dirname "$0")/.." && pwd)
+size=${SIZE:-300}
+rounds=${ROUNDS:-3}
+repeats=${REPEATS:-3}
+occ=${OCCLUSION:-100000}
+targets=("$@")
+[ ${#targets[@]} -gt 0 ] || targets=(scenes/large.toml scenes/cornell.toml scenes/magg-paper.toml random:50000)
+
+if [ ! -f /usr/include/embree3/rtcore.h ]; then
+  if ! command -v apt-get >/dev/null; then
+    echo "bench-embree: skipped: Embree 3 headers not found and no apt-get to install libembree-dev" >&2
+    exit 0
+  fi
+  echo "bench-embree: installing libembree-dev" >&2
+  sudo=""; [ "$(id -u)" -eq 0 ] || sudo=sudo
+  $sudo apt-get update -qq && DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq libembree-dev >/dev/null
+fi
+tmp=$(mktemp -d); trap 'rm -rf "$tmp"' EXIT
+cc -O2 -o "$tmp/harness" "$root/deploy/embree/harness.c" -lembree3 -lm
+(cd "$root" && cargo build --release -q -p magg-core --example embree_rays)
+rays=${CARGO_TARGET_DIR:-$root/target}/release/examples/embree_rays
+
+echo "| scene | triangles | magg primary | Embree primary | ratio | magg occlusion | Embree occlusion | ratio |"
+echo "|---|---:|---:|---:|---:|---:|---:|---:|"
+for t in "${targets[@]}"; do
+  case $t in
+    random:*) src=(--random "${t#random:}"); name="random ${t#random:}" ;;
+    *) src=("$root/$t"); name=$(basename "$t" .toml) ;;
+  esac
+  : >"$tmp/runs"
+  for r in $(seq "$rounds"); do
+    "$rays" "${src[@]}" --out "$tmp/rays.bin" --size "$size" --occlusion "$occ" --repeats "$repeats" >>"$tmp/runs"
+    "$tmp/harness" "$tmp/rays.bin" "$repeats" >>"$tmp/runs"
+  done
+  python3 - "$name" "$tmp/runs" <<'PY'
+import statistics, sys
+name, path = sys.argv[1], sys.argv[2]
+rows = {"magg": [], "embree": []}
+for line in open(path):
+    w = line.split()
+    rows[w[0]].append((int(w[2]), float(w[4]), float(w[6])))
+med = lambda who, k: statistics.median(r[k] for r in rows[who])
+tri = rows["magg"][0][0]
+mp, ep, mo, eo = med("magg", 1), med("embree", 1), med("magg", 2), med("embree", 2)
+print(f"| {name} | {tri} | {mp:.2f} | {ep:.2f} | {mp / ep:.2f} | {mo:.2f} | {eo:.2f} | {mo / eo:.2f} |")
+PY
+done
