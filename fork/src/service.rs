@@ -317,7 +317,7 @@ impl Fork for ForkService {
     async fn replay(&self, req: Request<v1::ReplayRequest>) -> Result<Response<v1::ReplayReply>, Status> {
         let shard = self.shard()?;
         let r = req.into_inner();
-        Ok(Response::new(v1::ReplayReply { pairs: shard.replay(r.epoch, r.lost_fork) }))
+        Ok(Response::new(v1::ReplayReply { pairs: shard.replay(r.epoch, r.lost_fork)? }))
     }
 
     async fn get_energies(

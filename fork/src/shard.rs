@@ -36,6 +36,9 @@ pub const MAX_DEPOSIT_PAIRS: usize = 65_536;
 pub const MAX_DEPOSITS: usize = 1 << 20;
 /// Longest fork address accepted.
 pub const MAX_ADDR_LEN: usize = 256;
+/// Largest step of the replay epoch one `Replay` may take (epochs grow by one per lost
+/// fork and rebuild).
+pub const MAX_EPOCH_STEP: u64 = 1 << 16;
 /// Memory a fork may give one shard's pair bookkeeping unless told otherwise
 /// (`magg-fork --max-memory-mb`).
 pub const DEFAULT_MAX_MEMORY_MB: u64 = 4096;
@@ -316,10 +319,22 @@ impl Shard {
     /// every complete pair that deposited on `lost`; the others stay done. Deposits already
     /// applied here stay (the re-run ones are duplicates). Returns the pairs queued again.
     /// An epoch not above the current one changes nothing (a repeated call).
-    pub fn replay(&self, epoch: u64, lost: Option<u32>) -> u64 {
+    pub fn replay(&self, epoch: u64, lost: Option<u32>) -> Result<u64, ForkError> {
+        let forks = self.place.forks();
+        if let Some(l) = lost.filter(|&l| l >= forks || l == self.place.index) {
+            return Err(ForkError::BadRequest(format!("lost_fork {l}: not another of the {forks} forks")));
+        }
         let mut work = lock(&self.work);
+        let now = work.ledger.epoch();
+        // Epochs grow by one per lost fork: a jump past every fork losing its energy many
+        // times over is not the host's.
+        if epoch > now.saturating_add(MAX_EPOCH_STEP) {
+            return Err(ForkError::BadRequest(format!(
+                "replay epoch {epoch}: this fork is at epoch {now}, a jump of over {MAX_EPOCH_STEP}"
+            )));
+        }
         let Work { pairs, ledger } = &mut *work;
-        let Some(again) = ledger.replay(epoch, lost, |k| self.pair_of_local(k)) else { return 0 };
+        let Some(again) = ledger.replay(epoch, lost, |k| self.pair_of_local(k)) else { return Ok(0) };
         let before = pairs.remaining();
         pairs.requeue(again.into_iter().map(|k| self.pair_of_local(k)));
         pairs.recall();
@@ -331,7 +346,7 @@ impl Shard {
             pairs = queued,
             "replay: pairs that deposited on the lost fork, or were out with nodes, queued again"
         );
-        queued
+        Ok(queued)
     }
 
     /// Gives back to the queue the pairs of every node silent for longer than the lease

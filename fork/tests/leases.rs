@@ -8,7 +8,7 @@ mod common;
 use common::load_request;
 use magg_fork::service::{deposit, load_shard};
 use magg_fork::shard::DEFAULT_MAX_MEMORY_MB as MB;
-use magg_fork::Shard;
+use magg_fork::{ForkError, Shard};
 use magg_proto::deposits::DepositWriter;
 use magg_proto::v1;
 use std::time::Duration;
@@ -55,7 +55,7 @@ fn a_replay_queues_every_pair_again_and_ignores_older_completions() {
     let s = shard(0);
     let (pairs, epoch) = s.take_own_pairs(4, 1);
     assert_eq!(epoch, 0);
-    assert!(s.replay(1, None) > 0);
+    assert!(s.replay(1, None).unwrap() > 0);
     let done = |p: u64, epoch: u64| completions(&[(p, vec![])], epoch);
     deposit(&s, &done(pairs[0], 0)).unwrap();
     assert_eq!(s.energies(true).pairs_done, 0, "a completion from before the replay counted");
@@ -63,7 +63,7 @@ fn a_replay_queues_every_pair_again_and_ignores_older_completions() {
     assert_eq!((again, epoch), (pairs.clone(), 1));
     deposit(&s, &done(pairs[0], 1)).unwrap();
     assert_eq!(s.energies(true).pairs_done, 1);
-    assert_eq!(s.replay(1, None), 0, "a repeated replay changes nothing");
+    assert_eq!(s.replay(1, None).unwrap(), 0, "a repeated replay changes nothing");
 }
 
 #[test]
@@ -76,13 +76,25 @@ fn a_replay_for_a_lost_fork_queues_exactly_the_pairs_that_deposited_on_it() {
         pairs[..5].iter().enumerate().map(|(i, &p)| (p, if i % 2 == 0 { vec![1] } else { vec![] })).collect();
     deposit(&s, &completions(&done, 0)).unwrap();
     assert_eq!(s.energies(true).pairs_done, 5);
-    assert_eq!(s.replay(1, Some(1)), 4, "three pairs on the lost fork and one out with a node");
+    assert_eq!(s.replay(1, Some(1)).unwrap(), 4, "three pairs on the lost fork and one out with a node");
     assert_eq!(s.energies(true).pairs_done, 2, "the pairs that never touched fork 1 stay done");
     let (again, epoch) = s.take_own_pairs(64, 2);
     let mut want = vec![pairs[0], pairs[2], pairs[4], pairs[5]];
     want.sort_unstable();
     assert_eq!((again[..4].to_vec(), epoch), (want, 1), "the queued-again pairs come first");
     assert!(!again.contains(&pairs[1]) && !again.contains(&pairs[3]));
+}
+
+#[test]
+fn replays_naming_no_other_fork_or_jumping_epochs_are_refused() {
+    let s = shard(0);
+    let forks = s.placement().forks();
+    for lost in [0, forks, u32::MAX] {
+        assert!(matches!(s.replay(1, Some(lost)), Err(ForkError::BadRequest(_))), "lost fork {lost}");
+    }
+    assert!(matches!(s.replay(u64::MAX, Some(1)), Err(ForkError::BadRequest(_))));
+    assert_eq!(s.energies(true).pairs_done, 0);
+    assert!(s.replay(1, Some(1)).is_ok());
 }
 
 #[test]

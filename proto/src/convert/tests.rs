@@ -118,30 +118,45 @@ fn inconsistent_layouts_are_refused() {
     assert_eq!(field_of(&e), "counts.elements");
 }
 
+/// The paper's scene traced through a BVH (the file asks for the paper's grid).
+fn bvh_header() -> Arc<SceneHeader> {
+    let text = include_str!("../../../scenes/magg-paper.toml");
+    let text = text.replace("accel = \"grid\"", "accel = \"bvh\"");
+    let read = |p: &std::path::Path| std::fs::read_to_string(p);
+    let scene = magg_core::scene::parse_scene_str("magg-paper.toml", &text, "scenes".as_ref(), &read).unwrap();
+    magg_core::preprocess::prepare(&scene).unwrap().header
+}
+
 #[test]
 fn the_acceleration_structure_and_its_blocks_must_agree() {
-    let h = paper_header();
+    let h = bvh_header();
     let wire = v1::SceneHeader::from(&*h);
     assert_eq!(wire.settings.as_ref().unwrap().accel, v1::Accel::Bvh as i32);
     assert!(h.bvh.nodes > 0 && h.counts.bvh_blocks > 0);
+    assert_eq!(SceneHeader::try_from(wire).unwrap(), as_received(&h));
     // The grid's header goes and comes back too.
-    let text = include_str!("../../../scenes/magg-paper.toml").replace("[render]", "[render]\naccel = \"grid\"");
-    let read = |p: &std::path::Path| std::fs::read_to_string(p);
-    let scene = magg_core::scene::parse_scene_str("magg-paper.toml", &text, "scenes".as_ref(), &read).unwrap();
-    let grid = magg_core::preprocess::prepare(&scene).unwrap().header;
+    let grid = paper_header();
+    assert_eq!(grid.settings.accel, magg_core::scene::Accel::Grid);
     assert!(grid.counts.subspace_blocks > 0 && grid.bvh == Default::default());
     let back = SceneHeader::try_from(v1::SceneHeader::from(&*grid)).unwrap();
     assert_eq!(back, as_received(&grid));
     assert_eq!(field_of(&refused(|h| h.settings.as_mut().unwrap().accel = 7)), "settings.accel");
     // A BVH scene announced as a grid one (and the reverse) is refused.
-    let e = refused(|h| h.settings.as_mut().unwrap().accel = v1::Accel::Grid as i32);
+    let refused_bvh = |f: &dyn Fn(&mut v1::SceneHeader)| {
+        let mut wire = v1::SceneHeader::from(&*h);
+        f(&mut wire);
+        SceneHeader::try_from(wire).expect_err("a bad header was accepted")
+    };
+    let e = refused_bvh(&|h| h.settings.as_mut().unwrap().accel = v1::Accel::Grid as i32);
     assert_eq!(field_of(&e), "bvh.nodes");
-    assert_eq!(field_of(&refused(|h| h.bvh = None)), "counts.bvh_blocks");
-    assert_eq!(field_of(&refused(|h| h.bvh.as_mut().unwrap().nodes += 32)), "bvh.node_blocks");
-    let e = refused(|h| h.bvh.as_mut().unwrap().triangles = h.counts.as_ref().unwrap().patches + 1);
+    assert_eq!(field_of(&refused_bvh(&|h| h.bvh = None)), "counts.bvh_blocks");
+    assert_eq!(field_of(&refused_bvh(&|h| h.bvh.as_mut().unwrap().nodes += 32)), "bvh.node_blocks");
+    let e = refused_bvh(&|h| h.bvh.as_mut().unwrap().triangles = h.counts.as_ref().unwrap().patches + 1);
     assert_eq!(field_of(&e), "bvh.triangles");
-    assert_eq!(field_of(&refused(|h| h.bvh.as_mut().unwrap().triangles = 0)), "bvh.triangle_blocks");
-    assert_eq!(field_of(&refused(|h| h.layout.as_mut().unwrap().bvh_base += 1)), "counts.subspace_blocks");
+    assert_eq!(field_of(&refused_bvh(&|h| h.bvh.as_mut().unwrap().triangles = 0)), "bvh.triangle_blocks");
+    assert_eq!(field_of(&refused_bvh(&|h| h.layout.as_mut().unwrap().bvh_base += 1)), "counts.subspace_blocks");
+    let e = refused(|h| h.settings.as_mut().unwrap().accel = v1::Accel::Bvh as i32);
+    assert!(!field_of(&e).is_empty(), "a grid scene announced as a BVH one was accepted");
 }
 
 #[test]
