@@ -112,6 +112,25 @@ pub struct Shard {
     left_elsewhere: Mutex<Vec<u64>>,
     /// How long a node may stay silent before its pairs go back to the queue.
     lease: Duration,
+    /// Per light, the most fixed-point energy (r, g, b) one pair of it may deposit.
+    flux_bound: Vec<[i128; 3]>,
+}
+
+/// The most fixed-point energy per channel that one pair of each light may deposit in
+/// all: the light's whole flux, 4 pi I, once for its first hit and once for each bounce
+/// after it (every surface reflects at most what reaches it), plus a quantum of
+/// rounding for every ray at every bounce. A node that deposits more is not tracing
+/// this scene.
+fn flux_bounds(header: &SceneHeader) -> Vec<[i128; 3]> {
+    let s = &header.settings;
+    let hits = 1.0 + s.lrt_depth as f64 + s.diffuse_bounces as f64;
+    let rounding = s.light_rays as f64 * (hits + 1.0);
+    let q = header.energy_quantum;
+    header
+        .lights
+        .iter()
+        .map(|l| l.intensity.0.map(|i| (4.0 * std::f64::consts::PI * i * hits / q + rounding).ceil().min(1e36) as i128))
+        .collect()
 }
 
 impl Shard {
@@ -164,7 +183,9 @@ impl Shard {
             pairs: PairBook::new(PairQueue::new(lights, owned.len(), header.plan.lrt)),
             ledger: Ledger::new(index as usize, pair_count, own_pairs, forks, owned.len(), load.epoch),
         };
+        let flux_bound = flux_bounds(&header);
         let shard = Shard {
+            flux_bound,
             store: BlockStore::new(index, f, header.layout.total),
             header,
             owned,
@@ -452,6 +473,7 @@ impl Shard {
             for &e in p.elements {
                 slots.push(self.owned_index(e)?);
             }
+            self.check_flux(p.pair / elements, &p)?;
         }
         let (mut applied, mut duplicates) = (0, 0);
         let mut slots = slots.into_iter();
@@ -471,6 +493,30 @@ impl Shard {
             }
         }
         Ok((applied, duplicates))
+    }
+
+    /// Refuses a pair's deposits that no tracing of this scene makes: a negative value, or
+    /// more in all than its light can give ([`flux_bounds`]).
+    fn check_flux(&self, light: u64, p: &PairDeposit<'_>) -> Result<(), ForkError> {
+        let Some(bound) = self.flux_bound.get(light as usize) else {
+            return Err(ForkError::PairOutOfRange { pair: p.pair, pairs: self.pair_count() });
+        };
+        let mut sum = [0i128; 3];
+        for d in p.energy.chunks_exact(3) {
+            for c in 0..3 {
+                if d[c] < 0 {
+                    return Err(ForkError::BadRequest(format!("pair {}: a negative deposit ({})", p.pair, d[c])));
+                }
+                sum[c] += d[c] as i128;
+            }
+        }
+        if let Some(c) = (0..3).find(|&c| sum[c] > bound[c]) {
+            return Err(ForkError::BadRequest(format!(
+                "pair {} deposits {} quanta in channel {c}, more than its light can give ({})",
+                p.pair, sum[c], bound[c]
+            )));
+        }
+        Ok(())
     }
 
     /// Energies of every owned element (ascending id; none when `summary_only`), pair

@@ -157,3 +157,25 @@ fn a_shard_whose_pairs_do_not_fit_is_refused_with_resource_exhausted_before_any_
     }
     assert!(load_shard(req, Default::default(), 64).is_ok(), "refused within the limit");
 }
+
+#[test]
+fn deposits_no_tracing_of_the_scene_makes_are_refused() {
+    let s = shard(0);
+    let h = s.header();
+    let forks = s.placement().forks();
+    let e = (0..h.counts.elements)
+        .find(|&e| magg_core::blocks::fork_of_block(h.layout.element_slot(e).0, forks) == 0)
+        .expect("fork 0 owns an element");
+    let one = |rgb: [i64; 3]| {
+        let mut w = DepositWriter::new(false, 0);
+        w.pair(e as u64); // light 0, element e
+        w.deposit(e, rgb);
+        w.finish()
+    };
+    for bad in [[-1, 0, 0], [0, 0, i64::MAX / 8]] {
+        let r = deposit(&s, &one(bad));
+        assert!(matches!(r, Err(ForkError::BadRequest(_))), "{bad:?}: {r:?}");
+    }
+    assert_eq!(s.energies(false).energy.iter().flatten().sum::<i64>(), 0, "a refused deposit changed the energy");
+    deposit(&s, &one([5, 6, 7])).unwrap();
+}
