@@ -159,8 +159,14 @@ pub fn run(cfg: RenderConfig, files: &scene_file::SceneFiles) -> anyhow::Result<
             None => format!("LRT {:.2}s", s.lrt_s),
         };
         let frames = if n_frames > 1 { format!(" ({n_frames} frames)") } else { String::new() };
+        // Under an emulated machine the stage times are the model's, not this machine's.
+        let clock = if cfg.profile.is_native() {
+            String::new()
+        } else {
+            format!(" (modelled seconds of the {} machine)", cfg.profile.name)
+        };
         eprintln!(
-            "{}: {}x{}, {} elements, {} nodes: preprocess {:.2}s, {lrt}, interp {:.3}s, VRT {:.2}s{frames}, total {:.2}s; cache hit ratio {:.3} -> {}",
+            "{}: {}x{}, {} elements, {} nodes: preprocess {:.2}s, {lrt}, interp {:.3}s, VRT {:.2}s{frames}, total {:.2}s{clock}; cache hit ratio {:.3} -> {}",
             stats.scene,
             out.frame.width,
             out.frame.height,
