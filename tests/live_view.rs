@@ -200,3 +200,41 @@ async fn live_view_shows_the_render_in_a_headless_browser() {
     assert_eq!(code, 200);
     assert!(body.starts_with(&[0x76, 0x2f, 0x31, 0x01]), "image.exr is not OpenEXR");
 }
+
+/// `--view-wait` holds the render until a page opens the live view; that wait is not the
+/// render's: the stats' total leaves it out (here a page comes 3 s late to a render of a
+/// few milliseconds).
+#[test]
+fn the_stats_total_leaves_out_the_wait_for_a_viewer() {
+    let dir = tempfile::tempdir().unwrap();
+    let stats = dir.path().join("s.json");
+    let mut host = magg_host();
+    host.arg("render")
+        .arg(scene("magg-paper.toml"))
+        .args(["--width", "16", "--height", "16", "--light-rays", "2", "--pixel-samples", "1", "--quiet"])
+        .args(["--view", "127.0.0.1:0", "--view-wait"])
+        .arg("--out")
+        .arg(dir.path().join("p.png"))
+        .arg("--stats")
+        .arg(&stats)
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped());
+    let mut host = Reaper(host.spawn().expect("cannot start magg-host"));
+    let mut lines = BufReader::new(host.0.stderr.take().unwrap()).lines();
+    let url = loop {
+        let line = lines.next().expect("magg-host ended before printing the live view address").unwrap();
+        if let Some(u) = line.strip_prefix("live view: ") {
+            break u.trim().to_string();
+        }
+    };
+    std::thread::spawn(move || lines.for_each(drop));
+    std::thread::sleep(Duration::from_secs(3));
+    // A page opens the event stream (and keeps it open while the render runs).
+    let addr = url.trim_start_matches("http://").trim_end_matches('/').to_string();
+    let mut stream = TcpStream::connect(&addr).unwrap();
+    write!(stream, "GET /events HTTP/1.1\r\nHost: {addr}\r\n\r\n").unwrap();
+    let status = host.0.wait().unwrap();
+    assert!(status.success(), "the render failed: {status}");
+    let total = read_json(&stats)["stages"]["total_s"].as_f64().unwrap();
+    assert!(total < 3.0, "total_s {total} counts the 3 s spent waiting for a viewer");
+}

@@ -85,6 +85,9 @@ pub fn run(cfg: RenderConfig, files: &scene_file::SceneFiles) -> anyhow::Result<
     };
     let bars = Bars::new(cfg.quiet);
     let exposure = scene.settings.exposure;
+    // Time spent waiting for a viewer (--view-wait) is not the render's: the stats'
+    // total leaves it out.
+    let mut viewer_wait = std::time::Duration::ZERO;
     let live = match &cfg.view {
         Some((addr, wait, _)) => {
             let live = LiveView::start(addr)?;
@@ -92,9 +95,11 @@ pub fn run(cfg: RenderConfig, files: &scene_file::SceneFiles) -> anyhow::Result<
             let mode = if cfg.mode == Mode::Embedded { "embedded" } else { "cluster" };
             let s = &scene.settings;
             live.begin(&prepared.name, s.width, s.height, exposure, mode, n_frames);
+            let t_wait = std::time::Instant::now();
             if *wait && !live.wait_for_viewer(std::time::Duration::from_secs(600)) {
                 tracing::warn!("no page opened the live view in 10 minutes: rendering anyway");
             }
+            viewer_wait = t_wait.elapsed();
             Some(live)
         }
         None => None,
@@ -134,7 +139,7 @@ pub fn run(cfg: RenderConfig, files: &scene_file::SceneFiles) -> anyhow::Result<
                 faults: faults.clone(),
             };
             let cluster = cluster.context("the cluster was not started")?;
-            cluster.render(&prepared, &in_process, preprocessed, progress, &mut sink)?
+            cluster.render(&prepared, &in_process, preprocessed + viewer_wait, progress, &mut sink)?
         }
     };
     let stats = out.stats;
