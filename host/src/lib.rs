@@ -16,6 +16,7 @@ pub mod harness;
 pub mod images;
 pub mod live;
 pub mod memory;
+pub mod model_scene;
 pub mod overrides;
 pub mod progress;
 pub mod saved_energy;

@@ -4,6 +4,7 @@
 //! (`--allow-path DIR`). An error names the file and the limit; it never shows what the
 //! file holds.
 
+use crate::model_scene::{scene_text, View};
 use crate::overrides::Override;
 use anyhow::Context;
 use magg_core::scene::{parse_scene_with_path, CameraPath, Scene};
@@ -47,14 +48,32 @@ impl SceneFiles {
     /// Reads and parses the scene at `path` with its camera path, if it has one, with
     /// `overrides` applied to its text first. An error that follows from them says so.
     pub fn load_with_path(&self, path: &Path, overrides: &[Override]) -> anyhow::Result<(Scene, Option<CameraPath>)> {
-        let text =
-            read_capped(path, MAX_SCENE_BYTES).with_context(|| format!("cannot read scene file {}", path.display()))?;
+        let text = if crate::model_scene::is_model(path) {
+            self.model_scene(path)?
+        } else {
+            read_capped(path, MAX_SCENE_BYTES).with_context(|| format!("cannot read scene file {}", path.display()))?
+        };
         if !overrides.is_empty() {
             let text = crate::overrides::apply(&text, overrides).with_context(|| path.display().to_string())?;
             let with: Vec<String> = overrides.iter().map(|o| o.to_string()).collect();
             return self.parse(path, &text).with_context(|| format!("with {}", with.join(" ")));
         }
         self.parse(path, &text)
+    }
+
+    /// The scene made up around the model file at `path` ([`crate::model_scene`]): parsed
+    /// once to find its bounds (with the grey material when its faces have none), then
+    /// written with the view that frames it.
+    fn model_scene(&self, path: &Path) -> anyhow::Result<String> {
+        let file = path.file_name().map(|f| f.to_string_lossy().into_owned()).unwrap_or_default();
+        let text = |view: &View, grey| scene_text(&file, view, grey);
+        let grey = match self.parse(path, &text(&View::placeholder(), false)) {
+            Ok(_) => false,
+            Err(e) if format!("{e:#}").contains("face has no material") => true,
+            Err(e) => return Err(e),
+        };
+        let (scene, _) = self.parse(path, &text(&View::placeholder(), grey))?;
+        Ok(text(&View::framing(&scene), grey))
     }
 
     fn parse(&self, path: &Path, text: &str) -> anyhow::Result<(Scene, Option<CameraPath>)> {
