@@ -88,3 +88,31 @@ fn a_host_at_a_silent_fork_gives_up_at_its_fork_timeout_naming_it() {
     assert!(took < Duration::from_secs(20), "waited {took:?} with --fork-timeout 2");
     drop(listener);
 }
+
+#[test]
+fn a_long_lived_node_waits_quietly_for_the_next_render() {
+    let dir = tempfile::tempdir().unwrap();
+    let host_addr = format!("127.0.0.1:{}", free_port());
+    let mut node = Command::new(magg_bin("magg-node"))
+        .args(["--host", &host_addr, "--repeat"])
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let out = magg_tests::magg_host()
+        .arg("render")
+        .arg(magg_tests::scene("magg-paper.toml"))
+        .args(["--width", "16", "--height", "16", "--light-rays", "2", "--spp", "1", "--quiet"])
+        .args(["--listen", &host_addr, "--external-nodes", "--forks", "2"])
+        .arg("--out")
+        .arg(dir.path().join("p.png"))
+        .output()
+        .unwrap();
+    magg_tests::assert_success(&out, "a render with one external node");
+    // The host is gone; the node waits for the next one.
+    std::thread::sleep(Duration::from_secs(3));
+    let _ = node.kill();
+    let log = node.wait_with_output().unwrap();
+    let log = String::from_utf8_lossy(&log.stderr);
+    assert!(!log.contains("WARN") && !log.contains("cannot reach"), "the node warned while waiting:\n{log}");
+}

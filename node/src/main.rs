@@ -69,7 +69,7 @@ fn run(args: Args) -> anyhow::Result<()> {
         anyhow::bail!("--threads {}: must be 1..=1024", args.threads);
     }
     let token = magg_plumbing::auth::Token::parse(args.cluster.token).map_err(|e| anyhow::anyhow!("--token: {e}"))?;
-    let cfg = magg_node::NodeConfig {
+    let mut cfg = magg_node::NodeConfig {
         host: args.host,
         threads: args.threads,
         cache_blocks: args.cache_blocks,
@@ -109,9 +109,23 @@ fn run(args: Args) -> anyhow::Result<()> {
             }
         });
     }
+    // A long-lived node (--repeat) expects its host to come and go: connection attempts
+    // are not warnings, only the first time it finds no host at all is.
+    cfg.backoff.expect_absence = args.repeat;
+    let mut warned_absent = false;
     loop {
         match magg_node::run_with_runtime(rt.handle().clone(), &cfg) {
             Ok(s) => tracing::info!("node {} done: {} pairs, {} subscreens", s.node, s.pairs, s.tiles),
+            // Between renders, a host that is not there yet (or is just ending) is normal.
+            Err(e) if args.repeat && e.came_after_the_render() => tracing::info!("no render yet: {e}"),
+            Err(e @ magg_node::NodeError::Connect { .. }) if args.repeat => {
+                if !warned_absent {
+                    tracing::warn!("no host yet: {e}; waiting on (--repeat)");
+                    warned_absent = true;
+                } else {
+                    tracing::info!("no host yet: {e}");
+                }
+            }
             Err(e) if args.repeat => tracing::warn!("render ended with an error: {e}"),
             Err(e) => return Err(e.into()),
         }

@@ -38,6 +38,10 @@ pub struct Backoff {
     /// Deadline of each call on a channel (a stalled peer fails the call with
     /// `DEADLINE_EXCEEDED` instead of hanging the caller).
     pub call_timeout: Duration,
+    /// The peer is expected to be away for a while (a long-lived node between renders,
+    /// waiting for the next host): failed connection attempts are logged at debug level,
+    /// not as warnings.
+    pub expect_absence: bool,
 }
 
 /// Default deadline of one call: far above any healthy call (the largest, a
@@ -54,6 +58,7 @@ impl Default for Backoff {
             max: Duration::from_secs(2),
             deadline: Duration::from_secs(30),
             call_timeout: CALL_TIMEOUT,
+            expect_absence: false,
         }
     }
 }
@@ -91,7 +96,11 @@ pub async fn connect_with_backoff(links: &InProcess, addr: &str, backoff: Backof
                         reason: format!("{e} (after {attempt} attempts)"),
                     });
                 }
-                tracing::warn!("cannot reach {addr} (attempt {attempt}): {e}; retrying in {delay:?}");
+                if backoff.expect_absence {
+                    tracing::debug!("{addr} not there yet (attempt {attempt}): {e}; retrying in {delay:?}");
+                } else {
+                    tracing::warn!("cannot reach {addr} (attempt {attempt}): {e}; retrying in {delay:?}");
+                }
                 tokio::time::sleep(jitter(delay)).await;
                 delay = (delay * 2).min(backoff.max);
             }
