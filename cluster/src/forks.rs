@@ -38,7 +38,7 @@
 use crate::failure::ClusterError;
 use crate::FaultPolicy;
 use magg_core::preprocess::PreparedScene;
-use magg_plumbing::auth::{AddToken, Authed, Token};
+use magg_plumbing::auth::{AddToken, Authed, NodeKey, Token};
 use magg_plumbing::retry::{self, Backoff};
 use magg_plumbing::transport::InProcess;
 use magg_plumbing::with_message_limits;
@@ -85,6 +85,8 @@ pub struct ForkSet {
     profile: String,
     /// Nodes the render expects (sizes the forks' guided pair batches).
     nodes: u32,
+    /// The render's node key, sent with every shard.
+    node_key: NodeKey,
 }
 
 /// Connects to the fork at `addr`, retrying until the fork timeout.
@@ -137,14 +139,16 @@ impl ForkSet {
             epoch: 0,
             profile: String::new(),
             nodes: 0,
+            node_key: NodeKey::default(),
         })
     }
 
     /// The same forks, loaded for a render under hardware profile `profile` (wire form)
     /// with `nodes` expected nodes.
-    pub fn for_render(mut self, profile: String, nodes: u32) -> ForkSet {
+    pub fn for_render(mut self, profile: String, nodes: u32, node_key: NodeKey) -> ForkSet {
         self.profile = profile;
         self.nodes = nodes;
+        self.node_key = node_key;
         self
     }
 
@@ -211,6 +215,7 @@ impl ForkSet {
             epoch: self.epoch,
             profile: self.profile.clone(),
             nodes: self.nodes,
+            node_key: self.node_key.as_bytes().to_vec().into(),
         }
     }
 

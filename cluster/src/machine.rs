@@ -148,12 +148,17 @@ impl ClusterMachine {
             if throttled { preprocess_time(&opts.profile, opts.scheme, prepared, f as u32) } else { Duration::ZERO };
         // Not even a zero sleep natively: the timer would round it up to its next tick (1 ms).
         magg_throttle::wait(Instant::now() + opts.profile.dilate(preprocess_model)).await;
-        let mut forks = ForkSet::connect(prepared, &opts.forks, &opts.faults, &opts.links)
-            .await?
-            .for_render(wire_profile.clone(), opts.nodes);
+        // Each render's nodes get secrets under a key of its own, which the forks check too.
+        let node_key = magg_plumbing::auth::NodeKey::random();
+        let mut forks = ForkSet::connect(prepared, &opts.forks, &opts.faults, &opts.links).await?.for_render(
+            wire_profile.clone(),
+            opts.nodes,
+            node_key.clone(),
+        );
 
         // Serve the host service.
         let service = HostService::new(HostState {
+            node_key,
             phase: Phase::Gather,
             nodes: Vec::new(),
             schedule: None,

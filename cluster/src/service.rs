@@ -32,20 +32,6 @@ pub enum Phase {
     Done,
 }
 
-/// A fresh node secret: 64 bits from the operating system's random source, so that no
-/// client can guess another node's.
-fn node_secret() -> u64 {
-    let mut b = [0u8; 8];
-    if getrandom::getrandom(&mut b).is_err() {
-        // No random source: the secret still differs per node and per render.
-        use std::hash::{BuildHasher, Hasher};
-        let mut h = std::collections::hash_map::RandomState::new().build_hasher();
-        h.write_u128(std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).unwrap_or_default().as_nanos());
-        return h.finish();
-    }
-    u64::from_le_bytes(b)
-}
-
 /// A registered node.
 #[derive(Clone, Debug, Default)]
 pub struct NodeEntry {
@@ -112,6 +98,9 @@ pub struct HostState {
     pub profile: String,
     /// Schedule sent to nodes (`paper` or `magg`).
     pub scheme: String,
+    /// The render's node key: node i's secret is its keyed hash of i (the forks get the
+    /// key with their shards and check the secret too).
+    pub node_key: magg_plumbing::auth::NodeKey,
     /// Cache blocks per node, told to nodes at registration.
     pub cache_blocks: magg_core::blocks::CacheSize,
     /// Bytes of node <-> host messages (the link path).
@@ -268,7 +257,7 @@ impl Host for HostService {
             return Err(HostError::TooManyNodes.into());
         }
         let node = s.nodes.len() as u32;
-        let secret = node_secret();
+        let secret = s.node_key.secret(node);
         s.nodes.push(NodeEntry {
             secret,
             name: r.name.clone(),

@@ -40,6 +40,9 @@ pub struct ShardLoad<B> {
     pub lease: Option<Duration>,
     /// Replay epoch the render starts in (above 0 when a fork is reloaded mid-pass).
     pub epoch: u64,
+    /// The render's node key (empty: none): `TakePairs` under node i's id must carry the
+    /// keyed hash of i under it.
+    pub node_key: Vec<u8>,
 }
 
 /// Pairs a fork lends a node (its answer to `TakePairs` or to a peer's steal).

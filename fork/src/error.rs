@@ -7,6 +7,7 @@
 //! | [`ForkError::NotLoaded`] (a fork just started or restarted: callers retry until the host loads it) | `UNAVAILABLE` |
 //! | [`ForkError::BadHeader`], [`ForkError::BadBlock`], [`ForkError::BadRequest`], [`ForkError::BlockOutOfRange`], [`ForkError::BlockNotOwned`], [`ForkError::PairOutOfRange`], [`ForkError::ElementOutOfRange`], [`ForkError::ElementNotOwned`] | `INVALID_ARGUMENT` |
 //! | [`ForkError::TooMany`], [`ForkError::OverMemory`] | `RESOURCE_EXHAUSTED` |
+//! | [`ForkError::NotThatNode`] (a `TakePairs` without the node's secret) | `PERMISSION_DENIED` |
 //! | [`ForkError::PeerUnavailable`] | `UNAVAILABLE` |
 //! | [`ForkError::Peer`] | the peer's own code |
 //! | [`ForkError::PeerReply`], [`ForkError::Internal`] | `INTERNAL` |
@@ -17,6 +18,9 @@ use tonic::{Code, Status};
 /// A request a fork cannot serve.
 #[derive(Debug, thiserror::Error)]
 pub enum ForkError {
+    /// A request under node `n`'s id without its secret: another client acting for it.
+    #[error("node {0}'s requests must carry its secret: one node may not act for another")]
+    NotThatNode(u32),
     /// An RPC other than `LoadShard` arrived before any scene was loaded.
     #[error("{}", magg_proto::NOT_LOADED)]
     NotLoaded,
@@ -167,6 +171,7 @@ impl ForkError {
             | ForkError::ProfileMismatch { .. }
             | ForkError::BlockNotLoaded { .. } => Code::FailedPrecondition,
             ForkError::NotLoaded => Code::Unavailable,
+            ForkError::NotThatNode(_) => Code::PermissionDenied,
             ForkError::BadHeader(_)
             | ForkError::BadBlock(_)
             | ForkError::BadRequest(_)

@@ -131,12 +131,13 @@ impl Peers {
         Ok(Duration::from_nanos(reply.wait_ns))
     }
 
-    /// Up to `max` unassigned pairs of fork `fork`, taken on behalf of `node`, with the
+    /// Up to `max` unassigned pairs of fork `fork`, taken on behalf of `node` (with its
+    /// secret, which that fork checks too), with the
     /// replay epoch they were handed out in and the pairs the fork has left.
-    pub async fn steal(&self, fork: u32, max: u32, node: u32) -> Result<v1::TakePairsReply, ForkError> {
+    pub async fn steal(&self, fork: u32, max: u32, node: u32, secret: u64) -> Result<v1::TakePairsReply, ForkError> {
         let mut client = self.client(fork).await?;
         let reply = client
-            .steal_pairs(v1::TakePairsRequest { max, node })
+            .steal_pairs(v1::TakePairsRequest { max, node, node_secret: secret })
             .await
             .map_err(|s| self.failed(fork, s))?
             .into_inner();

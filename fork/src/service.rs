@@ -173,7 +173,14 @@ async fn get_blocks(shard: Arc<Shard>, hw: Arc<ForkHardware>, ids: Vec<u32>) -> 
 
 /// `TakePairs`: the fork's own queue first; when it is empty, the other forks in turn
 /// (index+1, index+2, ...) are asked to give some away (paper §4.4).
-async fn take_pairs(shard: Arc<Shard>, hw: &ForkHardware, max: u32, node: u32) -> Result<PairLease, ForkError> {
+async fn take_pairs(
+    shard: Arc<Shard>,
+    hw: &ForkHardware,
+    max: u32,
+    node: u32,
+    secret: u64,
+) -> Result<PairLease, ForkError> {
+    shard.admit(node, secret)?;
     let max = max.clamp(1, MAX_PAIRS_PER_REQUEST);
     let (pairs, epoch) = shard.take_own_pairs(max, node);
     if !pairs.is_empty() {
@@ -183,7 +190,7 @@ async fn take_pairs(shard: Arc<Shard>, hw: &ForkHardware, max: u32, node: u32) -
     let ask = shard.steal_batch(max);
     let mut failure = None;
     for peer in shard.steal_order() {
-        let stolen = shard.peers().steal(peer, ask, node).await.map(PairLease::from);
+        let stolen = shard.peers().steal(peer, ask, node, secret).await.map(PairLease::from);
         // A request and a reply of pair ids cross the G-bus.
         hw.gbus(me, shard.peers(), 16 + 8 * stolen.as_ref().map_or(0, |r| r.pairs.len())).await;
         if let Ok(r) = &stolen {
@@ -282,7 +289,7 @@ impl Fork for ForkService {
         let shard = self.shard()?;
         self.hw.serve(0).await;
         let r = req.into_inner();
-        let reply = v1::TakePairsReply::from(take_pairs(shard.clone(), &self.hw, r.max, r.node).await?);
+        let reply = v1::TakePairsReply::from(take_pairs(shard.clone(), &self.hw, r.max, r.node, r.node_secret).await?);
         shard.count_link(prost::Message::encoded_len(&r) + prost::Message::encoded_len(&reply));
         Ok(Response::new(reply))
     }
@@ -291,6 +298,7 @@ impl Fork for ForkService {
         let shard = self.shard()?;
         self.hw.serve(0).await;
         let r = req.into_inner();
+        shard.admit(r.node, r.node_secret)?;
         let (pairs, epoch) = shard.take_own_pairs(r.max, r.node);
         let lease = PairLease { exhausted: pairs.is_empty(), pairs, epoch, remaining: shard.pairs_left() };
         Ok(Response::new(lease.into()))
@@ -305,7 +313,7 @@ impl Fork for ForkService {
         let taken = match &r.take {
             Some(t) => {
                 self.hw.serve(0).await;
-                Some(take_pairs(shard.clone(), &self.hw, t.max, t.node).await?.into())
+                Some(take_pairs(shard.clone(), &self.hw, t.max, t.node, t.node_secret).await?.into())
             }
             None => None,
         };

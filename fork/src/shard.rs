@@ -18,6 +18,7 @@ use bytes::Bytes;
 use magg_core::blocks::{fork_of_block, BLOCK_SIZE};
 use magg_core::cluster::{DepositBatch, ForkReport, PairDeposit, ShardLoad};
 use magg_core::header::SceneHeader;
+use magg_plumbing::auth::NodeKey;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Mutex;
 use std::time::{Duration, Instant};
@@ -114,6 +115,8 @@ pub struct Shard {
     lease: Duration,
     /// Per light, the most fixed-point energy (r, g, b) one pair of it may deposit.
     flux_bound: Vec<[i128; 3]>,
+    /// The render's node key: pairs go only to a node that shows its secret.
+    node_key: NodeKey,
 }
 
 /// The most fixed-point energy per channel that one pair of each light may deposit in
@@ -185,6 +188,7 @@ impl Shard {
         };
         let flux_bound = flux_bounds(&header);
         let shard = Shard {
+            node_key: NodeKey::from_bytes(&load.node_key),
             flux_bound,
             store: BlockStore::new(index, f, header.layout.total),
             header,
@@ -493,6 +497,15 @@ impl Shard {
             }
         }
         Ok((applied, duplicates))
+    }
+
+    /// Refuses a request under node `node`'s id that does not carry its secret.
+    pub fn admit(&self, node: u32, secret: u64) -> Result<(), ForkError> {
+        if self.node_key.admits(node, secret) {
+            Ok(())
+        } else {
+            Err(ForkError::NotThatNode(node))
+        }
     }
 
     /// Refuses a pair's deposits that no tracing of this scene makes: a negative value, or

@@ -159,7 +159,11 @@ async fn take_pairs_from_one_fork_drains_every_pair_exactly_once() {
     let mut seen = BTreeSet::new();
     let mut stolen = 0;
     loop {
-        let r = c.clients[1].take_pairs(v1::TakePairsRequest { max: 100, node: 7 }).await.unwrap().into_inner();
+        let r = c.clients[1]
+            .take_pairs(v1::TakePairsRequest { max: 100, node: 7, ..Default::default() })
+            .await
+            .unwrap()
+            .into_inner();
         if r.exhausted {
             assert!(r.pairs.is_empty());
             break;
@@ -174,7 +178,11 @@ async fn take_pairs_from_one_fork_drains_every_pair_exactly_once() {
     assert_eq!(seen.len() as u64, c.pairs());
     assert!(stolen > 0, "fork 1 handed out only its own pairs");
     for i in 0..FORKS {
-        let r = c.clients[i as usize].take_pairs(v1::TakePairsRequest { max: 0, node: 0 }).await.unwrap().into_inner();
+        let r = c.clients[i as usize]
+            .take_pairs(v1::TakePairsRequest { max: 0, node: 0, ..Default::default() })
+            .await
+            .unwrap()
+            .into_inner();
         assert!(r.exhausted && r.pairs.is_empty(), "fork {i} still had pairs");
     }
     c.stop().await;
@@ -188,7 +196,11 @@ async fn own_pairs_come_first_in_ascending_order() {
     assert!(own.len() < 4096);
     // A max over the limit is clamped, not refused; the own queue is not empty, so
     // nothing is stolen.
-    let r = c.clients[2].take_pairs(v1::TakePairsRequest { max: 50_000, node: 0 }).await.unwrap().into_inner();
+    let r = c.clients[2]
+        .take_pairs(v1::TakePairsRequest { max: 50_000, node: 0, ..Default::default() })
+        .await
+        .unwrap()
+        .into_inner();
     assert_eq!(r.pairs, own);
     assert!(!r.exhausted);
     c.stop().await;
@@ -201,7 +213,7 @@ async fn own_pairs_come_first_in_ascending_order() {
 async fn a_completion_can_carry_the_next_take() {
     let mut c = Cluster::start().await;
     c.load_all().await;
-    let take = v1::TakePairsRequest { max: 4, node: 3 };
+    let take = v1::TakePairsRequest { max: 4, node: 3, ..Default::default() };
     let first = c.clients[2].take_pairs(take).await.unwrap().into_inner();
     assert_eq!(first.pairs.len(), 4);
     let mut w = DepositWriter::new(true, first.epoch);
@@ -289,7 +301,7 @@ async fn bad_requests_get_the_right_codes_and_the_server_keeps_serving() {
     // Before LoadShard.
     let (k, m) = code(c.clients[0].get_energies(v1::GetEnergiesRequest { summary_only: true }).await);
     assert_eq!((k, m.as_str()), (Code::Unavailable, "no scene loaded"));
-    let (k, _) = code(c.clients[0].take_pairs(v1::TakePairsRequest { max: 1, node: 0 }).await);
+    let (k, _) = code(c.clients[0].take_pairs(v1::TakePairsRequest { max: 1, node: 0, ..Default::default() }).await);
     assert_eq!(k, Code::Unavailable, "an empty fork is retried until the host loads it");
     // Wrong protocol version.
     let mut req = c.load_request(0);
@@ -396,7 +408,11 @@ async fn no_pairs_when_the_plan_turns_lrt_off() {
         req.header.as_mut().unwrap().plan.as_mut().unwrap().lrt = false;
         assert_eq!(c.clients[i as usize].load_shard(req).await.unwrap().into_inner().pairs, 0);
     }
-    let r = c.clients[0].take_pairs(v1::TakePairsRequest { max: 10, node: 0 }).await.unwrap().into_inner();
+    let r = c.clients[0]
+        .take_pairs(v1::TakePairsRequest { max: 10, node: 0, ..Default::default() })
+        .await
+        .unwrap()
+        .into_inner();
     assert!(r.exhausted && r.pairs.is_empty());
     c.stop().await;
 }
@@ -419,7 +435,7 @@ async fn an_unreachable_peer_is_unavailable_and_named() {
     assert!(m.contains(&dead), "{m}");
     // Fork 0 drains its own pairs and fork 1's, then cannot tell whether fork 2 is done.
     let last = loop {
-        match c.clients[0].take_pairs(v1::TakePairsRequest { max: 4096, node: 0 }).await {
+        match c.clients[0].take_pairs(v1::TakePairsRequest { max: 4096, node: 0, ..Default::default() }).await {
             Ok(r) => assert!(!r.into_inner().exhausted, "exhausted although fork 2 was never asked"),
             Err(s) => break s,
         }

@@ -179,3 +179,15 @@ fn deposits_no_tracing_of_the_scene_makes_are_refused() {
     assert_eq!(s.energies(false).energy.iter().flatten().sum::<i64>(), 0, "a refused deposit changed the energy");
     deposit(&s, &one([5, 6, 7])).unwrap();
 }
+
+#[test]
+fn pairs_go_only_to_the_node_that_shows_its_secret() {
+    let key = magg_plumbing::auth::NodeKey::random();
+    let req = v1::LoadShardRequest { node_key: key.as_bytes().to_vec().into(), ..load_request() };
+    let s = load_shard(req, Default::default(), MB).unwrap();
+    assert!(s.admit(3, key.secret(3)).is_ok());
+    assert!(matches!(s.admit(3, key.secret(4)), Err(ForkError::NotThatNode(3))));
+    assert!(matches!(s.admit(3, 0), Err(ForkError::NotThatNode(3))));
+    // A shard loaded without a key (no host asked for one) checks nothing.
+    assert!(shard(0).admit(3, 0).is_ok());
+}

@@ -202,11 +202,11 @@ impl Worker {
         let pace = self.pace.clone();
         // Lost answers are harmless: pairs handed out and never traced go back to the
         // queue when their lease expires.
-        let backoff = self.backoff;
+        let (backoff, secret) = (self.backoff, self.secret);
         let take = move |home: ForkClient<Authed>, node: u32| {
             let pace = pace.clone();
             async move {
-                let req = TakePairsRequest { max, node };
+                let req = TakePairsRequest { max, node, node_secret: secret };
                 if let Some(p) = &pace {
                     p.send(req.encoded_len()).await;
                 }
@@ -275,7 +275,8 @@ impl Worker {
             }
             let (round1, round2) = rounds.into_writers();
             let t = PassTimes::lap(&mut times.tracing, t);
-            let home_take = (!self.overlap).then_some((self.home, TakePairsRequest { max, node: self.node }));
+            let home_take = (!self.overlap)
+                .then_some((self.home, TakePairsRequest { max, node: self.node, node_secret: self.secret }));
             let send = send_deposits(self.forks.clone(), self.pace.clone(), round1, round2, self.backoff, home_take);
             if !self.overlap {
                 piggybacked = self.rt.block_on(send)?;

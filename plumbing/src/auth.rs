@@ -190,3 +190,75 @@ mod tests {
         assert!(exposure_warning("0.0.0.0:1".parse().unwrap(), &Token::new(Some("t".into()))).is_none());
     }
 }
+
+/// The key of one render's node secrets: node `i`'s secret is a keyed hash (HMAC-SHA256,
+/// 64 bits of it) of `i`. The host makes the key, hands each node its own secret at
+/// registration and every fork the key with its shard, so that a fork can check that a
+/// request under node `i`'s id comes from node `i`, and no node can work out another's.
+#[derive(Clone, Default, PartialEq, Eq)]
+pub struct NodeKey(Vec<u8>);
+
+impl std::fmt::Debug for NodeKey {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "NodeKey({} bytes)", self.0.len())
+    }
+}
+
+impl NodeKey {
+    /// A fresh key from the operating system's random source.
+    pub fn random() -> NodeKey {
+        use ring::rand::SecureRandom;
+        let mut k = vec![0u8; 32];
+        if ring::rand::SystemRandom::new().fill(&mut k).is_err() {
+            // No random source: a key that still differs per process and per moment.
+            let t = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).unwrap_or_default();
+            k[..16].copy_from_slice(&t.as_nanos().to_le_bytes());
+            k[16..20].copy_from_slice(&std::process::id().to_le_bytes());
+        }
+        NodeKey(k)
+    }
+
+    /// The key as sent to forks (empty: none, nothing is checked).
+    pub fn from_bytes(b: &[u8]) -> NodeKey {
+        NodeKey(b.to_vec())
+    }
+
+    /// The key's bytes.
+    pub fn as_bytes(&self) -> &[u8] {
+        &self.0
+    }
+
+    /// Whether there is a key (a render's forks get one; a bare test shard has none).
+    pub fn is_set(&self) -> bool {
+        !self.0.is_empty()
+    }
+
+    /// Node `node`'s secret.
+    pub fn secret(&self, node: u32) -> u64 {
+        let key = ring::hmac::Key::new(ring::hmac::HMAC_SHA256, &self.0);
+        let tag = ring::hmac::sign(&key, &node.to_le_bytes());
+        let mut b = [0u8; 8];
+        b.copy_from_slice(&tag.as_ref()[..8]);
+        u64::from_le_bytes(b)
+    }
+
+    /// Whether `secret` is node `node`'s (always, without a key).
+    pub fn admits(&self, node: u32, secret: u64) -> bool {
+        !self.is_set() || self.secret(node) == secret
+    }
+}
+
+#[cfg(test)]
+mod node_key_tests {
+    use super::*;
+
+    #[test]
+    fn secrets_differ_per_node_and_per_key_and_only_the_right_one_is_admitted() {
+        let (a, b) = (NodeKey::random(), NodeKey::random());
+        assert_ne!(a.secret(0), a.secret(1));
+        assert_ne!(a.secret(0), b.secret(0));
+        assert_eq!(a.secret(7), NodeKey::from_bytes(a.as_bytes()).secret(7));
+        assert!(a.admits(3, a.secret(3)) && !a.admits(3, a.secret(4)) && !a.admits(3, 0));
+        assert!(NodeKey::default().admits(3, 0), "no key: nothing to check");
+    }
+}

@@ -31,6 +31,7 @@ impl TryFrom<v1::LoadShardRequest> for ShardLoad<bytes::Bytes> {
             nodes: r.nodes,
             lease: (r.lease_ms != 0).then(|| Duration::from_millis(r.lease_ms as u64)),
             epoch: r.epoch,
+            node_key: r.node_key.to_vec(),
         })
     }
 }
