@@ -44,6 +44,11 @@ pub enum Command {
     /// hardware profile over nodes x cache blocks x forks x schedule; writes sweep.csv,
     /// one PNG per figure and a markdown table (docs/EXPERIMENTS.md).
     Sweep(crate::commands::sweep::SweepArgs),
+    /// Compare image A with the reference B (.pfm, .exr, .hdr linear; .png, .jpg, .tif
+    /// decoded from sRGB): print relMSE, MSE, the brightness ratio and the largest
+    /// difference, optionally write a heat map of the error; exit 0 (2 with --fail-above X
+    /// when relMSE > X).
+    Diff(crate::commands::diff::DiffArgs),
     /// Ask the gRPC health service at ADDR (HOST:PORT: a magg-fork, a magg-node with
     /// --health-listen, or a host while it renders) and exit 0 when it reports SERVING:
     /// the health check of a container image that has no shell.

@@ -3,7 +3,9 @@
 //!
 //! The 8-bit pixels are the core's ([`Frame::to_srgb8`], its one sRGB encoder); the `image`
 //! crate only packs them into a file. The linear formats get the frame's f32 radiance as it
-//! is. PFM, which `image` does not write, keeps a small writer of its own.
+//! is. PFM, which `image` does not handle, keeps a small writer and reader of its own.
+//! [`read`] turns any of these files back into linear radiance (8-bit ones decoded from
+//! sRGB), for `magg-host diff`.
 //!
 //! ```no_run
 //! # fn demo(frame: &magg_core::frame::Frame, exposure: magg_core::scene::Exposure) -> anyhow::Result<()> {
@@ -135,6 +137,78 @@ fn write_pfm(frame: &Frame, out: &mut impl Write) -> std::io::Result<()> {
     Ok(())
 }
 
+/// Reads `path` as linear radiance, by its extension: the linear formats as they are, the
+/// tone-mapped ones (any bit depth) decoded from sRGB. Alpha is dropped.
+pub fn read(path: &Path) -> anyhow::Result<Frame> {
+    let format = ImageFormat::of(path)?;
+    let what = || format!("cannot read image {}", path.display());
+    if format == ImageFormat::Pfm {
+        return read_pfm(&std::fs::read(path).with_context(what)?).with_context(what);
+    }
+    let img = image::open(path).with_context(what)?.into_rgb32f();
+    let decode = |c: f32| if format.is_linear() { c } else { decode_srgb(c) };
+    let pixels = img.pixels().map(|p| p.0.map(decode)).collect();
+    Ok(Frame { width: img.width(), height: img.height(), pixels })
+}
+
+/// The sRGB transfer function inverted: an encoded value in [0, 1] to linear.
+pub fn decode_srgb(v: f32) -> f32 {
+    let v = f64::from(v);
+    (if v <= 0.040_45 { v / 12.92 } else { ((v + 0.055) / 1.055).powf(2.4) }) as f32
+}
+
+/// A portable float map: `PF` (RGB) or `Pf` (grey), width and height, then a scale whose
+/// sign gives the byte order (negative: little-endian); rows run bottom-up.
+fn read_pfm(bytes: &[u8]) -> anyhow::Result<Frame> {
+    // Three whitespace-separated header tokens after the magic, then one whitespace byte.
+    let mut at = 0;
+    let mut token = || -> anyhow::Result<&str> {
+        while bytes.get(at).is_some_and(u8::is_ascii_whitespace) {
+            at += 1;
+        }
+        let start = at;
+        while bytes.get(at).is_some_and(|b| !b.is_ascii_whitespace()) {
+            at += 1;
+        }
+        anyhow::ensure!(at > start && at < bytes.len(), "PFM header ends early");
+        Ok(std::str::from_utf8(&bytes[start..at])?)
+    };
+    let channels = match token()? {
+        "PF" => 3,
+        "Pf" => 1,
+        magic => anyhow::bail!("not a PFM file (starts with {magic:?}, not PF or Pf)"),
+    };
+    let width: u32 = token()?.parse().context("bad PFM width")?;
+    let height: u32 = token()?.parse().context("bad PFM height")?;
+    let scale: f32 = token()?.parse().context("bad PFM scale")?;
+    let data = &bytes[at + 1..];
+    let count = width as usize * height as usize * channels;
+    anyhow::ensure!(
+        data.len() == count * 4,
+        "PFM data is {} bytes, a {width} x {height} map of {channels} channel(s) needs {}",
+        data.len(),
+        count * 4
+    );
+    let samples: Vec<f32> = data
+        .chunks_exact(4)
+        .map(|c| {
+            let c = [c[0], c[1], c[2], c[3]];
+            if scale < 0.0 {
+                f32::from_le_bytes(c)
+            } else {
+                f32::from_be_bytes(c)
+            }
+        })
+        .collect();
+    let mut frame = Frame::new(width, height);
+    for (i, px) in frame.pixels.iter_mut().enumerate() {
+        let (x, y) = (i % width as usize, i / width as usize);
+        let s = &samples[((height as usize - 1 - y) * width as usize + x) * channels..][..channels];
+        *px = if channels == 3 { [s[0], s[1], s[2]] } else { [s[0]; 3] };
+    }
+    Ok(frame)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -211,6 +285,35 @@ mod tests {
         assert_eq!(bytes.len(), head.len() + 24 * 16 * 12);
         let first = f32::from_le_bytes(bytes[head.len() + 4..head.len() + 8].try_into().unwrap());
         assert_eq!(first, f.get(0, 15)[1]);
+    }
+
+    #[test]
+    fn every_format_reads_back_as_linear_radiance() {
+        let f = frame();
+        let dir = tempfile::tempdir().unwrap();
+        for ext in ["pfm", "exr"] {
+            let path = dir.path().join(format!("a.{ext}"));
+            write(&f, &path, ImageFormat::of(&path).unwrap(), exposure()).unwrap();
+            assert_eq!(read(&path).unwrap(), f, "{ext}");
+        }
+        // 8-bit: the decoded value encodes back to the byte that was written.
+        let path = dir.path().join("a.png");
+        write(&f, &path, ImageFormat::Png, exposure()).unwrap();
+        let back = read(&path).unwrap();
+        let bytes: Vec<u8> = back.pixels.iter().flatten().map(|&c| magg_core::frame::encode_srgb(c as f64)).collect();
+        assert_eq!(bytes, f.to_srgb8(f.exposure_scale(exposure())));
+    }
+
+    #[test]
+    fn pfm_reads_big_endian_and_grey_and_refuses_short_data() {
+        let mut big = b"Pf\n2 1\n1.0\n".to_vec();
+        big.extend([1.5f32, -2.0].iter().flat_map(|v| v.to_be_bytes()));
+        let f = read_pfm(&big).unwrap();
+        assert_eq!(f.pixels, vec![[1.5; 3], [-2.0; 3]]);
+        let e = read_pfm(&big[..big.len() - 1]).unwrap_err().to_string();
+        assert!(e.contains("2 x 1"), "{e}");
+        assert!(read_pfm(b"P6\n1 1\n255\n...").is_err());
+        assert!(read_pfm(b"PF\n1").is_err());
     }
 
     #[test]

@@ -13,6 +13,7 @@ pub mod faults;
 pub mod frames;
 pub mod framing;
 pub mod harness;
+pub mod image_diff;
 pub mod images;
 pub mod live;
 pub mod memory;
@@ -29,6 +30,7 @@ pub fn run(cli: cli::Cli) -> anyhow::Result<()> {
         cli::Command::Render(args) => commands::render::run(args.validate()?, &files),
         cli::Command::Info(args) => commands::info::run(&args, &files),
         cli::Command::Accuracy(args) => commands::accuracy::run(&args, &files),
+        cli::Command::Diff(args) => commands::diff::run(&args),
         cli::Command::Sweep(args) => commands::sweep::run(&args, &cli.allow_path),
         cli::Command::Probe(p) => {
             magg_plumbing::health::probe_blocking(&p.addr)?;

@@ -1,8 +1,9 @@
-//! `magg-host`: render a scene on the cluster (in this process by default), or describe it.
+//! `magg-host`: render a scene on the cluster (in this process by default), describe it, or compare two images.
 //!
 //! ```text
 //! magg-host render scenes/cornell.toml --out cornell.png
 //! magg-host info scenes/magg-paper.toml
+//! magg-host diff magg.exr reference.exr --heatmap error.png
 //! magg-host probe 127.0.0.1:7000
 //! ```
 
@@ -22,6 +23,10 @@ fn main() -> ExitCode {
     }
     match magg_host::run(cli) {
         Ok(()) => ExitCode::SUCCESS,
+        Err(e) if e.is::<magg_host::commands::diff::AboveLimit>() => {
+            eprintln!("magg-host: {e}");
+            ExitCode::from(2)
+        }
         Err(e) => magg_plumbing::logging::fail("magg-host", format_args!("{e:#}")),
     }
 }

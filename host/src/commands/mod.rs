@@ -1,6 +1,7 @@
 //! The subcommands of `magg-host`.
 
 pub mod accuracy;
+pub mod diff;
 pub mod info;
 pub mod render;
 pub mod sweep;
