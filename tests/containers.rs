@@ -57,6 +57,7 @@ fn settings(cmd: &mut Command, tag: &str, out: &Path) {
         .env("MAGG_SCENE", SCENE)
         .env("MAGG_PROFILE", "native")
         .env("MAGG_NODES", NODES.to_string())
+        .env("MAGG_MIN_NODES", NODES.to_string())
         .env("MAGG_RENDER_FLAGS", "")
         .env_remove("MAGG_USER");
 }
