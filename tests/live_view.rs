@@ -67,6 +67,22 @@ async fn wait_for(c: &fantoccini::Client, script: &str, limit: Duration) -> Valu
     }
 }
 
+/// Starts `host` (a `magg-host render ... --view ...` command) with its stderr read here;
+/// returns it and the live view's URL, once printed. The rest of its log goes to `log`.
+fn start_with_view(mut host: Command, log: impl Fn(String) + Send + 'static) -> (Reaper, String) {
+    host.stdout(Stdio::null()).stderr(Stdio::piped());
+    let mut host = Reaper(host.spawn().expect("cannot start magg-host"));
+    let mut lines = BufReader::new(host.0.stderr.take().unwrap()).lines();
+    let url = loop {
+        let line = lines.next().expect("magg-host ended before printing the live view address").unwrap();
+        if let Some(u) = line.strip_prefix("live view: ") {
+            break u.trim().to_string();
+        }
+    };
+    std::thread::spawn(move || lines.for_each(|l| log(l.unwrap_or_default())));
+    (host, url)
+}
+
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn live_view_shows_the_render_in_a_headless_browser() {
     let (Some(chromium), Some(driver)) =
@@ -88,18 +104,8 @@ async fn live_view_shows_the_render_in_a_headless_browser() {
         .arg("--out")
         .arg(&png)
         .arg("--stats")
-        .arg(&stats)
-        .stdout(Stdio::null())
-        .stderr(Stdio::piped());
-    let mut host = Reaper(host.spawn().expect("cannot start magg-host"));
-    let mut lines = BufReader::new(host.0.stderr.take().unwrap()).lines();
-    let url = loop {
-        let line = lines.next().expect("magg-host ended before printing the live view address").unwrap();
-        if let Some(u) = line.strip_prefix("live view: ") {
-            break u.trim().to_string();
-        }
-    };
-    std::thread::spawn(move || lines.for_each(|l| eprintln!("magg-host: {}", l.unwrap_or_default())));
+        .arg(&stats);
+    let (_host, url) = start_with_view(host, |l| eprintln!("magg-host: {l}"));
 
     // The browser.
     let port = free_port();
@@ -216,18 +222,8 @@ fn the_stats_total_leaves_out_the_wait_for_a_viewer() {
         .arg("--out")
         .arg(dir.path().join("p.png"))
         .arg("--stats")
-        .arg(&stats)
-        .stdout(Stdio::null())
-        .stderr(Stdio::piped());
-    let mut host = Reaper(host.spawn().expect("cannot start magg-host"));
-    let mut lines = BufReader::new(host.0.stderr.take().unwrap()).lines();
-    let url = loop {
-        let line = lines.next().expect("magg-host ended before printing the live view address").unwrap();
-        if let Some(u) = line.strip_prefix("live view: ") {
-            break u.trim().to_string();
-        }
-    };
-    std::thread::spawn(move || lines.for_each(drop));
+        .arg(&stats);
+    let (mut host, url) = start_with_view(host, drop);
     std::thread::sleep(Duration::from_secs(3));
     // A page opens the event stream (and keeps it open while the render runs).
     let addr = url.trim_start_matches("http://").trim_end_matches('/').to_string();

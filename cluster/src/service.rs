@@ -35,8 +35,6 @@ pub enum Phase {
 /// A registered node.
 #[derive(Clone, Debug, Default)]
 pub struct NodeEntry {
-    /// Its secret for this render, carried by each of its requests.
-    pub secret: u64,
     /// Name it gave.
     pub name: String,
     /// Its latest cumulative report.
@@ -118,13 +116,13 @@ pub struct HostState {
 
 impl HostState {
     /// Counts a request of `len` encoded bytes from `node` (an RPC on the link path);
-    /// returns the node's entry, or refuses a node that never registered.
-    /// Counts a request of node `node`, which must carry its secret.
+    /// returns the node's entry, or refuses a node that never registered or a request
+    /// without that node's secret.
     fn count_request(&mut self, node: u32, secret: u64, len: usize) -> Result<&mut NodeEntry, Status> {
         self.rpcs += 1;
         self.link_bytes += len as u64;
         let entry = self.nodes.get_mut(node as usize).ok_or(HostError::UnknownNode(node))?;
-        if entry.secret != secret {
+        if !self.node_key.admits(node, secret) {
             return Err(HostError::NotThatNode(node).into());
         }
         entry.link_bytes += len as u64;
@@ -259,7 +257,6 @@ impl Host for HostService {
         let node = s.nodes.len() as u32;
         let secret = s.node_key.secret(node);
         s.nodes.push(NodeEntry {
-            secret,
             name: r.name.clone(),
             threads: r.threads.clamp(1, 1024),
             last_seen: Some(Instant::now()),

@@ -67,12 +67,13 @@ impl SceneFiles {
     fn model_scene(&self, path: &Path) -> anyhow::Result<String> {
         let file = path.file_name().map(|f| f.to_string_lossy().into_owned()).unwrap_or_default();
         let text = |view: &View, grey| scene_text(&file, view, grey);
-        let grey = match self.parse(path, &text(&View::placeholder(), false)) {
-            Ok(_) => false,
-            Err(e) if format!("{e:#}").contains("face has no material") => true,
+        let ((scene, _), grey) = match self.parse(path, &text(&View::placeholder(), false)) {
+            Ok(parsed) => (parsed, false),
+            Err(e) if format!("{e:#}").contains("face has no material") => {
+                (self.parse(path, &text(&View::placeholder(), true))?, true)
+            }
             Err(e) => return Err(e),
         };
-        let (scene, _) = self.parse(path, &text(&View::placeholder(), grey))?;
         Ok(text(&View::framing(&scene), grey))
     }
 
