@@ -106,6 +106,10 @@ pub struct EnergyInputs {
     pub elements: u32,
     /// Welded vertex count.
     pub vertices: u32,
+    /// Direct light is left to VRT: the energies hold only light via specular surfaces
+    /// and diffuse bounces. Absent (false) in files from before the choice existed.
+    #[serde(default)]
+    pub direct_vrt: bool,
     /// Hash of all of the above: equal digests mean reusable energies.
     pub digest: u64,
 }
@@ -169,6 +173,7 @@ impl EnergyInputs {
             seed: s.seed,
             elements: h.counts.elements,
             vertices: h.counts.vertices,
+            direct_vrt: h.plan.direct_vrt,
             digest: 0,
         };
         inputs.sealed()
@@ -191,6 +196,10 @@ impl EnergyInputs {
             d.u32(v);
         }
         d.f64(self.element_size);
+        // Only when set, so that the digests of earlier files stay valid.
+        if self.direct_vrt {
+            d.bytes(b"direct light at VRT");
+        }
         d.finish()
     }
 
@@ -223,6 +232,8 @@ impl EnergyInputs {
         setting("seed", self.seed.to_string(), now.seed.to_string());
         setting("elements", self.elements.to_string(), now.elements.to_string());
         setting("vertices", self.vertices.to_string(), now.vertices.to_string());
+        let direct = |vrt: bool| if vrt { "vrt" } else { "lrt" }.to_string();
+        setting("direct light", direct(self.direct_vrt), direct(now.direct_vrt));
         out
     }
 }
@@ -257,6 +268,7 @@ mod tests {
             seed: 1,
             elements: 10,
             vertices: 12,
+            direct_vrt: false,
             digest: 0,
         };
         let mut b = a.clone();

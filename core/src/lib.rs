@@ -27,6 +27,7 @@ pub mod blocks;
 pub mod camera;
 pub mod cluster;
 pub mod color;
+pub mod direct;
 pub mod energy;
 pub mod fingerprint;
 pub mod frame;

@@ -9,6 +9,11 @@
 //! diffuse bounces carrying `rho_d` times the flux. Secondary rays deposit on every
 //! element they reach, recursively, to the depth limits of the effects plan.
 //!
+//! When the effects plan computes direct light at VRT ([`crate::plan::EffectsPlan`]'s
+//! `direct_vrt`), the primary rays deposit nothing: they only start the secondary rays,
+//! and the pairs of elements that neither reflect specularly nor bounce diffusely are not
+//! traced at all.
+//!
 //! Every random choice is seeded from (scene seed, light, element), so a pair re-run on
 //! another node deposits exactly the same values.
 
@@ -133,6 +138,10 @@ pub fn trace_pair(
     }
     let erec = view.element(element)?;
     let prec = view.patch(erec.patch)?;
+    if plan.skips_diffuse_pairs() && header.materials.get(prec.material as usize).is_none_or(|m| !m.is_specular()) {
+        // Its direct light is computed at VRT and nothing bounces on from it.
+        return Ok(out);
+    }
     let tri = element_triangle(&prec.v, prec.subdivisions, erec.local);
     let omega = solid_angle(l.position, &tri);
     if !(omega > 0.0) || outside_cone(l, &tri) {
@@ -173,7 +182,9 @@ pub fn trace_pair(
         }
         out.tally.reached = out.tally.reached.add(flux);
         let p = ray.at(t_plane);
-        deposits.push((element, flux));
+        if !plan.direct_vrt {
+            deposits.push((element, flux));
+        }
         let floor = flux.max_channel() * MIN_RELATIVE_FLUX;
         scatter(view, &mut rng, &mut stack, &mut out.tally, p, w, normal, prec.material, erec.patch, flux, 0, 0, floor);
         // Follow secondary rays depth-first.

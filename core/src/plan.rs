@@ -4,7 +4,12 @@
 //! on or off with a reason. A pass left out costs nothing, and because every kernel only
 //! spawns rays whose weight is non-zero, forcing it on gives a bitwise-identical image.
 
-use crate::scene::Scene;
+use crate::scene::{DirectLight, Scene};
+
+/// With `direct = "auto"`, direct light is computed at VRT for at most this many lights:
+/// each costs one shadow ray at every diffuse hit of every viewing ray, in every frame,
+/// where LRT's pairs are traced once for all frames.
+pub const MAX_VRT_LIGHTS: usize = 16;
 
 /// Which passes and ray kinds run, and why.
 #[derive(Clone, Debug, PartialEq, Eq, serde::Serialize)]
@@ -23,6 +28,10 @@ pub struct EffectsPlan {
     pub ambient: bool,
     /// Viewing rays per pixel.
     pub pixel_samples: u32,
+    /// Direct light from point and spot lights is computed at VRT, with one shadow ray
+    /// per light at each diffuse hit; light rays then deposit only what arrives via a
+    /// specular surface or a diffuse bounce.
+    pub direct_vrt: bool,
     /// One line per decision, for people.
     pub reasons: Vec<String>,
 }
@@ -91,6 +100,7 @@ impl EffectsPlan {
                 "ambient term off (zero ambient)".to_string()
             });
         }
+        let direct_vrt = direct_at_vrt(scene, lrt && any_diffuse, &mut reasons);
         EffectsPlan {
             lrt,
             lrt_depth,
@@ -99,8 +109,16 @@ impl EffectsPlan {
             vrt_depth,
             ambient,
             pixel_samples: s.pixel_samples,
+            direct_vrt,
             reasons,
         }
+    }
+
+    /// True when no light ray can deposit anything on an element of a material without
+    /// mirror or transmissive parts: direct light is computed at VRT and light rays do
+    /// not bounce diffusely, so the pairs of such elements need not be traced.
+    pub fn skips_diffuse_pairs(&self) -> bool {
+        self.direct_vrt && self.diffuse_bounces == 0
     }
 
     /// The plan with every optional effect forced on at the scene's settings: used to
@@ -114,6 +132,8 @@ impl EffectsPlan {
         p.diffuse_bounces = s.diffuse_bounces;
         p.vrt_depth = s.vrt_depth;
         p.ambient = s.diffuse_bounces == 0;
+        // Where direct light is computed changes the image (sharper shadows), so it stays
+        // as the scene's plan chose.
         p.reasons = vec!["every effect forced on (--all-effects)".to_string()];
         p
     }
@@ -135,6 +155,9 @@ impl EffectsPlan {
         }
         v.push("interp");
         v.push("vrt");
+        if self.direct_vrt {
+            v.push("vrt_direct");
+        }
         if self.vrt_depth > 0 {
             v.push("vrt_specular");
         }
@@ -143,6 +166,38 @@ impl EffectsPlan {
         }
         v
     }
+}
+
+/// Decides where direct light is computed (`lit`: some light reaches a diffuse surface).
+fn direct_at_vrt(scene: &Scene, lit: bool, reasons: &mut Vec<String>) -> bool {
+    if !lit {
+        return false;
+    }
+    let lights = scene.lights.iter().filter(|l| !l.intensity.is_black()).count();
+    let (on, why) = match scene.settings.direct {
+        DirectLight::Lrt => {
+            (false, "direct = \"lrt\": light rays deposit direct light on elements (the paper's way)".to_string())
+        }
+        DirectLight::Vrt => {
+            (true, "direct = \"vrt\": direct light at VRT, one shadow ray per light at each diffuse hit".to_string())
+        }
+        DirectLight::Auto if lights <= MAX_VRT_LIGHTS => (
+            true,
+            format!(
+                "{lights} light(s): direct light at VRT, one shadow ray per light at each diffuse hit (pixel-sharp \
+                 shadows); light rays carry light via mirrors, glass and diffuse bounces"
+            ),
+        ),
+        DirectLight::Auto => (
+            false,
+            format!(
+                "{lights} lights (over {MAX_VRT_LIGHTS}): a shadow ray per light at every hit would cost more than the \
+                 light pass; direct light via light rays onto elements"
+            ),
+        ),
+    };
+    reasons.push(why);
+    on
 }
 
 impl std::fmt::Display for EffectsPlan {

@@ -1,14 +1,16 @@
 //! Viewing ray tracing (paper §3.4): rays from the eye through each pixel.
 //!
-//! At a diffuse hit the irradiance is interpolated from the hit element's vertices and
-//! radiance is `rho_d / pi * E + rho_d * ambient` (the ambient term only when the plan
-//! keeps it). Mirror and dielectric parts recurse with Fresnel weights to the plan's VRT
+//! At a diffuse hit the irradiance is interpolated from the hit element's vertices (plus,
+//! when the plan computes direct light here, what the lights give through one shadow ray
+//! each, [`crate::direct`]) and radiance is `rho_d / pi * E + rho_d * ambient` (the
+//! ambient term only when the plan keeps it). Mirror and dielectric parts recurse with Fresnel weights to the plan's VRT
 //! depth. Each pixel is seeded from (scene seed, pixel), so the image does not depend on
 //! which node traced which subscreen.
 
 use crate::blocks::BlockError;
 use crate::camera::CameraRig;
 use crate::color::Rgb;
+use crate::direct;
 use crate::geometry::{triangle_normal, Ray};
 use crate::rng::{hammersley, Rng};
 use crate::scatter::{offset_scale, Arrival, Dielectric};
@@ -89,6 +91,10 @@ fn radiance(
         for k in 0..3 {
             irr = irr.add(view.vertex_energy(e.vertices[k])?.scale(w[k]));
         }
+        if m.direct_vrt {
+            let facing = Arrival::new(ray.at(hit.t), ray.direction, triangle_normal(&prec.v)).normal;
+            irr = irr.add(direct::irradiance(view, scratch, ray.at(hit.t), facing, hit.patch)?);
+        }
         l = l.add(m.diffuse.mul(irr).scale(1.0 / PI));
         if let Some(ambient) = m.ambient {
             l = l.add(m.diffuse.mul(ambient));
@@ -129,6 +135,8 @@ struct Surface {
     ambient: Option<Rgb>,
     vrt_depth: u32,
     refraction: bool,
+    /// Direct light is computed here, with shadow rays ([`crate::direct`]).
+    direct_vrt: bool,
 }
 
 impl Surface {
@@ -144,6 +152,7 @@ impl Surface {
             ambient: h.plan.ambient.then_some(h.settings.ambient),
             vrt_depth: h.plan.vrt_depth,
             refraction: h.plan.refraction,
+            direct_vrt: h.plan.direct_vrt,
         })
     }
     fn is_mirror(&self) -> bool {

@@ -12,7 +12,7 @@ use magg_core::geometry::{intersect_watertight, Ray};
 use magg_core::preprocess::{prepare, PreparedScene};
 use magg_core::render::{render, RenderOptions};
 use magg_core::rng::Rng;
-use magg_core::scene::{parse_scene_with_path, Accel, Scene};
+use magg_core::scene::{parse_scene_with_path, Accel, DirectLight, Scene};
 use magg_core::trace::{cast, Hit, TraceScratch, NO_PATCH};
 use magg_core::view::SceneView;
 use std::path::{Path, PathBuf};
@@ -190,16 +190,24 @@ fn every_shipped_scene_renders_the_same_bits_with_the_grid_and_the_bvh() {
         s.settings.light_rays = s.settings.light_rays.min(4);
         let opts =
             RenderOptions { nodes: 2, forks: 3, cache_blocks: magg_core::blocks::CacheSize::Unlimited, subscreen: 16 };
-        let mut outs = Vec::new();
-        for accel in [Accel::Grid, Accel::Bvh] {
-            let p = with_accel(&s, accel);
-            let o = render(&p, &opts, &magg_core::progress::NoProgress).unwrap();
-            assert!(o.stats.light.reached.0[0] > 0.0, "{label} ({accel:?}): no light reached an element");
-            outs.push(o);
+        // Direct light deposited by light rays (every pair traced), and where the plan
+        // puts it (shadow rays at VRT).
+        for direct in [DirectLight::Lrt, DirectLight::Auto] {
+            s.settings.direct = direct;
+            let mut outs = Vec::new();
+            for accel in [Accel::Grid, Accel::Bvh] {
+                let p = with_accel(&s, accel);
+                let o = render(&p, &opts, &magg_core::progress::NoProgress).unwrap();
+                if direct == DirectLight::Lrt {
+                    assert!(o.stats.light.reached.0[0] > 0.0, "{label} ({accel:?}): no light reached an element");
+                }
+                outs.push(o);
+            }
+            let label = format!("{label} (direct {direct:?})");
+            assert_eq!(outs[0].element_flux, outs[1].element_flux, "{label}: element energies differ");
+            assert_eq!(outs[0].vertex_irradiance, outs[1].vertex_irradiance, "{label}: vertex irradiance differs");
+            assert_eq!(outs[0].frame, outs[1].frame, "{label}: frames differ");
         }
-        assert_eq!(outs[0].element_flux, outs[1].element_flux, "{label}: element energies differ");
-        assert_eq!(outs[0].vertex_irradiance, outs[1].vertex_irradiance, "{label}: vertex irradiance differs");
-        assert_eq!(outs[0].frame, outs[1].frame, "{label}: frames differ");
     }
 }
 

@@ -49,6 +49,10 @@ pub enum Command {
     /// difference, optionally write a heat map of the error; exit 0 (2 with --fail-above X
     /// when relMSE > X).
     Diff(crate::commands::diff::DiffArgs),
+    /// Write the scene for another renderer (`--mitsuba`: Mitsuba 3's scene.xml and PLY
+    /// meshes), after --set, --quality and the knob flags, to make an independent
+    /// reference image (docs/ACCURACY.md).
+    Export(crate::commands::export::ExportArgs),
     /// Ask the gRPC health service at ADDR (HOST:PORT: a magg-fork, a magg-node with
     /// --health-listen, or a host while it renders) and exit 0 when it reports SERVING:
     /// the health check of a container image that has no shell.
@@ -211,6 +215,11 @@ pub struct Knobs {
     // Text until `apply`: a bad value is then one error line.
     #[arg(long)]
     pub accel: Option<String>,
+    /// Where direct light is computed: "auto" (the effects plan decides), "vrt" (a shadow
+    /// ray per light at each diffuse hit: pixel-sharp shadows) or "lrt" (light rays onto
+    /// elements, the paper's way; the default with --scheme paper).
+    #[arg(long)]
+    pub direct: Option<String>,
 }
 
 /// Arguments of `info`.
@@ -447,11 +456,18 @@ impl Knobs {
             };
             s.accel = a;
         }
+        if let Some(v) = &self.direct {
+            let Some(d) = magg_core::scene::DirectLight::parse(v) else {
+                bail!("--direct {v:?}: expected \"auto\", \"vrt\" or \"lrt\"");
+            };
+            s.direct = d;
+        }
         Ok(())
     }
 
     /// [`Knobs::apply`] for a render under `scheme`: the paper's scheme traces through the
-    /// paper's grid unless `--accel` says otherwise.
+    /// paper's grid and deposits direct light with light rays, unless `--accel` or
+    /// `--direct` says otherwise.
     pub fn apply_for(
         &self,
         scheme: magg_throttle::Scheme,
@@ -459,6 +475,9 @@ impl Knobs {
     ) -> anyhow::Result<()> {
         if scheme == magg_throttle::Scheme::Paper && self.accel.is_none() {
             s.accel = magg_core::scene::Accel::Grid;
+        }
+        if scheme == magg_throttle::Scheme::Paper && self.direct.is_none() {
+            s.direct = magg_core::scene::DirectLight::Lrt;
         }
         self.apply(s)
     }
@@ -509,5 +528,20 @@ mod tests {
         assert_eq!(s.accel, Accel::Bvh);
         let e = Knobs { accel: Some("octree".into()), ..Default::default() }.apply(&mut s).unwrap_err();
         assert_eq!(e.to_string(), "--accel \"octree\": expected \"bvh\" or \"grid\"");
+    }
+
+    #[test]
+    fn the_paper_scheme_deposits_direct_light_with_light_rays() {
+        use magg_core::scene::{DirectLight, RenderSettings};
+        use magg_throttle::Scheme;
+        let mut s = RenderSettings::default();
+        Knobs::default().apply_for(Scheme::Magg, &mut s).unwrap();
+        assert_eq!(s.direct, DirectLight::Auto);
+        Knobs::default().apply_for(Scheme::Paper, &mut s).unwrap();
+        assert_eq!(s.direct, DirectLight::Lrt);
+        let vrt = Knobs { direct: Some("vrt".into()), ..Default::default() };
+        vrt.apply_for(Scheme::Paper, &mut s).unwrap();
+        assert_eq!(s.direct, DirectLight::Vrt);
+        assert!(Knobs { direct: Some("both".into()), ..Default::default() }.apply(&mut s).is_err());
     }
 }

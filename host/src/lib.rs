@@ -17,6 +17,7 @@ pub mod image_diff;
 pub mod images;
 pub mod live;
 pub mod memory;
+pub mod mitsuba;
 pub mod model_scene;
 pub mod overrides;
 pub mod progress;
@@ -31,6 +32,7 @@ pub fn run(cli: cli::Cli) -> anyhow::Result<()> {
         cli::Command::Info(args) => commands::info::run(&args, &files),
         cli::Command::Accuracy(args) => commands::accuracy::run(&args, &files),
         cli::Command::Diff(args) => commands::diff::run(&args),
+        cli::Command::Export(args) => commands::export::run(&args, &files),
         cli::Command::Sweep(args) => commands::sweep::run(&args, &cli.allow_path),
         cli::Command::Probe(p) => {
             magg_plumbing::health::probe_blocking(&p.addr)?;

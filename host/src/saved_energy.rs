@@ -158,6 +158,7 @@ mod tests {
             seed: 1,
             elements: 2,
             vertices: 1,
+            direct_vrt: false,
             digest: 0,
         }
         .sealed()

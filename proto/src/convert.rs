@@ -28,7 +28,9 @@ use magg_core::color::Rgb;
 use magg_core::header::{BvhHeader, Counts, GridHeader, SceneHeader};
 use magg_core::math::Normalized;
 use magg_core::plan::EffectsPlan;
-use magg_core::scene::{Accel, Camera, Exposure, GridSpec, Light, Material, RenderSettings, SourceLoc, Spot};
+use magg_core::scene::{
+    Accel, Camera, DirectLight, Exposure, GridSpec, Light, Material, RenderSettings, SourceLoc, Spot,
+};
 
 mod cluster;
 pub use cluster::ledger_digest;
@@ -284,6 +286,11 @@ fn settings_to_wire(s: &RenderSettings) -> v1::RenderSettings {
             Accel::Bvh => v1::Accel::Bvh,
             Accel::Grid => v1::Accel::Grid,
         } as i32,
+        direct: match s.direct {
+            DirectLight::Auto => v1::DirectLight::Auto,
+            DirectLight::Vrt => v1::DirectLight::Vrt,
+            DirectLight::Lrt => v1::DirectLight::Lrt,
+        } as i32,
     }
 }
 
@@ -327,8 +334,21 @@ fn settings_from_wire(s: v1::RenderSettings) -> Result<RenderSettings, ConvertEr
         Ok(v1::Accel::Grid) => Accel::Grid,
         Err(_) => return Err(invalid("settings.accel", s.accel, "ACCEL_BVH (0) or ACCEL_GRID (1)")),
     };
+    let direct = match v1::DirectLight::try_from(s.direct) {
+        Ok(v1::DirectLight::Auto) => DirectLight::Auto,
+        Ok(v1::DirectLight::Vrt) => DirectLight::Vrt,
+        Ok(v1::DirectLight::Lrt) => DirectLight::Lrt,
+        Err(_) => {
+            return Err(invalid(
+                "settings.direct",
+                s.direct,
+                "DIRECT_LIGHT_AUTO (0), DIRECT_LIGHT_VRT (1) or DIRECT_LIGHT_LRT (2)",
+            ))
+        }
+    };
     Ok(RenderSettings {
         accel,
+        direct,
         width,
         height,
         pixel_samples,
@@ -356,6 +376,7 @@ fn plan_to_wire(p: &EffectsPlan) -> v1::EffectsPlan {
         ambient: p.ambient,
         pixel_samples: p.pixel_samples,
         reasons: p.reasons.clone(),
+        direct_vrt: p.direct_vrt,
     }
 }
 
@@ -377,6 +398,7 @@ fn plan_from_wire(p: v1::EffectsPlan) -> Result<EffectsPlan, ConvertError> {
         vrt_depth: in_range(p.vrt_depth, 0, MAX_PLAN_DEPTH, "plan.vrt_depth")?,
         ambient: p.ambient,
         pixel_samples: in_range(p.pixel_samples, 1, 4096, "plan.pixel_samples")?,
+        direct_vrt: p.direct_vrt,
         reasons,
     })
 }

@@ -133,6 +133,42 @@ impl Accel {
     }
 }
 
+/// Where direct light from point and spot lights is computed.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum DirectLight {
+    /// The effects plan decides ([`crate::plan::EffectsPlan::for_scene`]): at VRT unless
+    /// the scene has too many lights for a shadow ray per light at every hit to pay.
+    #[default]
+    Auto,
+    /// At each diffuse hit of a viewing ray, with one shadow ray per light: shadows as
+    /// sharp as the pixels; the elements carry only what LRT alone can (light via mirrors
+    /// and glass, diffuse bounces).
+    Vrt,
+    /// The paper's way: light rays deposit direct light on elements, interpolated at VRT.
+    Lrt,
+}
+
+impl DirectLight {
+    /// Its name in scene files and on the command line.
+    pub fn name(self) -> &'static str {
+        match self {
+            DirectLight::Auto => "auto",
+            DirectLight::Vrt => "vrt",
+            DirectLight::Lrt => "lrt",
+        }
+    }
+
+    /// The choice called `name` ("auto", "vrt" or "lrt").
+    pub fn parse(name: &str) -> Option<DirectLight> {
+        match name {
+            "auto" => Some(DirectLight::Auto),
+            "vrt" => Some(DirectLight::Vrt),
+            "lrt" => Some(DirectLight::Lrt),
+            _ => None,
+        }
+    }
+}
+
 /// Tone-mapping exposure for the PNG output.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Exposure {
@@ -166,6 +202,8 @@ pub struct RenderSettings {
     pub ambient: Rgb,
     /// Acceleration structure of ray casting.
     pub accel: Accel,
+    /// Where direct light is computed (LRT onto elements, or VRT with shadow rays).
+    pub direct: DirectLight,
     /// Subspace grid resolution (with [`Accel::Grid`]).
     pub grid: GridSpec,
     /// Seed of every random choice (rays are seeded from it, the pair and the pixel).
@@ -191,6 +229,7 @@ impl Default for RenderSettings {
             diffuse_bounces: 0,
             ambient: Rgb::splat(0.0),
             accel: Accel::Bvh,
+            direct: DirectLight::Auto,
             grid: GridSpec::Auto,
             seed: 1,
             exposure: Exposure::Auto,

@@ -16,8 +16,8 @@ use toml::Spanned;
 use super::error::SceneError;
 use super::field::field_at;
 use super::model::{
-    Accel, Camera, CameraPath, Exposure, GridSpec, Light, Material, PatchDef, RenderSettings, Scene, SourceLoc, Spot,
-    MAX_COORDINATE, MAX_RADIOMETRIC,
+    Accel, Camera, CameraPath, DirectLight, Exposure, GridSpec, Light, Material, PatchDef, RenderSettings, Scene,
+    SourceLoc, Spot, MAX_COORDINATE, MAX_RADIOMETRIC,
 };
 use super::obj::{self, MaterialTable, MeshEntry, Transform};
 use super::shape::{check_quad, is_degenerate};
@@ -68,6 +68,7 @@ struct RawRender {
     diffuse_bounces: Option<Spanned<i64>>,
     ambient: Option<SVec>,
     accel: Option<Spanned<String>>,
+    direct: Option<Spanned<String>>,
     grid: Option<Spanned<toml::Value>>,
     seed: Option<Spanned<i64>>,
     exposure: Option<Spanned<toml::Value>>,
@@ -381,6 +382,11 @@ impl<'a> Ctx<'a> {
         if let Some(v) = &r.accel {
             s.accel = Accel::parse(v.get_ref()).ok_or_else(|| {
                 self.err(v, "render.accel", format!("expected \"bvh\" or \"grid\", found {:?}", v.get_ref()))
+            })?;
+        }
+        if let Some(v) = &r.direct {
+            s.direct = DirectLight::parse(v.get_ref()).ok_or_else(|| {
+                self.err(v, "render.direct", format!("expected \"auto\", \"vrt\" or \"lrt\", found {:?}", v.get_ref()))
             })?;
         }
         if let Some(v) = &r.grid {

@@ -78,6 +78,9 @@ pub fn scene(patches: Vec<PatchDef>, materials: Vec<Material>, lights: Vec<Light
             height: 32,
             pixel_samples: 1,
             light_rays: 16,
+            // The suites check the light pass's element energies against closed forms, so
+            // light rays deposit direct light; tests/direct_light.rs checks it at VRT.
+            direct: magg_core::scene::DirectLight::Lrt,
             ..RenderSettings::default()
         },
         lights,

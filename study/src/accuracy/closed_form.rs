@@ -12,10 +12,11 @@ use magg_core::math::Normalized;
 use magg_core::preprocess::PreparedScene;
 
 /// True when the closed form holds for a render of `prepared` whose light pass reported
-/// `tally`.
+/// `tally`. Not when direct light is computed at VRT: the elements then hold none of it.
 pub fn applies(prepared: &PreparedScene, tally: &LrtTally) -> bool {
     let h = &prepared.header;
-    h.plan.lrt_depth == 0
+    !h.plan.direct_vrt
+        && h.plan.lrt_depth == 0
         && h.plan.diffuse_bounces == 0
         && h.lights.iter().all(|l| l.spot.is_none())
         && tally.occluded.0.iter().all(|&o| o == 0.0)
@@ -86,6 +87,7 @@ mod tests {
         s.settings.height = 16;
         s.settings.element_size = element_size;
         s.settings.light_rays = light_rays;
+        s.settings.direct = magg_core::scene::DirectLight::Lrt;
         let prepared = preprocess::prepare(&s).unwrap();
         let out = render::render(&prepared, &Default::default(), &NoProgress).unwrap();
         vertex_rel_rmse(&prepared, &out.stats.light, &out.vertex_irradiance)
@@ -100,6 +102,17 @@ mod tests {
         let fine_more_rays = vertex_error(scene("plane.toml"), 0.25, 64).unwrap();
         assert!(coarse > 2.5 * fine && fine > 0.0, "coarse {coarse} fine {fine}");
         assert!((fine - fine_more_rays).abs() <= 1e-9 * fine, "{fine} vs {fine_more_rays}");
+    }
+
+    #[test]
+    fn no_vertex_closed_form_when_direct_light_is_computed_at_vrt() {
+        let mut s = scene("plane.toml");
+        s.settings.width = 16;
+        s.settings.height = 16;
+        let prepared = preprocess::prepare(&s).unwrap();
+        assert!(prepared.header.plan.direct_vrt);
+        let out = render::render(&prepared, &Default::default(), &NoProgress).unwrap();
+        assert_eq!(vertex_rel_rmse(&prepared, &out.stats.light, &out.vertex_irradiance), None);
     }
 
     #[test]

@@ -37,10 +37,12 @@ impl Point {
         }
     }
 
-    /// The converged reference: elements half the scene's size, 256 light rays, 16 pixel
-    /// samples, the scene's depths and diffuse bounces.
+    /// The converged reference: elements half the scene's size, eight times its light
+    /// rays per pair (at least 256, twice the `final` preset's), 16 pixel samples, the
+    /// scene's depths and diffuse bounces.
     pub fn reference(scene: &Scene) -> Point {
-        Point { element_scale: 0.5, light_rays: 256, pixel_samples: 16, ..Point::of_scene(scene) }
+        let light_rays = (scene.settings.light_rays.saturating_mul(8)).max(256);
+        Point { element_scale: 0.5, light_rays, pixel_samples: 16, ..Point::of_scene(scene) }
     }
 
     /// Where a quality preset puts the scene.
@@ -49,7 +51,7 @@ impl Point {
         let base = Point::of_scene(scene);
         Point {
             element_scale: p.element_scale,
-            light_rays: p.light_rays.unwrap_or(base.light_rays),
+            light_rays: p.light_rays(base.light_rays),
             pixel_samples: p.pixel_samples.unwrap_or(base.pixel_samples),
             ..base
         }

@@ -4,35 +4,54 @@
 use magg_core::scene::Scene;
 
 /// A named point on the accuracy/time front.
+///
+/// The presets keep light rays per unit area, not per pair: an element a quarter the
+/// area with as many rays per pair would gather as many bounce rays as before, and its
+/// noise would not fall. So each step halves the element edge (four times the pairs)
+/// and multiplies the rays per pair by four: sixteen times the rays per unit area, the
+/// noise of each element halved.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
 pub enum Quality {
-    /// Quick look: elements twice the scene's size, 8 light rays, 1 pixel sample.
+    /// Quick look: elements twice the scene's size, a quarter of its light rays per pair
+    /// (at least 4), 1 pixel sample.
     Draft,
     /// The scene's own `[render]` settings.
     Good,
-    /// Near the converged reference: elements half the scene's size, 128 light rays,
-    /// 16 pixel samples.
+    /// Near the converged reference: elements half the scene's size, four times its
+    /// light rays per pair, 16 pixel samples.
     Final,
 }
 
-/// What a preset changes; `None` keeps the scene's value.
+/// What a preset changes.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Preset {
     /// Element edge multiplier (see [`scale_elements`]).
     pub element_scale: f64,
-    /// Light rays per (light, element) pair.
-    pub light_rays: Option<u32>,
-    /// Viewing rays per pixel.
+    /// Multiplier of the scene's light rays per (light, element) pair.
+    pub ray_factor: f64,
+    /// Viewing rays per pixel; `None` keeps the scene's.
     pub pixel_samples: Option<u32>,
+}
+
+impl Preset {
+    /// Light rays per pair for a scene that asks for `scene_rays`.
+    pub fn light_rays(&self, scene_rays: u32) -> u32 {
+        let r = (scene_rays.max(1) as f64 * self.ray_factor).round();
+        if self.ray_factor < 1.0 {
+            (r as u32).max(4).min(scene_rays.max(1))
+        } else {
+            r.min(1_000_000.0) as u32
+        }
+    }
 }
 
 impl Quality {
     /// The settings this preset stands for.
     pub fn preset(self) -> Preset {
         match self {
-            Quality::Draft => Preset { element_scale: 2.0, light_rays: Some(8), pixel_samples: Some(1) },
-            Quality::Good => Preset { element_scale: 1.0, light_rays: None, pixel_samples: None },
-            Quality::Final => Preset { element_scale: 0.5, light_rays: Some(128), pixel_samples: Some(16) },
+            Quality::Draft => Preset { element_scale: 2.0, ray_factor: 0.25, pixel_samples: Some(1) },
+            Quality::Good => Preset { element_scale: 1.0, ray_factor: 1.0, pixel_samples: None },
+            Quality::Final => Preset { element_scale: 0.5, ray_factor: 4.0, pixel_samples: Some(16) },
         }
     }
 
@@ -40,9 +59,7 @@ impl Quality {
     pub fn apply(self, scene: &mut Scene) {
         let p = self.preset();
         scale_elements(scene, p.element_scale);
-        if let Some(v) = p.light_rays {
-            scene.settings.light_rays = v;
-        }
+        scene.settings.light_rays = p.light_rays(scene.settings.light_rays);
         if let Some(v) = p.pixel_samples {
             scene.settings.pixel_samples = v;
         }
@@ -66,6 +83,15 @@ pub fn scale_elements(scene: &mut Scene, factor: f64) {
 
 #[cfg(test)]
 mod tests {
+    #[test]
+    fn draft_keeps_a_few_rays_and_never_adds_any() {
+        let d = Quality::Draft.preset();
+        assert_eq!(d.light_rays(64), 16);
+        assert_eq!(d.light_rays(8), 4);
+        assert_eq!(d.light_rays(2), 2);
+        assert_eq!(Quality::Good.preset().light_rays(7), 7);
+    }
+
     use super::*;
     use glam::DVec3;
     use magg_core::scene::{Camera, PatchDef, RenderSettings, SourceLoc};
@@ -98,7 +124,7 @@ mod tests {
         let mut s = scene();
         Quality::Draft.apply(&mut s);
         assert_eq!(s.settings.element_size, 0.4);
-        assert_eq!(s.settings.light_rays, 8);
+        assert_eq!(s.settings.light_rays, 4, "a quarter of 16");
         assert_eq!(s.settings.pixel_samples, 1);
         assert_eq!(s.patches[0].subdivisions, Some(8));
         assert_eq!(s.patches[1].subdivisions, None);
@@ -117,7 +143,7 @@ mod tests {
         let mut s = scene();
         Quality::Final.apply(&mut s);
         assert_eq!(s.settings.element_size, 0.1);
-        assert_eq!(s.settings.light_rays, 128);
+        assert_eq!(s.settings.light_rays, 64, "four times 16: sixteen times the rays per unit area");
         assert_eq!(s.settings.pixel_samples, 16);
         assert_eq!(s.patches[0].subdivisions, Some(32));
         assert_eq!(s.patches[2].subdivisions, Some(2));
