@@ -115,7 +115,9 @@ fn split_glb(bytes: &[u8]) -> Result<(&[u8], Option<&[u8]>), String> {
         return Err(format!("the header says {length} bytes, the file has {} (truncated?)", bytes.len()));
     }
     let bytes = &bytes[..length];
-    let chunk = |at: usize| -> Result<Option<(u32, &[u8], usize)>, String> {
+    /// A chunk's type, its data and where the next chunk starts.
+    type Chunk<'b> = (u32, &'b [u8], usize);
+    let chunk = |at: usize| -> Result<Option<Chunk<'_>>, String> {
         if at >= bytes.len() {
             return Ok(None);
         }
@@ -519,7 +521,7 @@ pub fn gltf_stage(label: &str, bytes: &[u8]) -> Result<GltfStage, SceneError> {
                 ::gltf::khr_lights_punctual::Kind::Directional => continue,
                 ::gltf::khr_lights_punctual::Kind::Point => None,
                 ::gltf::khr_lights_punctual::Kind::Spot { inner_cone_angle, outer_cone_angle } => {
-                    if !(forward.length() > 0.0) {
+                    if forward.length().is_nan() || forward.length() <= 0.0 {
                         continue;
                     }
                     let outer = f64::from(outer_cone_angle).to_degrees().clamp(0.01, 90.0);

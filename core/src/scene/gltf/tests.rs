@@ -119,8 +119,8 @@ fn node_transforms_compose_down_the_tree() {
     // The same as one column-major matrix.
     let nodes = "[{\"mesh\":0,\"matrix\":[0,2,0,0, -2,0,0,0, 0,0,2,0, 10,0,0,1]}]";
     let m = load_ok(&document(nodes, Some(&data_uri())));
-    for k in 0..3 {
-        assert!(close(m.triangles[0].0[k], v[k].to_array()), "{:?}", m.triangles[0].0);
+    for (a, b) in m.triangles[0].0.iter().zip(v) {
+        assert!(close(*a, b.to_array()), "{:?}", m.triangles[0].0);
     }
 }
 
