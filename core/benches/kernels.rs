@@ -50,8 +50,7 @@ fn fixture(name: &'static str, rel: &str) -> Fixture {
     let path: PathBuf = Path::new(env!("CARGO_MANIFEST_DIR")).join("..").join(rel);
     let text = std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
     let base = path.parent().unwrap_or(Path::new("."));
-    let sc = scene::parse_scene_str(rel, &text, base, &|p: &Path| std::fs::read_to_string(p))
-        .unwrap_or_else(|e| panic!("{e}"));
+    let sc = scene::parse_scene_str(rel, &text, base, &|p: &Path| std::fs::read(p)).unwrap_or_else(|e| panic!("{e}"));
     let prepared = prepare(&sc).unwrap_or_else(|e| panic!("{rel}: {e}"));
     let out = render(&prepared, &RenderOptions::default(), &NoProgress).unwrap_or_else(|e| panic!("{rel}: {e}"));
     let store = Arc::new(MemStore::new(prepared.blocks.clone()));

@@ -99,8 +99,8 @@ fn load(path: &Path, accel: Option<scene::Accel>) -> Result<Fixture, String> {
     let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
     let base = path.parent().unwrap_or(Path::new("."));
     let label = path.display().to_string();
-    let mut sc = scene::parse_scene_str(&label, &text, base, &|p: &Path| std::fs::read_to_string(p))
-        .map_err(|e| e.to_string())?;
+    let mut sc =
+        scene::parse_scene_str(&label, &text, base, &|p: &Path| std::fs::read(p)).map_err(|e| e.to_string())?;
     if let Some(a) = accel {
         sc.settings.accel = a;
     }

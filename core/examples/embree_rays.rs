@@ -118,8 +118,7 @@ fn load(a: &Args) -> Result<Scene, String> {
     };
     let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
     let base = path.parent().unwrap_or(Path::new("."));
-    parse_scene_str(&path.display().to_string(), &text, base, &|p: &Path| std::fs::read_to_string(p))
-        .map_err(|e| e.to_string())
+    parse_scene_str(&path.display().to_string(), &text, base, &|p: &Path| std::fs::read(p)).map_err(|e| e.to_string())
 }
 
 /// The primary rays, and the occlusion rays with their tmax.

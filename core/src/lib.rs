@@ -17,7 +17,7 @@
 //! use magg_core::{preprocess, render, scene};
 //! let text = std::fs::read_to_string("scenes/cornell.toml").unwrap();
 //! let scene = scene::parse_scene_str("scenes/cornell.toml", &text, "scenes".as_ref(),
-//!     &|p: &std::path::Path| std::fs::read_to_string(p)).unwrap();
+//!     &|p: &std::path::Path| std::fs::read(p)).unwrap();
 //! let prepared = preprocess::prepare(&scene).unwrap();
 //! let out = render::render(&prepared, &render::RenderOptions::default(), &magg_core::progress::NoProgress).unwrap();
 //! println!("{} x {} pixels", out.frame.width, out.frame.height);

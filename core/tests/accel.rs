@@ -182,8 +182,8 @@ fn every_shipped_scene_renders_the_same_bits_with_the_grid_and_the_bvh() {
         let text = std::fs::read_to_string(&path).unwrap();
         let label = path.display().to_string();
         let dir = path.parent().unwrap();
-        let (mut s, _) = parse_scene_with_path(&label, &text, dir, &|p: &Path| std::fs::read_to_string(p))
-            .unwrap_or_else(|e| panic!("{e}"));
+        let (mut s, _) =
+            parse_scene_with_path(&label, &text, dir, &|p: &Path| std::fs::read(p)).unwrap_or_else(|e| panic!("{e}"));
         s.settings.width = 48;
         s.settings.height = 48;
         s.settings.pixel_samples = 1;

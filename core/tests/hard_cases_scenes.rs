@@ -27,7 +27,7 @@ fn every_shipped_scene_renders_finite_at_tiny_settings() {
     for path in &files {
         let label = path.file_name().unwrap().to_string_lossy().to_string();
         let text = std::fs::read_to_string(path).unwrap();
-        let mut scene = parse_scene_str(&label, &text, Path::new(SCENES), &|p: &Path| std::fs::read_to_string(p))
+        let mut scene = parse_scene_str(&label, &text, Path::new(SCENES), &|p: &Path| std::fs::read(p))
             .unwrap_or_else(|e| panic!("{label}: {e}"));
         let s = &mut scene.settings;
         s.width = 24;

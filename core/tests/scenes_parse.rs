@@ -15,7 +15,7 @@ fn load(name: &str) -> Scene {
     let dir = scenes_dir();
     let path = dir.join(name);
     let text = std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
-    parse_scene_str(name, &text, &dir, &|p: &Path| std::fs::read_to_string(p)).unwrap_or_else(|e| panic!("{e}"))
+    parse_scene_str(name, &text, &dir, &|p: &Path| std::fs::read(p)).unwrap_or_else(|e| panic!("{e}"))
 }
 
 fn normal(p: &PatchDef) -> DVec3 {
@@ -115,11 +115,11 @@ fn readme_example_parses() {
     let readme = std::fs::read_to_string(dir.join("README.md")).unwrap();
     let start = readme.find("```toml\n").expect("a ```toml block") + "```toml\n".len();
     let len = readme[start..].find("```").unwrap();
-    let s = parse_scene_str("README.md", &readme[start..start + len], &dir, &|p: &Path| std::fs::read_to_string(p))
+    let s = parse_scene_str("README.md", &readme[start..start + len], &dir, &|p: &Path| std::fs::read(p))
         .unwrap_or_else(|e| panic!("{e}"));
     assert_eq!(s.patches.len(), 2 + 1280);
     // An unknown key is reported as the README says.
     let bad = readme[start..start + len].replace("ior = 1.5", "ior = 1.5\ncolour = [1, 1, 1]");
-    let e = parse_scene_str("x.toml", &bad, &dir, &|p: &Path| std::fs::read_to_string(p)).unwrap_err().to_string();
+    let e = parse_scene_str("x.toml", &bad, &dir, &|p: &Path| std::fs::read(p)).unwrap_err().to_string();
     assert!(e.contains("material[1].colour: unknown field `colour`, expected one of `name`, `diffuse`"), "{e}");
 }

@@ -19,7 +19,7 @@ const FORKS: u32 = 3;
 /// The paper's scene (1664 elements) with a second light: 3328 pairs.
 fn paper_scene() -> PreparedScene {
     let text = include_str!("../../scenes/magg-paper.toml");
-    let read = |p: &std::path::Path| std::fs::read_to_string(p);
+    let read = |p: &std::path::Path| std::fs::read(p);
     let mut scene = parse_scene_str("magg-paper.toml", text, "scenes".as_ref(), &read).unwrap();
     let mut second = scene.lights[0].clone();
     second.position.x += 1.0;

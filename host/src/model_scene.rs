@@ -1,52 +1,92 @@
-//! A model file rendered on its own: `magg-host render model.obj --out m.png`. The scene
-//! around it is made up as a user would write it: a camera that frames the model's
-//! bounding sphere from the front, above and to the right (Y up, the usual for OBJ), a
-//! point light beside the camera, elements sized to the model, a grey diffuse material
-//! for faces the model's MTL does not colour. It is written as a TOML scene and parsed
-//! like one, so `--set` reaches every value of it (`--set camera.fov=30`).
+//! A model file rendered on its own: `magg-host render model.obj --out m.png` (or `.ply`,
+//! `.gltf`, `.glb`). The scene around it is made up as a user would write it: a camera
+//! that frames the model's bounding sphere from the front, above and to the right (Y up,
+//! the usual for OBJ and glTF), a point light beside the camera, elements sized to the
+//! model, a grey diffuse material for a model whose faces have no material (every PLY).
+//! A glTF file's own camera and point and spot lights replace the made-up ones. It is
+//! written as a TOML scene and parsed like one, so `--set` reaches every value of it
+//! (`--set camera.fov=30`).
 
-use magg_core::scene::Scene;
+use magg_core::scene::{GltfStage, Light, MeshFormat, Scene};
+use std::fmt::Write;
 use std::path::Path;
 
-/// Whether `path` names a model file rather than a scene (by extension: `.obj`).
+/// Whether `path` names a model file rather than a scene (by extension: `.obj`, `.ply`,
+/// `.gltf`, `.glb`).
 pub fn is_model(path: &Path) -> bool {
-    path.extension().is_some_and(|e| e.eq_ignore_ascii_case("obj"))
+    MeshFormat::of(path).is_some()
 }
 
 /// The scene of model `file` (its name, beside the scene) seen as `view` says; `grey`:
-/// give every face the grey material (for a model whose faces have no `usemtl`).
+/// give every face the grey material (for a model whose faces have no material).
 pub fn scene_text(file: &str, view: &View, grey: bool) -> String {
     let v = |p: [f64; 3]| format!("[{:e}, {:e}, {:e}]", p[0], p[1], p[2]);
     let material = if grey { "material = \"grey\"\n" } else { "" };
-    format!(
+    let mut out = format!(
         "# The scene magg-host makes up around {file:?}.\n\
-         [camera]\neye = {}\nlook_at = {}\nfov = {}\n\n\
-         [render]\nelement_size = {:e}\nambient = [0.05, 0.05, 0.05]\n\n\
-         [[light]]\nposition = {}\nintensity = {}\n\n\
-         [[material]]\nname = \"grey\"\ndiffuse = [0.7, 0.7, 0.7]\n\n\
-         [[mesh]]\nobj = {file:?}\n{material}",
+         [camera]\neye = {}\nlook_at = {}\nup = {}\nfov = {}\n\n\
+         [render]\nelement_size = {:e}\nambient = [0.05, 0.05, 0.05]\n",
         v(view.eye),
         v(view.look_at),
+        v(view.up),
         view.fov,
         view.element_size,
-        v(view.light),
-        v([view.intensity; 3]),
-    )
+    );
+    if let Some(width) = view.width {
+        let _ = writeln!(out, "width = {width}");
+    }
+    for light in &view.lights {
+        let _ = write!(out, "\n[[light]]\nposition = {}\nintensity = {}\n", v(light.position), v(light.intensity));
+        if let Some(spot) = &light.spot {
+            let _ = write!(
+                out,
+                "direction = {}\ncone = {:e}\nfalloff = {:e}\n",
+                v(spot.direction.to_array()),
+                spot.half_angle_deg,
+                spot.falloff_deg
+            );
+        }
+    }
+    let _ = write!(
+        out,
+        "\n[[material]]\nname = \"grey\"\ndiffuse = [0.7, 0.7, 0.7]\n\n[[mesh]]\nfile = {file:?}\n{material}"
+    );
+    out
 }
 
-/// The camera, light and element size of a model's scene.
+/// A light of a model's scene, as its TOML gives it.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ViewLight {
+    /// Position.
+    pub position: [f64; 3],
+    /// Intensity per channel, W/sr.
+    pub intensity: [f64; 3],
+    /// The spot cone, if any.
+    pub spot: Option<magg_core::scene::Spot>,
+}
+
+impl From<&Light> for ViewLight {
+    fn from(l: &Light) -> Self {
+        ViewLight { position: l.position.to_array(), intensity: l.intensity.0, spot: l.spot.clone() }
+    }
+}
+
+/// The camera, lights and element size of a model's scene.
 #[derive(Clone, Debug, PartialEq)]
 pub struct View {
     /// Camera position.
     pub eye: [f64; 3],
-    /// The model's centre.
+    /// The point the camera looks at (the model's centre, unless the model has a camera).
     pub look_at: [f64; 3],
+    /// The camera's up direction.
+    pub up: [f64; 3],
     /// Vertical field of view, degrees.
     pub fov: f64,
-    /// Light position (beside and above the camera).
-    pub light: [f64; 3],
-    /// Light intensity (W/sr): about 1 W/m^2 at the model.
-    pub intensity: f64,
+    /// Image width (for the model camera's aspect ratio at the default height), if set.
+    pub width: Option<u32>,
+    /// The lights: one beside and above the camera giving about 1 W/m^2 at the model,
+    /// unless the model brings its own.
+    pub lights: Vec<ViewLight>,
     /// Element edge: a fortieth of the model's size.
     pub element_size: f64,
 }
@@ -57,9 +97,10 @@ impl View {
         View {
             eye: [0.0, 0.0, 1.0],
             look_at: [0.0; 3],
+            up: [0.0, 1.0, 0.0],
             fov: 40.0,
-            light: [0.0, 0.0, 1.0],
-            intensity: 1.0,
+            width: None,
+            lights: vec![ViewLight { position: [0.0, 0.0, 1.0], intensity: [1.0; 3], spot: None }],
             element_size: 1e30,
         }
     }
@@ -81,7 +122,29 @@ impl View {
         let len = dir.iter().map(|d| d * d).sum::<f64>().sqrt();
         let eye = std::array::from_fn(|k| centre[k] + dir[k] / len * distance);
         let light = std::array::from_fn(|k| eye[k] + if k == 1 { 0.5 * radius } else { 0.0 });
-        View { eye, look_at: centre, fov, light, intensity: distance * distance, element_size: radius / 20.0 }
+        View {
+            eye,
+            look_at: centre,
+            up: [0.0, 1.0, 0.0],
+            fov,
+            width: None,
+            lights: vec![ViewLight { position: light, intensity: [distance * distance; 3], spot: None }],
+            element_size: radius / 20.0,
+        }
+    }
+
+    /// This view with the camera and lights a glTF file brings, where it brings them
+    /// (its camera's aspect ratio sets the width at the default height of 400).
+    pub fn with_stage(mut self, stage: &GltfStage) -> View {
+        if let Some(c) = &stage.camera {
+            (self.eye, self.look_at, self.up, self.fov) =
+                (c.eye.to_array(), c.look_at.to_array(), c.up.to_array(), c.fov_y_deg);
+            self.width = stage.aspect_ratio.map(|a| (400.0 * a).round().clamp(1.0, 16384.0) as u32);
+        }
+        if !stage.lights.is_empty() {
+            self.lights = stage.lights.iter().map(ViewLight::from).collect();
+        }
+        self
     }
 }
 
@@ -93,7 +156,7 @@ mod tests {
     fn the_view_frames_the_bounding_sphere_from_the_front() {
         let text = scene_text("m.obj", &View::placeholder(), true);
         let obj = "v -1 0 -1\nv 1 0 -1\nv 1 2 1\nf 1 2 3\n";
-        let read = |_: &Path| Ok(obj.to_string());
+        let read = |_: &Path| Ok(obj.as_bytes().to_vec());
         let scene = magg_core::scene::parse_scene_str("m.obj", &text, Path::new("."), &read).unwrap();
         let view = View::framing(&scene);
         assert_eq!(view.look_at, [0.0, 1.0, 0.0]);

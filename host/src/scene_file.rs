@@ -7,7 +7,7 @@
 use crate::model_scene::{scene_text, View};
 use crate::overrides::Override;
 use anyhow::Context;
-use magg_core::scene::{parse_scene_with_path, CameraPath, Scene};
+use magg_core::scene::{gltf_stage, parse_scene_with_path, CameraPath, MeshFormat, Scene};
 use std::io::{self, Read};
 use std::path::{Path, PathBuf};
 
@@ -15,8 +15,8 @@ use std::path::{Path, PathBuf};
 /// about 150 MB of TOML; meshes belong in OBJ files.
 pub const MAX_SCENE_BYTES: u64 = 256 << 20;
 
-/// Largest mesh file (OBJ or MTL) read, in bytes: about 20 million triangles of OBJ,
-/// past the renderer's default memory bound.
+/// Largest mesh file read (OBJ, MTL, PLY, glTF or one of its buffers), in bytes: about
+/// 20 million triangles of OBJ, past the renderer's default memory bound.
 pub const MAX_MESH_BYTES: u64 = 2 << 30;
 
 /// Where a scene's meshes may come from besides its own folder.
@@ -67,26 +67,45 @@ impl SceneFiles {
     fn model_scene(&self, path: &Path) -> anyhow::Result<String> {
         let file = path.file_name().map(|f| f.to_string_lossy().into_owned()).unwrap_or_default();
         let text = |view: &View, grey| scene_text(&file, view, grey);
-        let ((scene, _), grey) = match self.parse(path, &text(&View::placeholder(), false)) {
+        let format = MeshFormat::of(path);
+        let first = if format == Some(MeshFormat::Ply) {
+            Err(anyhow::anyhow!("face has no material"))
+        } else {
+            self.parse(path, &text(&View::placeholder(), false))
+        };
+        let ((scene, _), grey) = match first {
             Ok(parsed) => (parsed, false),
             Err(e) if format!("{e:#}").contains("face has no material") => {
                 (self.parse(path, &text(&View::placeholder(), true))?, true)
             }
             Err(e) => return Err(e),
         };
-        Ok(text(&View::framing(&scene), grey))
+        let mut view = View::framing(&scene);
+        if format == Some(MeshFormat::Gltf) {
+            let label = path.display().to_string();
+            let bytes = self.read_mesh(&self.home(path)?, path).with_context(|| format!("cannot read {label}"))?;
+            view = view.with_stage(&gltf_stage(&label, &bytes)?);
+        }
+        Ok(text(&view, grey))
+    }
+
+    /// The canonical folder of the scene at `path`, where its meshes may come from.
+    fn home(&self, path: &Path) -> anyhow::Result<PathBuf> {
+        let base = path.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or_else(|| Path::new("."));
+        base.canonicalize().with_context(|| format!("the scene's folder {}", base.display()))
     }
 
     fn parse(&self, path: &Path, text: &str) -> anyhow::Result<(Scene, Option<CameraPath>)> {
         let base = path.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or_else(|| Path::new("."));
-        let home = base.canonicalize().with_context(|| format!("the scene's folder {}", base.display()))?;
+        let home = self.home(path)?;
         let label = path.display().to_string();
         let read = |p: &Path| self.read_mesh(&home, p);
         Ok(parse_scene_with_path(&label, text, base, &read)?)
     }
 
-    /// A mesh file, if it lies in the scene's folder `home` or an allowed root.
-    fn read_mesh(&self, home: &Path, p: &Path) -> io::Result<String> {
+    /// A mesh file (or a file a mesh names: an MTL, a glTF buffer), if it lies in the
+    /// scene's folder `home` or an allowed root.
+    fn read_mesh(&self, home: &Path, p: &Path) -> io::Result<Vec<u8>> {
         let c = p.canonicalize()?;
         if !c.starts_with(home) && !self.roots.iter().any(|r| c.starts_with(r)) {
             return Err(io::Error::new(
@@ -94,13 +113,23 @@ impl SceneFiles {
                 format!("it lies outside the scene's folder {}; allow its folder with --allow-path", home.display()),
             ));
         }
-        read_capped(&c, MAX_MESH_BYTES)
+        read_capped_bytes(&c, MAX_MESH_BYTES)
     }
 }
 
 /// The text of the regular file at `path`, refused past `limit` bytes or when it is not
 /// UTF-8 (the error then gives the line).
 pub fn read_capped(path: &Path, limit: u64) -> io::Result<String> {
+    let bytes = read_capped_bytes(path, limit)?;
+    String::from_utf8(bytes).map_err(|e| {
+        let at = e.utf8_error().valid_up_to();
+        let line = 1 + e.as_bytes()[..at].iter().filter(|&&b| b == b'\n').count();
+        io::Error::new(io::ErrorKind::InvalidData, format!("line {line}: not UTF-8 text"))
+    })
+}
+
+/// The bytes of the regular file at `path`, refused past `limit` bytes.
+pub fn read_capped_bytes(path: &Path, limit: u64) -> io::Result<Vec<u8>> {
     let file = std::fs::File::open(path)?;
     if !file.metadata()?.is_file() {
         return Err(io::Error::new(io::ErrorKind::InvalidInput, "not a regular file"));
@@ -113,11 +142,7 @@ pub fn read_capped(path: &Path, limit: u64) -> io::Result<String> {
             format!("larger than the limit of {} MiB", limit >> 20),
         ));
     }
-    String::from_utf8(bytes).map_err(|e| {
-        let at = e.utf8_error().valid_up_to();
-        let line = 1 + e.as_bytes()[..at].iter().filter(|&&b| b == b'\n').count();
-        io::Error::new(io::ErrorKind::InvalidData, format!("line {line}: not UTF-8 text"))
-    })
+    Ok(bytes)
 }
 
 #[cfg(test)]

@@ -35,6 +35,6 @@ pub use error::{Result, StudyError};
 pub(crate) fn test_scene(name: &str) -> magg_core::scene::Scene {
     let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes").join(name);
     let text = std::fs::read_to_string(&path).unwrap();
-    let read = |p: &std::path::Path| std::fs::read_to_string(p);
+    let read = |p: &std::path::Path| std::fs::read(p);
     magg_core::scene::parse_scene_with_path(name, &text, path.parent().unwrap(), &read).unwrap().0
 }

@@ -1,4 +1,4 @@
-//! Wavefront OBJ and MTL import for `[[mesh]]` entries, and the mesh transform.
+//! Wavefront OBJ and MTL import for `[[mesh]]` entries.
 //!
 //! Only what a triangle-patch renderer needs is read:
 //! - OBJ: `v` (x y z; an optional w or vertex colour after them is ignored), `f` with
@@ -10,74 +10,47 @@
 //!   `Ni` (index of refraction); every other statement is ignored. See [`parse_mtl`] for
 //!   how these become a valid material.
 //!
-//! Errors name the OBJ or MTL file and its line. Nothing here does I/O.
+//! Errors name the OBJ or MTL file and its line. Nothing here does I/O: the MTL files
+//! are read through the caller's `read` callback.
 
-use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
 use super::error::SceneError;
+use super::mesh::{shown, utf8, MaterialTable, MeshEntry, ModelTriangle, ReadFile};
 use super::model::{Material, SourceLoc, MAX_COORDINATE};
-use super::shape::is_degenerate;
 use crate::color::Rgb;
-use glam::{DMat3, DVec3};
+use glam::DVec3;
 
-/// The scene's materials, which meshes extend with the MTL materials they use.
-pub(super) struct MaterialTable {
-    /// Every material, referenced by index (`[[material]]` tables first).
-    pub list: Vec<Material>,
-    /// Index of each `[[material]]` by name.
-    pub toml: HashMap<String, u32>,
-    /// Index of each MTL material already added, by its scene name `objfile:mtlname`.
-    pub from_mtl: HashMap<String, u32>,
-}
-
-/// A `[[mesh]]` entry, already checked by the TOML front end.
-pub(super) struct MeshEntry<'a> {
-    /// The `obj =` path as written in the scene, relative to its directory.
-    pub obj: &'a str,
-    /// Scene file and line of the `obj =` key.
-    pub at: SourceLoc,
-    /// Field prefix for errors (`mesh[2]`).
-    pub field: String,
-    /// Placement of the mesh.
-    pub transform: Transform,
-    /// Material overriding every `usemtl` (the MTL files are then not read).
-    pub material: Option<u32>,
-}
-
-/// Reads a mesh's OBJ file (and its MTL files) through `read` and returns its triangles
-/// after the transform, with their material indices. Zero-area faces are skipped; an OBJ
-/// without any other face is an error.
+/// Parses a mesh's OBJ file `bytes` (read from `obj_path`, named `label`) and its MTL
+/// files (read through `read`), and returns its triangles in the model's space with their
+/// material indices.
 ///
 /// A `usemtl` name is looked up first in the OBJ's own MTL files, whose materials are added
 /// to `materials` (once, in order of first use) as `objfile:mtlname` (e.g.
 /// `meshes/sphere.obj:glass`), then among the `[[material]]` tables by plain name.
-pub(super) fn load_mesh(
+pub(super) fn load(
     entry: &MeshEntry<'_>,
-    base_dir: &Path,
-    read: &dyn Fn(&Path) -> std::io::Result<String>,
+    obj_path: &Path,
+    obj_label: &str,
+    bytes: &[u8],
+    read: ReadFile<'_>,
     materials: &mut MaterialTable,
-) -> Result<Vec<([DVec3; 3], u32)>, SceneError> {
-    let scene_err = |name: &str, msg: String| SceneError::new(entry.at.clone(), format!("{}.{name}", entry.field), msg);
-    let obj_path = base_dir.join(entry.obj);
-    let obj_label = obj_path.display().to_string();
-    let text = read(&obj_path).map_err(|e| scene_err("obj", format!("cannot read OBJ file '{obj_label}': {e}")))?;
-    let mesh = parse_obj(&obj_label, &text)?;
+) -> Result<Vec<ModelTriangle>, SceneError> {
+    let mesh = parse_obj(obj_label, utf8(obj_label, "obj", bytes)?)?;
 
     // Material of each `usemtl` name (None: defined nowhere, reported at its first face).
     let mut usemtl_ids = Vec::new();
     if entry.material.is_none() {
-        let mtl = load_mtllibs(&mesh, &obj_path, &obj_label, read)?;
+        let mtl = load_mtllibs(&mesh, obj_path, obj_label, read)?;
         for name in &mesh.usemtl_names {
             let id = match mtl.iter().find(|mm| mm.name == *name) {
-                Some(mm) => Some(materials.add_mtl(entry, mm).map_err(|m| scene_err("obj", m))?),
+                Some(mm) => Some(materials.add_file_material(entry, mm).map_err(|m| entry.file_err(m))?),
                 None => materials.toml.get(name).copied(),
             };
             usemtl_ids.push(id);
         }
     }
 
-    let flip = entry.transform.flips_winding();
     let mut out = Vec::with_capacity(mesh.faces.len());
     for face in &mesh.faces {
         let material = match (entry.material, face.usemtl) {
@@ -90,55 +63,19 @@ pub(super) fn load_mesh(
                         "{obj_label}:{}: material '{name}' is not defined (neither in the OBJ's MTL files nor a [[material]])",
                         face.line
                     );
-                    return Err(scene_err("obj", msg));
+                    return Err(entry.file_err(msg));
                 }
             },
-            (None, None) => {
-                let msg = format!(
-                    "{obj_label}:{}: face has no material: add `material = ...` to the [[mesh]] or a `usemtl` to the OBJ",
-                    face.line
-                );
-                return Err(scene_err("material", msg));
-            }
+            (None, None) => return Err(entry.no_material(&format!("{obj_label}:{}", face.line))),
         };
         let mut v = [DVec3::ZERO; 3];
         for (o, &k) in v.iter_mut().zip(&face.corners) {
             // parse_obj checked every index; stay safe anyway.
-            let p = mesh.positions.get(k).copied().ok_or_else(|| scene_err("obj", "face index out of range".into()))?;
-            *o = entry.transform.apply(p);
+            *o = mesh.positions.get(k).copied().ok_or_else(|| entry.file_err("face index out of range".into()))?;
         }
-        if flip {
-            v.swap(1, 2);
-        }
-        if !v.iter().all(|p| p.is_finite() && p.abs().max_element() <= MAX_COORDINATE) {
-            let msg = format!("the transform sends a vertex past {MAX_COORDINATE:e}");
-            return Err(scene_err("scale", msg));
-        }
-        if !is_degenerate(&v) {
-            out.push((v, material));
-        }
-    }
-    if out.is_empty() {
-        return Err(scene_err("obj", format!("OBJ file '{obj_label}' has no faces of non-zero area")));
+        out.push((v, material));
     }
     Ok(out)
-}
-
-impl MaterialTable {
-    /// Adds an MTL material of a mesh (once) and returns its index, or why it clashes.
-    fn add_mtl(&mut self, entry: &MeshEntry<'_>, mm: &Material) -> Result<u32, String> {
-        let name = format!("{}:{}", entry.obj, mm.name);
-        if let Some(&id) = self.from_mtl.get(&name) {
-            return Ok(id);
-        }
-        if self.toml.contains_key(&name) {
-            return Err(format!("MTL material '{name}' clashes with a [[material]] of the same name"));
-        }
-        let id = u32::try_from(self.list.len()).map_err(|_| "too many materials".to_string())?;
-        self.list.push(Material { name: name.clone(), ..mm.clone() });
-        self.from_mtl.insert(name, id);
-        Ok(id)
-    }
 }
 
 /// Reads and parses every `mtllib` of an OBJ, relative to the OBJ's directory; a name
@@ -147,18 +84,18 @@ fn load_mtllibs(
     mesh: &ObjMesh,
     obj_path: &Path,
     obj_label: &str,
-    read: &dyn Fn(&Path) -> std::io::Result<String>,
+    read: ReadFile<'_>,
 ) -> Result<Vec<Material>, SceneError> {
     let dir = obj_path.parent().map_or_else(PathBuf::new, Path::to_path_buf);
     let mut out: Vec<Material> = Vec::new();
     for lib in &mesh.mtllibs {
         let path = dir.join(&lib.file);
         let label = path.display().to_string();
-        let text = read(&path).map_err(|e| {
+        let bytes = read(&path).map_err(|e| {
             let at = SourceLoc { file: obj_label.to_string(), line: lib.line };
             SceneError::new(at, "mtllib", format!("cannot read MTL file '{label}': {e}"))
         })?;
-        for mm in parse_mtl(&label, &text)? {
+        for mm in parse_mtl(&label, utf8(&label, "mtl", &bytes)?)? {
             if let Some(first) = out.iter().find(|o| o.name == mm.name) {
                 let msg = format!("material '{}' is already defined at {}", mm.name, first.loc);
                 return Err(SceneError::new(mm.loc.clone(), "newmtl", msg));
@@ -342,18 +279,6 @@ fn rest_after_keyword<'t>(content: &'t str, keyword: &str) -> &'t str {
     content.strip_prefix(keyword).unwrap_or("").trim()
 }
 
-/// A token as an error message may show it: quoted when it is short and looks like OBJ
-/// (a keyword, a number, a vertex reference), else only its length, so that an error
-/// about a file that is not an OBJ (a secret, a binary) does not print what it holds.
-fn shown(s: &str) -> String {
-    let plain = s.len() <= 24 && s.bytes().all(|b| b.is_ascii_alphanumeric() || b"._+-/".contains(&b));
-    if plain {
-        format!("'{s}'")
-    } else {
-        format!("a token of {} bytes", s.len())
-    }
-}
-
 /// The statements of one `newmtl` block, before they are made valid.
 #[derive(Default)]
 struct MtlPending {
@@ -476,41 +401,6 @@ fn parse_colour(args: &[&str]) -> Result<Rgb, String> {
         [v] => parse_number(v).map(Rgb::splat),
         [r, g, b] => Ok(Rgb::new(parse_number(r)?, parse_number(g)?, parse_number(b)?)),
         _ => Err(format!("expected 1 or 3 numbers, found {}", args.len())),
-    }
-}
-
-/// A mesh placement: scale, then rotate (Euler degrees about X, then Y, then Z), then
-/// translate.
-///
-/// Kept as three steps rather than one affine matrix: folding the scale into the
-/// rotation (glam's `DAffine3::from_scale_rotation_translation`) would round
-/// `(r * s) * p` where the loader has always rounded `r * (s * p)`, and the welded
-/// vertices of every shipped mesh depend on those bits.
-#[derive(Clone, Debug, PartialEq)]
-pub(super) struct Transform {
-    scale: DVec3,
-    /// The rotation `Rz * Ry * Rx`.
-    rotation: DMat3,
-    translate: DVec3,
-}
-
-impl Transform {
-    /// Builds a transform from scale factors, Euler angles in degrees and a translation.
-    pub(super) fn new(scale: DVec3, rotate_deg: DVec3, translate: DVec3) -> Self {
-        let [x, y, z] = rotate_deg.to_array().map(f64::to_radians);
-        let rotation = DMat3::from_rotation_z(z) * (DMat3::from_rotation_y(y) * DMat3::from_rotation_x(x));
-        Transform { scale, rotation, translate }
-    }
-
-    /// Applies the transform to a point.
-    pub(super) fn apply(&self, p: DVec3) -> DVec3 {
-        self.rotation * (p * self.scale) + self.translate
-    }
-
-    /// True when the transform mirrors space (negative determinant), so that triangles
-    /// must have two corners swapped to keep their normals pointing the same way.
-    pub(super) fn flips_winding(&self) -> bool {
-        self.scale.x * self.scale.y * self.scale.z < 0.0
     }
 }
 

@@ -4,8 +4,8 @@
 //! The file is first deserialized into raw tables whose every value remembers its byte
 //! span (`toml::Spanned`), then checked field by field, so that each error names the
 //! file, the line and the dotted field (`material[2].diffuse`, 0-based entry index).
-//! `[[mesh]]` entries pull in OBJ/MTL files through the caller's `read` callback (the
-//! core does no I/O). The format is documented field by field in `scenes/README.md`.
+//! `[[mesh]]` entries pull in model files (OBJ with MTL, PLY, glTF) through the caller's
+//! `read` callback (the core does no I/O). The format is documented field by field in `scenes/README.md`.
 
 use std::collections::HashMap;
 use std::path::Path;
@@ -15,11 +15,11 @@ use toml::Spanned;
 
 use super::error::SceneError;
 use super::field::field_at;
+use super::mesh::{self, MaterialTable, MeshEntry, ReadFile, Transform};
 use super::model::{
     Accel, Camera, CameraPath, DirectLight, Exposure, GridSpec, Light, Material, PatchDef, RenderSettings, Scene,
     SourceLoc, Spot, MAX_COORDINATE, MAX_RADIOMETRIC,
 };
-use super::obj::{self, MaterialTable, MeshEntry, Transform};
 use super::shape::{check_quad, is_degenerate};
 use crate::color::Rgb;
 use crate::math::Normalized;
@@ -43,7 +43,7 @@ struct RawScene {
     #[serde(default)]
     quad: Vec<RawPolygon>,
     #[serde(default)]
-    mesh: Vec<RawMesh>,
+    mesh: Vec<Spanned<RawMesh>>,
 }
 
 #[derive(Deserialize)]
@@ -108,7 +108,9 @@ struct RawPolygon {
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 struct RawMesh {
-    obj: Spanned<String>,
+    file: Option<Spanned<String>>,
+    /// The older name of `file`, kept as an alias.
+    obj: Option<Spanned<String>>,
     material: Option<Spanned<String>>,
     translate: Option<SVec>,
     rotate: Option<SVec>,
@@ -123,17 +125,13 @@ const MAX_GRID_CELLS: i64 = 16_777_216;
 
 /// Parses and validates a TOML scene.
 ///
-/// `file_label` names the file in errors and becomes [`Scene::name`]; OBJ paths are
-/// `base_dir.join(obj)`, and `read` loads them (and their MTL files). Every problem is a
+/// `file_label` names the file in errors and becomes [`Scene::name`]; mesh paths are
+/// `base_dir.join(file)`, and `read` loads them as bytes (and the files they name: MTL
+/// files, glTF buffers). Every problem is a
 /// [`SceneError`] naming the file, line and field; no input makes this panic.
 ///
 /// A `[camera_path]` is checked but dropped: [`parse_scene_with_path`] returns it.
-pub fn parse_scene_str(
-    file_label: &str,
-    text: &str,
-    base_dir: &Path,
-    read: &dyn Fn(&Path) -> std::io::Result<String>,
-) -> Result<Scene, SceneError> {
+pub fn parse_scene_str(file_label: &str, text: &str, base_dir: &Path, read: ReadFile<'_>) -> Result<Scene, SceneError> {
     parse_scene_with_path(file_label, text, base_dir, read).map(|(scene, _)| scene)
 }
 
@@ -144,7 +142,7 @@ pub fn parse_scene_with_path(
     file_label: &str,
     text: &str,
     base_dir: &Path,
-    read: &dyn Fn(&Path) -> std::io::Result<String>,
+    read: ReadFile<'_>,
 ) -> Result<(Scene, Option<CameraPath>), SceneError> {
     let cx = Ctx::new(file_label, text);
     let raw: RawScene = toml::from_str(text).map_err(|e| cx.toml_error(&e))?;
@@ -182,14 +180,14 @@ pub fn parse_scene_with_path(
 
     let mut builder = PatchBuilder {
         cx: &cx,
-        materials: MaterialTable { list: materials, toml: by_name, from_mtl: HashMap::new() },
+        materials: MaterialTable { list: materials, toml: by_name, from_file: HashMap::new() },
         patches: Vec::new(),
     };
     // Patches in file order, whatever their kind.
     let mut entries: Vec<(usize, Entry<'_>)> = Vec::new();
     entries.extend(raw.triangle.iter().enumerate().map(|(i, t)| (t.vertices.span().start, Entry::Triangle(i, t))));
     entries.extend(raw.quad.iter().enumerate().map(|(i, q)| (q.vertices.span().start, Entry::Quad(i, q))));
-    entries.extend(raw.mesh.iter().enumerate().map(|(i, m)| (m.obj.span().start, Entry::Mesh(i, m))));
+    entries.extend(raw.mesh.iter().enumerate().map(|(i, m)| (m.span().start, Entry::Mesh(i, m))));
     entries.sort_by_key(|(start, _)| *start);
     for (_, entry) in entries {
         match entry {
@@ -208,7 +206,7 @@ pub fn parse_scene_with_path(
 enum Entry<'a> {
     Triangle(usize, &'a RawPolygon),
     Quad(usize, &'a RawPolygon),
-    Mesh(usize, &'a RawMesh),
+    Mesh(usize, &'a Spanned<RawMesh>),
 }
 
 /// The file being parsed: turns byte spans into lines and builds errors.
@@ -606,12 +604,21 @@ impl PatchBuilder<'_, '_> {
     fn mesh(
         &mut self,
         i: usize,
-        m: &RawMesh,
+        spanned: &Spanned<RawMesh>,
         base_dir: &Path,
-        read: &dyn Fn(&Path) -> std::io::Result<String>,
+        read: ReadFile<'_>,
     ) -> Result<(), SceneError> {
         let cx = self.cx;
+        let m = spanned.get_ref();
         let f = |name: &str| format!("mesh[{i}].{name}");
+        let (path, key) = match (&m.file, &m.obj) {
+            (Some(p), None) => (p, "file"),
+            (None, Some(p)) => (p, "obj"),
+            (Some(_), Some(o)) => {
+                return Err(cx.err(o, f("obj"), "`obj` is another name of `file`: give only one of them"));
+            }
+            (None, None) => return Err(cx.err(spanned, format!("mesh[{i}]"), "a [[mesh]] needs `file = PATH`")),
+        };
         let translate = m.translate.as_ref().map(|v| cx.vec3(v, &f("translate"))).transpose()?.unwrap_or(DVec3::ZERO);
         let rotate = m.rotate.as_ref().map(|v| cx.vec3(v, &f("rotate"))).transpose()?.unwrap_or(DVec3::ZERO);
         let scale = match &m.scale {
@@ -621,13 +628,14 @@ impl PatchBuilder<'_, '_> {
         let subdivisions = self.subdivisions(&m.subdivisions, &f("subdivisions"))?;
         let material = m.material.as_ref().map(|s| self.material_ref(s, &f("material"))).transpose()?;
         let entry = MeshEntry {
-            obj: m.obj.get_ref(),
-            at: cx.loc(&m.obj),
+            file: path.get_ref(),
+            key,
+            at: cx.loc(path),
             field: format!("mesh[{i}]"),
             transform: Transform::new(scale, rotate, translate),
             material,
         };
-        for (vertices, material) in obj::load_mesh(&entry, base_dir, read, &mut self.materials)? {
+        for (vertices, material) in mesh::load_mesh(&entry, base_dir, read, &mut self.materials)? {
             self.patches.push(PatchDef { vertices, material, subdivisions, size_hint: None, loc: entry.at.clone() });
         }
         Ok(())

@@ -7,7 +7,7 @@ use magg_proto::v1;
 /// A valid `LoadShard` request of fork 0 of 2 for the paper's scene.
 pub fn load_request() -> v1::LoadShardRequest {
     let text = include_str!("../../../scenes/magg-paper.toml");
-    let read = |p: &std::path::Path| std::fs::read_to_string(p);
+    let read = |p: &std::path::Path| std::fs::read(p);
     let scene = prepare(&parse_scene_str("magg-paper.toml", text, "scenes".as_ref(), &read).unwrap()).unwrap();
     let blocks = (0..scene.blocks.len() as u32)
         .filter(|b| b % 2 == 0)

@@ -15,7 +15,7 @@ fn cache_size_crosses_the_wire_with_zero_for_unlimited() {
 
 fn paper_header() -> Arc<SceneHeader> {
     let text = include_str!("../../../scenes/magg-paper.toml");
-    let read = |p: &std::path::Path| std::fs::read_to_string(p);
+    let read = |p: &std::path::Path| std::fs::read(p);
     let scene = magg_core::scene::parse_scene_str("magg-paper.toml", text, "scenes".as_ref(), &read).unwrap();
     magg_core::preprocess::prepare(&scene).unwrap().header
 }
@@ -122,7 +122,7 @@ fn inconsistent_layouts_are_refused() {
 fn bvh_header() -> Arc<SceneHeader> {
     let text = include_str!("../../../scenes/magg-paper.toml");
     let text = text.replace("accel = \"grid\"", "accel = \"bvh\"");
-    let read = |p: &std::path::Path| std::fs::read_to_string(p);
+    let read = |p: &std::path::Path| std::fs::read(p);
     let scene = magg_core::scene::parse_scene_str("magg-paper.toml", &text, "scenes".as_ref(), &read).unwrap();
     magg_core::preprocess::prepare(&scene).unwrap().header
 }

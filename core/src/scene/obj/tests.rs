@@ -120,18 +120,3 @@ fn mtl_errors_name_file_and_line() {
     let e = parse_mtl("m.mtl", "newmtl a\nKd spectral file.rfl\n").unwrap_err().to_string();
     assert!(e.contains("not supported"), "{e}");
 }
-
-#[test]
-fn rotation_is_x_then_y_then_z() {
-    let t = Transform::new(DVec3::new(1.0, 1.0, 1.0), DVec3::new(90.0, 90.0, 0.0), DVec3::ZERO);
-    // (0,1,0) --X 90--> (0,0,1) --Y 90--> (1,0,0).
-    let p = t.apply(DVec3::new(0.0, 1.0, 0.0));
-    assert!((p - DVec3::new(1.0, 0.0, 0.0)).length() < 1e-12, "{p:?}");
-    let t = Transform::new(DVec3::new(2.0, 3.0, 4.0), DVec3::new(0.0, 0.0, 90.0), DVec3::new(1.0, 1.0, 1.0));
-    // (1,1,1) --scale--> (2,3,4) --Z 90--> (-3,2,4) --translate--> (-2,3,5).
-    let p = t.apply(DVec3::new(1.0, 1.0, 1.0));
-    assert!((p - DVec3::new(-2.0, 3.0, 5.0)).length() < 1e-12, "{p:?}");
-    assert!(!t.flips_winding());
-    assert!(Transform::new(DVec3::new(-1.0, 1.0, 1.0), DVec3::ZERO, DVec3::ZERO).flips_winding());
-    assert!(!Transform::new(DVec3::new(-1.0, -1.0, 1.0), DVec3::ZERO, DVec3::ZERO).flips_winding());
-}

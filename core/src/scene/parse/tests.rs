@@ -25,7 +25,13 @@ material = \"white\"
 ";
 
 fn parse_with(text: &str, files: &[(&str, &str)]) -> Result<Scene, SceneError> {
-    let files: HashMap<PathBuf, String> = files.iter().map(|(p, t)| (PathBuf::from(p), t.to_string())).collect();
+    let files: Vec<(&str, &[u8])> = files.iter().map(|(p, t)| (*p, t.as_bytes())).collect();
+    parse_with_bytes(text, &files)
+}
+
+/// Parses `text` with the files `files` (path, bytes) readable beside it.
+pub(super) fn parse_with_bytes(text: &str, files: &[(&str, &[u8])]) -> Result<Scene, SceneError> {
+    let files: HashMap<PathBuf, Vec<u8>> = files.iter().map(|(p, t)| (PathBuf::from(p), t.to_vec())).collect();
     let read = move |p: &Path| {
         files.get(p).cloned().ok_or_else(|| std::io::Error::new(std::io::ErrorKind::NotFound, "not found"))
     };
@@ -397,4 +403,41 @@ fn obj_errors_do_not_print_what_a_foreign_file_holds() {
         .unwrap_err()
         .to_string();
     assert!(e.contains("unknown statement 'foo'"), "{e}");
+}
+
+#[test]
+fn file_and_its_alias_obj_name_the_mesh_file() {
+    let files = [("base/m/cube.obj", CUBE_OBJ), ("base/m/cube.mtl", CUBE_MTL)];
+    let by_obj = parse_with(&mesh_scene(""), &files).unwrap();
+    let by_file = parse_with(&mesh_scene("").replace("obj = ", "file = "), &files).unwrap();
+    assert_eq!(by_obj.patches, by_file.patches);
+    let both = mesh_scene("file = \"m/cube.obj\"\n");
+    let e = parse_with(&both, &files).unwrap_err().to_string();
+    assert_eq!(e, "t.toml:19: mesh[0].obj: `obj` is another name of `file`: give only one of them");
+    let e = err(&format!("{MINI}\n[[mesh]]\nmaterial = \"white\"\n"));
+    assert!(e.starts_with("t.toml:") && e.contains("mesh[0]: a [[mesh]] needs `file = PATH`"), "{e}");
+    let e = err(&format!("{MINI}\n[[mesh]]\nfile = \"m/cube.stl\"\nmaterial = \"white\"\n"));
+    assert!(e.starts_with("t.toml:19: mesh[0].file: 'base/m/cube.stl' is not a mesh file"), "{e}");
+}
+
+#[test]
+fn ply_meshes_take_the_mesh_material_and_match_the_obj() {
+    let obj = "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 0.5 0.5 1\nf 1 2 3 4\nf 1 2 5\n";
+    let text = |file: &str| format!("{MINI}\n[[mesh]]\nfile = \"{file}\"\nmaterial = \"white\"\nscale = 2\n");
+    let from_obj = parse_with(&text("m.obj"), &[("base/m.obj", obj)]).unwrap();
+    let ascii = crate::scene::ply::tests::ASCII;
+    let from_ply = parse_with(&text("m.ply"), &[("base/m.ply", ascii)]).unwrap();
+    assert_eq!(from_obj.patches, from_ply.patches);
+    let binary = crate::scene::ply::tests::binary(true);
+    let from_binary = parse_with_bytes(&text("m.ply"), &[("base/m.ply", &binary)]).unwrap();
+    assert_eq!(from_obj.patches, from_binary.patches);
+    let no_material = format!("{MINI}\n[[mesh]]\nfile = \"m.ply\"\n");
+    let e = parse_with(&no_material, &[("base/m.ply", ascii)]).unwrap_err().to_string();
+    assert!(e.contains("mesh[0].material: base/m.ply (a PLY file has no materials): face has no material"), "{e}");
+}
+
+#[test]
+fn a_non_utf8_obj_names_its_line() {
+    let e = parse_with_bytes(&mesh_scene(""), &[("base/m/cube.obj", b"v 0 0 0\nv \xff 0 0\n")]).unwrap_err();
+    assert_eq!(e.to_string(), "base/m/cube.obj:2: obj: not UTF-8 text");
 }

@@ -1,0 +1,236 @@
+//! `[[mesh]]` entries: the model file they name, read by its format, and placed in the
+//! scene.
+//!
+//! The format is chosen by the file's extension: `.obj` (Wavefront OBJ with MTL, see
+//! [`super::obj`]), `.ply` (Stanford PLY, see [`super::ply`]), `.gltf` and `.glb`
+//! (glTF 2.0, see [`super::gltf`]). Every format hands back triangles in the model's
+//! own space with their materials; this module then applies the entry's transform, skips
+//! zero-area triangles and checks that every vertex stays within [`MAX_COORDINATE`], the
+//! same way for all of them. Nothing here does I/O: files are read through the caller's
+//! `read` callback, as bytes.
+
+use std::collections::HashMap;
+use std::path::Path;
+
+use super::error::SceneError;
+use super::model::{Material, SourceLoc, MAX_COORDINATE};
+use super::shape::is_degenerate;
+use glam::{DMat3, DVec3};
+
+/// How the scene loader reads a file it names (a mesh, an MTL, a glTF buffer): the
+/// caller's I/O, which may refuse (size caps, folders the user did not allow).
+pub type ReadFile<'r> = &'r dyn Fn(&Path) -> std::io::Result<Vec<u8>>;
+
+/// Most triangles one mesh file may bring (after a glTF's instancing): about what a
+/// 2 GiB OBJ holds, and past the renderer's default memory bound.
+pub(super) const MAX_MESH_TRIANGLES: usize = 20_000_000;
+
+/// A triangle in the model's own space with the index of its material.
+pub(super) type ModelTriangle = ([DVec3; 3], u32);
+
+/// The scene's materials, which meshes extend with the materials their files define.
+pub(super) struct MaterialTable {
+    /// Every material, referenced by index (`[[material]]` tables first).
+    pub list: Vec<Material>,
+    /// Index of each `[[material]]` by name.
+    pub toml: HashMap<String, u32>,
+    /// Index of each file material already added, by its scene name `file:name`.
+    pub from_file: HashMap<String, u32>,
+}
+
+impl MaterialTable {
+    /// Adds a material that the mesh file of `entry` defines (once) and returns its
+    /// index, or why it clashes. Its scene name is `file:name` (`meshes/sphere.obj:glass`).
+    pub(super) fn add_file_material(&mut self, entry: &MeshEntry<'_>, m: &Material) -> Result<u32, String> {
+        let name = format!("{}:{}", entry.file, m.name);
+        if let Some(&id) = self.from_file.get(&name) {
+            return Ok(id);
+        }
+        if self.toml.contains_key(&name) {
+            return Err(format!("material '{name}' of the mesh file clashes with a [[material]] of the same name"));
+        }
+        let id = u32::try_from(self.list.len()).map_err(|_| "too many materials".to_string())?;
+        self.list.push(Material { name: name.clone(), ..m.clone() });
+        self.from_file.insert(name, id);
+        Ok(id)
+    }
+}
+
+/// A `[[mesh]]` entry, already checked by the TOML front end.
+pub(super) struct MeshEntry<'a> {
+    /// The `file =` (or `obj =`) path as written in the scene, relative to its folder.
+    pub file: &'a str,
+    /// The key that gave it (`file` or `obj`), for errors.
+    pub key: &'static str,
+    /// Scene file and line of that key.
+    pub at: SourceLoc,
+    /// Field prefix for errors (`mesh[2]`).
+    pub field: String,
+    /// Placement of the mesh.
+    pub transform: Transform,
+    /// Material overriding every material the file gives (MTL files are then not read).
+    pub material: Option<u32>,
+}
+
+impl MeshEntry<'_> {
+    /// An error at the entry's line, on its field `name` (`mesh[0].file`).
+    pub(super) fn err(&self, name: &str, msg: String) -> SceneError {
+        SceneError::new(self.at.clone(), format!("{}.{name}", self.field), msg)
+    }
+
+    /// An error on the path key itself (`mesh[0].file` or `mesh[0].obj`).
+    pub(super) fn file_err(&self, msg: String) -> SceneError {
+        self.err(self.key, msg)
+    }
+
+    /// The error for a face with no material of its own and no `material =` override;
+    /// `where_` says which face (`m.obj:12`, `m.gltf: mesh 0 primitive 1`).
+    pub(super) fn no_material(&self, where_: &str) -> SceneError {
+        let msg = format!("{where_}: face has no material: add `material = ...` to the [[mesh]]");
+        self.err("material", msg)
+    }
+}
+
+/// The model formats, by extension.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum MeshFormat {
+    /// Wavefront OBJ (`.obj`), with its MTL files.
+    Obj,
+    /// Stanford PLY (`.ply`), ASCII or binary.
+    Ply,
+    /// glTF 2.0, JSON (`.gltf`) or binary (`.glb`).
+    Gltf,
+}
+
+impl MeshFormat {
+    /// The format of the file at `path`, by its extension (any case).
+    pub fn of(path: &Path) -> Option<MeshFormat> {
+        let ext = path.extension()?.to_str()?.to_ascii_lowercase();
+        match ext.as_str() {
+            "obj" => Some(MeshFormat::Obj),
+            "ply" => Some(MeshFormat::Ply),
+            "gltf" | "glb" => Some(MeshFormat::Gltf),
+            _ => None,
+        }
+    }
+
+    /// Its name in messages.
+    pub fn name(self) -> &'static str {
+        match self {
+            MeshFormat::Obj => "OBJ",
+            MeshFormat::Ply => "PLY",
+            MeshFormat::Gltf => "glTF",
+        }
+    }
+}
+
+/// Reads a mesh's file through `read` (by its format) and returns its triangles after
+/// the entry's transform, with their material indices. Zero-area triangles are skipped;
+/// a file without any other is an error.
+pub(super) fn load_mesh(
+    entry: &MeshEntry<'_>,
+    base_dir: &Path,
+    read: ReadFile<'_>,
+    materials: &mut MaterialTable,
+) -> Result<Vec<ModelTriangle>, SceneError> {
+    let path = base_dir.join(entry.file);
+    let label = path.display().to_string();
+    let Some(format) = MeshFormat::of(&path) else {
+        let msg = format!("'{label}' is not a mesh file magg reads: the name must end in .obj, .ply, .gltf or .glb");
+        return Err(entry.file_err(msg));
+    };
+    let bytes =
+        read(&path).map_err(|e| entry.file_err(format!("cannot read {} file '{label}': {e}", format.name())))?;
+    let triangles = match format {
+        MeshFormat::Obj => super::obj::load(entry, &path, &label, &bytes, read, materials)?,
+        MeshFormat::Ply => super::ply::load(entry, &label, &bytes)?,
+        MeshFormat::Gltf => super::gltf::load(entry, &path, &label, &bytes, read, materials)?,
+    };
+    place(entry, &label, triangles)
+}
+
+/// Applies the entry's transform to a file's triangles, keeping their normals outward
+/// under a mirroring transform, refusing vertices sent past [`MAX_COORDINATE`] and
+/// skipping zero-area triangles.
+fn place(entry: &MeshEntry<'_>, label: &str, triangles: Vec<ModelTriangle>) -> Result<Vec<ModelTriangle>, SceneError> {
+    let flip = entry.transform.flips_winding();
+    let mut out = Vec::with_capacity(triangles.len());
+    for (corners, material) in triangles {
+        let mut v = corners.map(|p| entry.transform.apply(p));
+        if flip {
+            v.swap(1, 2);
+        }
+        if !v.iter().all(|p| p.is_finite() && p.abs().max_element() <= MAX_COORDINATE) {
+            return Err(entry.err("scale", format!("the transform sends a vertex past {MAX_COORDINATE:e}")));
+        }
+        if !is_degenerate(&v) {
+            out.push((v, material));
+        }
+    }
+    if out.is_empty() {
+        return Err(entry.file_err(format!("mesh file '{label}' has no faces of non-zero area")));
+    }
+    Ok(out)
+}
+
+/// The text of a text-format file, or an error at the line of its first byte that is not
+/// UTF-8 (which the error does not show).
+pub(super) fn utf8<'b>(label: &str, field: &str, bytes: &'b [u8]) -> Result<&'b str, SceneError> {
+    std::str::from_utf8(bytes).map_err(|e| {
+        let at = e.valid_up_to();
+        let line = 1 + bytes[..at].iter().filter(|&&b| b == b'\n').count();
+        let line = u32::try_from(line).unwrap_or(u32::MAX);
+        SceneError::new(SourceLoc { file: label.to_string(), line }, field, "not UTF-8 text")
+    })
+}
+
+/// A token as an error message may show it: quoted when it is short and looks like the
+/// formats' own words (a keyword, a number, a vertex reference), else only its length, so
+/// that an error about a file that is not a model (a secret, a binary) does not print
+/// what it holds.
+pub(super) fn shown(s: &str) -> String {
+    let plain = s.len() <= 24 && s.bytes().all(|b| b.is_ascii_alphanumeric() || b"._+-/".contains(&b));
+    if plain {
+        format!("'{s}'")
+    } else {
+        format!("a token of {} bytes", s.len())
+    }
+}
+
+/// A mesh placement: scale, then rotate (Euler degrees about X, then Y, then Z), then
+/// translate.
+///
+/// Kept as three steps rather than one affine matrix: folding the scale into the
+/// rotation (glam's `DAffine3::from_scale_rotation_translation`) would round
+/// `(r * s) * p` where the loader has always rounded `r * (s * p)`, and the welded
+/// vertices of every shipped mesh depend on those bits.
+#[derive(Clone, Debug, PartialEq)]
+pub(super) struct Transform {
+    scale: DVec3,
+    /// The rotation `Rz * Ry * Rx`.
+    rotation: DMat3,
+    translate: DVec3,
+}
+
+impl Transform {
+    /// Builds a transform from scale factors, Euler angles in degrees and a translation.
+    pub(super) fn new(scale: DVec3, rotate_deg: DVec3, translate: DVec3) -> Self {
+        let [x, y, z] = rotate_deg.to_array().map(f64::to_radians);
+        let rotation = DMat3::from_rotation_z(z) * (DMat3::from_rotation_y(y) * DMat3::from_rotation_x(x));
+        Transform { scale, rotation, translate }
+    }
+
+    /// Applies the transform to a point.
+    pub(super) fn apply(&self, p: DVec3) -> DVec3 {
+        self.rotation * (p * self.scale) + self.translate
+    }
+
+    /// True when the transform mirrors space (negative determinant), so that triangles
+    /// must have two corners swapped to keep their normals pointing the same way.
+    pub(super) fn flips_winding(&self) -> bool {
+        self.scale.x * self.scale.y * self.scale.z < 0.0
+    }
+}
+
+#[cfg(test)]
+mod tests;
