@@ -153,3 +153,36 @@ fn local_cluster_script_renders_and_leaves_no_process_behind() {
         .collect();
     assert!(leftovers.is_empty(), "processes left behind: {leftovers:?}");
 }
+
+#[test]
+fn a_repeat_node_waits_for_the_next_host_without_warnings() {
+    // Regression: after a finished render a --repeat node logged "no host yet: cannot reach
+    // ..." as a warning once its host had exited (the first absence it met).
+    let dir = tempfile::tempdir().unwrap();
+    let host_addr = format!("127.0.0.1:{}", free_port());
+    let log = dir.path().join("node.log");
+    let node = Command::new(magg_bin("magg-node"))
+        .args(["--host", &host_addr, "--repeat", "--connect-timeout", "1", "-v"])
+        .env("NO_COLOR", "1")
+        .env_remove("RUST_LOG")
+        .stdout(Stdio::null())
+        .stderr(std::fs::File::create(&log).unwrap())
+        .spawn()
+        .expect("spawn magg-node");
+    let mut procs = Procs(vec![node]);
+    let args: Vec<&str> = [SMALL, &["--listen", &host_addr, "--external-nodes", "--min-nodes", "1"]].concat();
+    let r = Rendered::at(dir.path(), "once");
+    let out = r.command(&scene("cornell.toml")).args(&args).output().unwrap();
+    assert_success(&out, "render with an external --repeat node");
+    // The host is gone: the node's next connection attempts fail for longer than its
+    // --connect-timeout (after its one-second pause between renders).
+    std::thread::sleep(Duration::from_millis(3500));
+    assert!(procs.0[0].try_wait().unwrap().is_none(), "the --repeat node exited");
+    let _ = procs.0[0].kill();
+    let _ = procs.0[0].wait();
+    let text = std::fs::read_to_string(&log).unwrap();
+    let done = text.find(" done: ").unwrap_or_else(|| panic!("the node never finished a render:\n{text}"));
+    let after = &text[done..];
+    assert!(after.contains("no host yet"), "the node did not try the next host within the wait:\n{text}");
+    assert!(!after.contains("WARN"), "a warning after the render:\n{after}");
+}

@@ -1,8 +1,9 @@
 //! Containers on this machine's Docker engine, for real: `deploy/build-images.sh` builds the
-//! FROM-scratch images, `deploy/docker-compose.yml` runs five forks, eight nodes and a host
-//! (with compose, and with `docker stack deploy` on a single-machine swarm), the image they
-//! render is the embedded renderer's bit for bit, every process stops cleanly, and nothing
-//! the run made is left behind. Without an engine (or a compose client, or a swarm) each
+//! FROM-scratch images, `deploy/docker-compose.yml` (compose: the host waits for healthy
+//! forks and nodes) and `deploy/docker-stack.yml` (`docker stack deploy` on a
+//! single-machine swarm) run five forks, eight nodes and a host, the image they render is
+//! the embedded renderer's bit for bit, every process stops cleanly, and nothing the run
+//! made is left behind. The host writes as the owner of the output folder (`MAGG_USER`). Without an engine (or a compose client, or a swarm) each
 //! test prints a `SKIPPED: ...` line and returns.
 
 use magg_tests::docker::*;
@@ -48,8 +49,10 @@ fn check_outputs(out: &Path, reference: &(u32, u32, Vec<u8>), what: &str) {
     assert_eq!(nodes, NODES as u64, "{what}: {nodes} nodes registered");
 }
 
-/// The environment of a compose or stack run.
+/// The environment of a compose or stack run; the host writes `out` as its owner.
 fn settings(cmd: &mut Command, tag: &str, out: &Path) {
+    use std::os::unix::fs::MetadataExt;
+    let owner = std::fs::metadata(out).map(|m| format!("{}:{}", m.uid(), m.gid())).unwrap_or_default();
     cmd.current_dir(workspace_root())
         .env("MAGG_TAG", tag)
         .env("MAGG_OUT", out)
@@ -59,7 +62,7 @@ fn settings(cmd: &mut Command, tag: &str, out: &Path) {
         .env("MAGG_NODES", NODES.to_string())
         .env("MAGG_MIN_NODES", NODES.to_string())
         .env("MAGG_RENDER_FLAGS", "")
-        .env_remove("MAGG_USER");
+        .env("MAGG_USER", owner);
 }
 
 /// Takes a compose project down (containers, network, volumes) and removes its images,
@@ -107,23 +110,15 @@ fn compose_cluster_renders_the_embedded_image_and_leaves_nothing() {
     let run = ComposeRun { client, project: unique_name("maggtest"), tag: unique_name("test"), out: out.clone() };
     build_images(magg_bin("magg-host").parent().unwrap(), &run.tag);
 
-    // Forks and nodes first, until every one reports SERVING on its health service.
-    let nodes = NODES.to_string();
-    let scale = format!("node={nodes}");
-    let up =
-        output(&mut run.cmd(&["up", "-d", "--scale", &scale, "fork1", "fork2", "fork3", "fork4", "fork5", "node"]));
+    // One `up` of the host: compose starts the forks and nodes, waits until every one
+    // reports SERVING on its health service (depends_on: service_healthy), then the host.
+    let scale = format!("node={NODES}");
+    let up = output(&mut run.cmd(&["up", "-d", "--scale", &scale, "host"]));
     up.unwrap_or_else(|e| panic!("compose up: {e}"));
     let label = format!("com.docker.compose.project={}", run.project);
-    let health = || inspect(&labelled("container", &label), "{{.Name}} {{.State.Status}} {{.State.Health.Status}}");
-    wait_for(
-        "5 forks and 8 nodes healthy",
-        Duration::from_secs(60),
-        || (health().iter().filter(|l| l.ends_with(" running healthy")).count() == 5 + NODES).then_some(()),
-        || health().join("\n"),
-    );
-
-    // The render job; the nodes have been waiting for it with backoff.
-    output(&mut run.cmd(&["up", "-d", "--no-deps", "host"])).unwrap_or_else(|e| panic!("compose up host: {e}"));
+    let healthy = inspect(&labelled("container", &label), "{{.Name}} {{.State.Status}} {{.State.Health.Status}}");
+    let ready = healthy.iter().filter(|l| l.ends_with(" running healthy")).count();
+    assert!(ready >= 5 + NODES, "the host started before every fork and node was healthy:\n{}", healthy.join("\n"));
     let host = run.ids("host");
     assert_eq!(host.len(), 1, "one host container");
     let code = output(&mut docker(["wait", &host[0]])).unwrap_or_else(|e| panic!("docker wait: {e}"));
@@ -219,7 +214,7 @@ fn swarm_stack_renders_the_embedded_image_and_leaves_nothing() {
     };
     let run = StackRun { stack: unique_name("maggstack"), tag, joined_swarm, had_gwbridge };
 
-    let mut deploy = docker(["stack", "deploy", "-c", "deploy/docker-compose.yml", &run.stack]);
+    let mut deploy = docker(["stack", "deploy", "-c", "deploy/docker-stack.yml", &run.stack]);
     settings(&mut deploy, &run.tag, &out);
     output(&mut deploy).unwrap_or_else(|e| panic!("docker stack deploy: {e}"));
     let host = format!("{}_host", run.stack);

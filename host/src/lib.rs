@@ -20,15 +20,17 @@ pub mod memory;
 pub mod mitsuba;
 pub mod model_scene;
 pub mod overrides;
+pub mod partial;
 pub mod progress;
 pub mod saved_energy;
 pub mod scene_file;
 
-/// Runs a parsed command line.
-pub fn run(cli: cli::Cli) -> anyhow::Result<()> {
+/// Runs a parsed command line. A render keeps its frame in progress in `partial`, which
+/// the binary's signal handler saves (see [`partial`]).
+pub fn run(cli: cli::Cli, partial: &partial::Slot) -> anyhow::Result<()> {
     let files = scene_file::SceneFiles::new(&cli.allow_path)?;
     match cli.command {
-        cli::Command::Render(args) => commands::render::run(args.validate()?, &files),
+        cli::Command::Render(args) => commands::render::run(args.validate()?, &files, partial),
         cli::Command::Info(args) => commands::info::run(&args, &files),
         cli::Command::Accuracy(args) => commands::accuracy::run(&args, &files),
         cli::Command::Diff(args) => commands::diff::run(&args),

@@ -17,11 +17,17 @@ fn main() -> ExitCode {
         return magg_plumbing::health::probe_command("magg-host", p);
     }
     magg_plumbing::logging::init("magg-host", cli.verbose);
-    // In a container the host is PID 1, which has no default action for SIGTERM.
-    if let Err(e) = magg_plumbing::lifecycle::exit_on_signal("magg-host", 130) {
+    // In a container the host is PID 1, which has no default action for SIGTERM. A
+    // render stopped by a signal leaves its image so far beside --out (never as --out).
+    let partial = magg_host::partial::Slot::default();
+    let last_words = {
+        let partial = partial.clone();
+        move |stop| partial.last_words(stop)
+    };
+    if let Err(e) = magg_plumbing::lifecycle::on_signal("magg-host", last_words) {
         eprintln!("magg-host: cannot watch for signals: {e}");
     }
-    match magg_host::run(cli) {
+    match magg_host::run(cli, &partial) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) if e.is::<magg_host::commands::diff::AboveLimit>() => {
             eprintln!("magg-host: {e}");

@@ -110,20 +110,27 @@ fn run(args: Args) -> anyhow::Result<()> {
         });
     }
     // A long-lived node (--repeat) expects its host to come and go: connection attempts
-    // are not warnings, only the first time it finds no host at all is.
+    // are not warnings, and only a node that has never found a host says so (once). After
+    // a render the host exits: its absence is the normal wait for the next one.
     cfg.backoff.expect_absence = args.repeat;
-    let mut warned_absent = false;
+    let mut quiet_absence = false;
     loop {
         match magg_node::run_with_runtime(rt.handle().clone(), &cfg) {
-            Ok(s) => tracing::info!("node {} done: {} pairs, {} subscreens", s.node, s.pairs, s.tiles),
+            Ok(s) => {
+                tracing::info!("node {} done: {} pairs, {} subscreens", s.node, s.pairs, s.tiles);
+                quiet_absence = true;
+            }
             // Between renders, a host that is not there yet (or is just ending) is normal.
-            Err(e) if args.repeat && e.came_after_the_render() => tracing::info!("no render yet: {e}"),
+            Err(e) if args.repeat && e.came_after_the_render() => {
+                tracing::info!("no render yet: {e}");
+                quiet_absence = true;
+            }
             Err(e @ magg_node::NodeError::Connect { .. }) if args.repeat => {
-                if !warned_absent {
-                    tracing::warn!("no host yet: {e}; waiting on (--repeat)");
-                    warned_absent = true;
-                } else {
+                if quiet_absence {
                     tracing::info!("no host yet: {e}");
+                } else {
+                    tracing::warn!("no host yet: {e}; waiting on (--repeat)");
+                    quiet_absence = true;
                 }
             }
             Err(e) if args.repeat => tracing::warn!("render ended with an error: {e}"),

@@ -5,7 +5,8 @@
 //! type); a server wraps each service with [`CheckToken`]. A call without the token, or
 //! with another, is refused with `UNAUTHENTICATED` and a message saying what to set, and
 //! the server logs the refusal. With no token configured a server accepts every call
-//! (fine on 127.0.0.1, the default bind address; [`exposure_warning`] says when not).
+//! (fine on 127.0.0.1, the default bind address, and on a private network;
+//! [`exposure_warning`] says when a server can be reached from outside, see [`crate::reach`]).
 //!
 //! ```no_run
 //! use magg_plumbing::auth::{AddToken, Token};
@@ -17,7 +18,7 @@
 //! # Ok(()) }
 //! ```
 
-use std::net::SocketAddr;
+use std::net::{IpAddr, SocketAddr};
 use std::sync::Arc;
 use tonic::metadata::MetadataValue;
 use tonic::service::interceptor::InterceptedService;
@@ -130,13 +131,23 @@ impl tonic::service::Interceptor for CheckToken {
     }
 }
 
-/// The warning to print when a server listens beyond this machine without a token, if
-/// it does.
+/// The warning to print when a server without a token listens where it can be reached
+/// from outside this machine's private networks ([`crate::reach`]), if it does: a fork
+/// on a compose network or a pod network stays quiet.
 pub fn exposure_warning(addr: SocketAddr, token: &Token) -> Option<String> {
-    (!addr.ip().is_loopback() && !token.is_set()).then(|| {
+    if token.is_set() || addr.ip().is_loopback() {
+        return None;
+    }
+    let interfaces = if addr.ip().is_unspecified() { crate::reach::interface_addresses() } else { None };
+    exposure_warning_on(addr, token, interfaces.as_deref())
+}
+
+/// [`exposure_warning`] on a machine with these interface addresses (`None`: unknown).
+pub fn exposure_warning_on(addr: SocketAddr, token: &Token, interfaces: Option<&[IpAddr]>) -> Option<String> {
+    (!token.is_set() && crate::reach::reachable_from_outside(addr, interfaces)).then(|| {
         format!(
-            "listening on {addr} without a cluster token: any host that can reach it may join or read the scene \
-             (set --token or {TOKEN_ENV} on every process)"
+            "listening on {addr} without a cluster token, reachable from outside this machine's private networks: \
+             any host that can reach it may join or read the scene (set --token or {TOKEN_ENV} on every process)"
         )
     })
 }
@@ -186,8 +197,14 @@ mod tests {
         assert!(!Token::parse(Some(String::new())).unwrap().is_set());
         let none = Token::default();
         assert!(exposure_warning("127.0.0.1:1".parse().unwrap(), &none).is_none());
-        assert!(exposure_warning("0.0.0.0:1".parse().unwrap(), &none).is_some());
-        assert!(exposure_warning("0.0.0.0:1".parse().unwrap(), &Token::new(Some("t".into()))).is_none());
+        let public = ["10.0.0.1".parse().unwrap(), "203.0.113.4".parse().unwrap()];
+        let private = ["10.0.0.1".parse().unwrap(), "fd00::1".parse().unwrap()];
+        let any = "0.0.0.0:1".parse().unwrap();
+        assert!(exposure_warning_on(any, &none, Some(&public)).is_some());
+        assert!(exposure_warning_on(any, &none, Some(&private)).is_none(), "a private network is quiet");
+        assert!(exposure_warning_on("172.20.0.3:1".parse().unwrap(), &none, None).is_none());
+        assert!(exposure_warning_on("198.51.100.7:1".parse().unwrap(), &none, None).is_some());
+        assert!(exposure_warning_on(any, &Token::new(Some("t".into())), Some(&public)).is_none());
     }
 }
 

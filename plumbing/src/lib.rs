@@ -3,7 +3,8 @@
 //! A fork, a node and a host are different machines of the paper, but the same kind of
 //! process: each parses the cluster flags ([`flags`]), keeps the memory it frees
 //! ([`allocator`]), starts logging ([`logging`]), loads its TLS files ([`tls`]),
-//! presents and checks the cluster token ([`auth`]), serves and dials gRPC with one set
+//! presents and checks the cluster token ([`auth`]) and warns when it has none where
+//! outsiders can reach it ([`reach`]), serves and dials gRPC with one set
 //! of limits ([`net`]), reaches servers of its own process without a socket
 //! ([`transport`]), retries what failed for a transient reason ([`retry`]), answers and
 //! asks health checks ([`health`]) and stops on a signal ([`lifecycle`]). The protocol
@@ -36,6 +37,7 @@ pub mod health;
 pub mod lifecycle;
 pub mod logging;
 pub mod net;
+pub mod reach;
 pub mod retry;
 pub mod tls;
 pub mod transport;

@@ -77,9 +77,38 @@ pub fn exit_when_orphaned(program: &str) {
     let _ = program;
 }
 
+/// Which signal asked the process to stop.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Stop {
+    /// Ctrl-C (SIGINT).
+    Interrupt,
+    /// SIGTERM (`docker stop`, `kill`, Kubernetes).
+    Terminate,
+}
+
+impl Stop {
+    /// The shell's exit status for a process ended by this signal: 128 + its number
+    /// (130 for SIGINT, 143 for SIGTERM).
+    pub fn exit_code(self) -> i32 {
+        match self {
+            Stop::Interrupt => 130,
+            Stop::Terminate => 143,
+        }
+    }
+}
+
 /// Registers for Ctrl-C and (on Unix) SIGTERM at once, and returns a future that
 /// completes when either arrives. Call it inside a tokio runtime.
 pub fn shutdown_signal() -> impl std::future::Future<Output = ()> {
+    let stop = stop_signal();
+    async move {
+        stop.await;
+        tracing::info!("shutting down");
+    }
+}
+
+/// Like [`shutdown_signal`], and says which of the two signals came.
+pub fn stop_signal() -> impl std::future::Future<Output = Stop> {
     #[cfg(unix)]
     let signals = {
         use tokio::signal::unix::{signal, SignalKind};
@@ -90,38 +119,60 @@ pub fn shutdown_signal() -> impl std::future::Future<Output = ()> {
         match signals {
             (Ok(mut int), Ok(mut term)) => {
                 tokio::select! {
-                    _ = int.recv() => {}
-                    _ = term.recv() => {}
+                    _ = int.recv() => Stop::Interrupt,
+                    _ = term.recv() => Stop::Terminate,
                 }
             }
             (Err(e), _) | (_, Err(e)) => {
                 tracing::warn!("cannot wait for Ctrl-C or SIGTERM: {e}");
-                std::future::pending::<()>().await;
+                std::future::pending::<Stop>().await
             }
         }
         #[cfg(not(unix))]
-        if let Err(e) = tokio::signal::ctrl_c().await {
-            tracing::warn!("cannot wait for Ctrl-C: {e}");
-            std::future::pending::<()>().await;
+        match tokio::signal::ctrl_c().await {
+            Ok(()) => Stop::Interrupt,
+            Err(e) => {
+                tracing::warn!("cannot wait for Ctrl-C: {e}");
+                std::future::pending::<Stop>().await
+            }
         }
-        tracing::info!("shutting down");
     }
 }
 
 /// For a process with nothing to finish on the way out (a node, which keeps no state of
-/// its own; a host, whose render is lost anyway): a thread that exits the
-/// process with `code` on Ctrl-C or SIGTERM, saying so on stderr. The signals are
-/// registered before this returns.
+/// its own): a thread that exits the process with `code` on Ctrl-C or SIGTERM, saying so
+/// on stderr. The signals are registered before this returns.
 pub fn exit_on_signal(program: &'static str, code: i32) -> std::io::Result<()> {
+    on_signal(program, move |_| {
+        eprintln!("{program}: stopped by a signal");
+        code
+    })
+}
+
+/// A thread that, on Ctrl-C or SIGTERM, runs `last_words` (which may save what the
+/// process has, and says what it did) and exits the process with the code it returns.
+/// The signals are registered before this returns. A host uses it to write the partial
+/// image of an interrupted render.
+pub fn on_signal(program: &str, last_words: impl FnOnce(Stop) -> i32 + Send + 'static) -> std::io::Result<()> {
     let runtime = tokio::runtime::Builder::new_current_thread().enable_all().build()?;
     let signal = {
         let _context = runtime.enter();
-        shutdown_signal()
+        stop_signal()
     };
     std::thread::Builder::new().name(format!("{program}-signals")).spawn(move || {
-        runtime.block_on(signal);
-        eprintln!("{program}: stopped by a signal");
-        std::process::exit(code);
+        let stop = runtime.block_on(signal);
+        std::process::exit(last_words(stop));
     })?;
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn exit_codes_are_the_shells() {
+        assert_eq!(Stop::Interrupt.exit_code(), 130);
+        assert_eq!(Stop::Terminate.exit_code(), 143);
+    }
 }

@@ -8,6 +8,7 @@ use crate::cli::{Mode, RenderConfig};
 use crate::frames::{FrameRecord, RunStats};
 use crate::harness::{ClusterShape, InProcessOptions, StartedCluster};
 use crate::live::LiveView;
+use crate::partial::{self, PartialImage};
 use crate::{energy_csv, frames, images, progress::Bars, saved_energy, scene_file};
 use anyhow::Context;
 use magg_core::fingerprint::EnergyInputs;
@@ -17,8 +18,9 @@ use magg_core::plan::EffectsPlan;
 use magg_core::{preprocess, render};
 use std::sync::Arc;
 
-/// Renders per `cfg` and writes every requested output.
-pub fn run(cfg: RenderConfig, files: &scene_file::SceneFiles) -> anyhow::Result<()> {
+/// Renders per `cfg` and writes every requested output. The frame in progress is kept in
+/// `partial`, for a signal that stops the render half-way (see [`crate::partial`]).
+pub fn run(cfg: RenderConfig, files: &scene_file::SceneFiles, partial: &partial::Slot) -> anyhow::Result<()> {
     let (mut scene, path) = files.load_with_path(&cfg.scene, &cfg.overrides)?;
     if let Some(q) = cfg.quality {
         q.apply(&mut scene);
@@ -30,6 +32,19 @@ pub fn run(cfg: RenderConfig, files: &scene_file::SceneFiles) -> anyhow::Result<
         anyhow::bail!("--frames: {} has no [camera_path]", cfg.scene.display());
     }
     let frame_numbers = cfg.framing.frames(path_cameras.len().max(1))?;
+    let image = PartialImage::new(
+        scene.settings.width,
+        scene.settings.height,
+        partial::Outputs {
+            out: cfg.out.0.clone(),
+            format: cfg.out.1,
+            exposure: scene.settings.exposure,
+            window,
+            first_number: frame_numbers.start,
+            path_frames: path_cameras.len().max(1),
+        },
+    );
+    partial.fill(image.clone());
     let forks_here = match &cfg.mode {
         Mode::Cluster { forks_at, .. } if forks_at.is_empty() => cfg.forks,
         _ => 0,
@@ -105,10 +120,12 @@ pub fn run(cfg: RenderConfig, files: &scene_file::SceneFiles) -> anyhow::Result<
         None => None,
     };
     let live_progress = live.as_ref().map(|l| l.progress(&bars, cfg.mode != Mode::Embedded));
-    let progress: &dyn magg_core::progress::Progress = match &live_progress {
+    let shown: &dyn magg_core::progress::Progress = match &live_progress {
         Some(p) => p,
         None => &bars,
     };
+    let partial_progress = image.progress(shown, cfg.mode != Mode::Embedded);
+    let progress = &partial_progress;
     let mut records: Vec<FrameRecord> = Vec::with_capacity(n_frames);
     let mut sink = |index: usize, frame: &Frame, vrt_s: f64| -> Result<(), String> {
         let number = frame_numbers.start + index;
@@ -120,6 +137,7 @@ pub fn run(cfg: RenderConfig, files: &scene_file::SceneFiles) -> anyhow::Result<
             images::write(frame, &frames::numbered(path, number, n_path), *fmt, exposure)
                 .map_err(|e| format!("{e:#}"))?;
         }
+        image.frame_written(index);
         records.push(FrameRecord { frame: number, out: out.display().to_string(), vrt_s });
         Ok(())
     };
@@ -135,7 +153,12 @@ pub fn run(cfg: RenderConfig, files: &scene_file::SceneFiles) -> anyhow::Result<
                 profile: cfg.profile.clone(),
                 scheme: cfg.scheme,
                 sequence: sequence.clone(),
-                events: live.as_ref().map(|l| l.cluster_events()),
+                // The partial image sees every event first, then the live view.
+                events: Some(
+                    image
+                        .cluster_events(live.as_ref().map(|l| l.cluster_events()))
+                        .context("starting the partial image's thread")?,
+                ),
                 faults: faults.clone(),
             };
             let cluster = cluster.context("the cluster was not started")?;
