@@ -35,7 +35,8 @@ fn paper_scene_png_is_64x64_rgb_and_lit() {
 fn stats_json_has_every_design_key() {
     let dir = tempfile::tempdir().unwrap();
     let mut args = SMALL.to_vec();
-    args.extend(["--nodes", "3", "--forks", "2", "--cache-blocks", "40"]);
+    // Direct light by light rays, so that every pair traces its rays (counted below).
+    args.extend(["--nodes", "3", "--forks", "2", "--cache-blocks", "40", "--direct", "lrt"]);
     let r = render(&scene("magg-paper.toml"), dir.path(), "paper", &args);
     let s = read_json(&r.stats);
 
