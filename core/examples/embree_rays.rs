@@ -106,6 +106,7 @@ fn random_scene(n: usize) -> Scene {
             mirror: Rgb::BLACK,
             transmit: Rgb::BLACK,
             ior: 1.5,
+            one_sided: false,
             loc: loc.clone(),
         }],
         patches,

@@ -146,6 +146,9 @@ impl EnergyInputs {
             m.rgb(mat.mirror);
             m.rgb(mat.transmit);
             m.f64(mat.ior);
+            if mat.one_sided {
+                m.str("one-sided");
+            }
         }
         let mut l = Fnv64::new();
         for light in &h.lights {

@@ -181,6 +181,11 @@ pub fn trace_pair(
             continue;
         }
         out.tally.reached = out.tally.reached.add(flux);
+        if header.materials.get(prec.material as usize).is_some_and(|m| m.refuses(w, normal)) {
+            // The back of a one-sided patch: absorbed, nothing deposited or reflected.
+            out.tally.absorbed = out.tally.absorbed.add(flux);
+            continue;
+        }
         let p = ray.at(t_plane);
         if !plan.direct_vrt {
             deposits.push((element, flux));
@@ -196,9 +201,13 @@ pub fn trace_pair(
                 continue;
             };
             let hp = view.patch(hit.patch)?;
+            let hn = triangle_normal(&hp.v);
+            if header.materials.get(hp.material as usize).is_some_and(|m| m.refuses(s.ray.direction, hn)) {
+                out.tally.absorbed = out.tally.absorbed.add(s.flux);
+                continue;
+            }
             let (local, _) = locate(hp.subdivisions, hit.bary);
             deposits.push((hp.first_element + local, s.flux));
-            let hn = triangle_normal(&hp.v);
             let at = s.ray.at(hit.t);
             scatter(
                 view,

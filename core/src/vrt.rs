@@ -82,6 +82,10 @@ fn radiance(
     let Some(m) = Surface::of(view, prec.material) else {
         return Ok(Rgb::BLACK);
     };
+    if m.one_sided && ray.direction.dot(triangle_normal(&prec.v)) > 0.0 {
+        // The back of a one-sided patch takes no light and reflects none.
+        return Ok(Rgb::BLACK);
+    }
     let mut l = Rgb::BLACK;
     if !m.diffuse.is_black() {
         view.counters.shades += 1;
@@ -137,6 +141,8 @@ struct Surface {
     refraction: bool,
     /// Direct light is computed here, with shadow rays ([`crate::direct`]).
     direct_vrt: bool,
+    /// Only the front takes and reflects light.
+    one_sided: bool,
 }
 
 impl Surface {
@@ -153,6 +159,7 @@ impl Surface {
             vrt_depth: h.plan.vrt_depth,
             refraction: h.plan.refraction,
             direct_vrt: h.plan.direct_vrt,
+            one_sided: m.one_sided,
         })
     }
     fn is_mirror(&self) -> bool {

@@ -15,7 +15,8 @@
 //!   (`material = none`, no Fresnel, as magg's mirror), a transmissive part as a
 //!   `dielectric` with both reflectance and transmittance scaled, several parts as nested
 //!   `blendbsdf`s with weights that keep each part's reflectance exactly; opaque parts are
-//!   `twosided`, as magg's patches reflect on both faces;
+//!   `twosided`, as magg's patches reflect on both faces, except for `sides = 1`
+//!   materials, which are Mitsuba's one-sided BSDFs;
 //! - the background as a `constant` emitter when it is not black.
 //!
 //! Not written: the ambient term (there is no such light in a physically based renderer:
@@ -188,19 +189,21 @@ impl Part {
     /// Writes the part, its colour divided by `weight` (the share a blend gives it).
     fn write(self, xml: &mut String, m: &Material, weight: f64, indent: &str) {
         let scaled = |c: Rgb| rgb(c.scale(1.0 / weight));
+        // A one-sided material is Mitsuba's plain (one-sided) BSDF.
+        let (open, close) = if m.one_sided { ("", "") } else { ("<bsdf type=\"twosided\">", "</bsdf>") };
         match self {
             Part::Diffuse => {
                 let _ = writeln!(
                     xml,
-                    "{indent}<bsdf type=\"twosided\"><bsdf type=\"diffuse\"><rgb name=\"reflectance\" value=\"{}\"/></bsdf></bsdf>",
+                    "{indent}{open}<bsdf type=\"diffuse\"><rgb name=\"reflectance\" value=\"{}\"/></bsdf>{close}",
                     scaled(m.diffuse)
                 );
             }
             Part::Mirror => {
                 let _ = writeln!(
                     xml,
-                    "{indent}<bsdf type=\"twosided\"><bsdf type=\"conductor\"><string name=\"material\" value=\"none\"/>\
-                     <rgb name=\"specular_reflectance\" value=\"{}\"/></bsdf></bsdf>",
+                    "{indent}{open}<bsdf type=\"conductor\"><string name=\"material\" value=\"none\"/>\
+                     <rgb name=\"specular_reflectance\" value=\"{}\"/></bsdf>{close}",
                     scaled(m.mirror)
                 );
             }

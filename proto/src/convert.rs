@@ -239,6 +239,7 @@ fn material_to_wire(m: &Material) -> v1::Material {
         mirror: Some(rgb_to_wire(m.mirror)),
         transmit: Some(rgb_to_wire(m.transmit)),
         ior: m.ior,
+        one_sided: m.one_sided,
     }
 }
 
@@ -257,7 +258,10 @@ fn material_from_wire(i: usize, m: v1::Material) -> Result<Material, ConvertErro
             return Err(invalid(field, s, "at most 1 (the rest is absorbed)"));
         }
     }
-    Ok(Material { name, diffuse, mirror, transmit, ior, loc: wire_loc() })
+    if m.one_sided && !transmit.is_black() {
+        return Err(invalid(f("one_sided"), true, "false for a transmissive material"));
+    }
+    Ok(Material { name, diffuse, mirror, transmit, ior, one_sided: m.one_sided, loc: wire_loc() })
 }
 
 fn settings_to_wire(s: &RenderSettings) -> v1::RenderSettings {

@@ -34,7 +34,7 @@ pub const NOT_LOADED: &str = "no scene loaded";
 
 /// Version of the protocol; processes with another version are refused at registration.
 /// 7: render settings say where direct light is computed and the effects plan whether
-/// VRT computes it (`direct`, `direct_vrt`); 6: `TakePairs` carries the node's secret, a keyed hash of its id under the render's
+/// VRT computes it (`direct`, `direct_vrt`), materials whether they are one-sided; 6: `TakePairs` carries the node's secret, a keyed hash of its id under the render's
 /// node key, which `LoadShard` brings the forks; 5: a node's host requests carry the
 /// secret its registration gave it; 4: `GetEnergies`
 /// replies carry the ledger's digests, checked by the host before it interpolates; 3: a

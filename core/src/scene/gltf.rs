@@ -465,6 +465,7 @@ fn gltf_material(doc: &Document, m: usize, names: &[String], label: &str) -> Opt
         mirror: Rgb::BLACK,
         transmit: Rgb::BLACK,
         ior: 1.5,
+        one_sided: false,
         loc: SourceLoc { file: label.to_string(), line: 0 },
     })
 }

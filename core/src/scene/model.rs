@@ -290,6 +290,11 @@ pub struct Material {
     pub transmit: Rgb,
     /// Index of refraction of the inside (the side the normal points away from).
     pub ior: f64,
+    /// Only the front (the side the patch's normal points to, by its winding) receives
+    /// and reflects light: light arriving on the back is absorbed and a viewing ray sees
+    /// the back black, so nothing leaks through a thin wall (`sides = 1`). Two-sided
+    /// (false) by default; never set for a transmissive material.
+    pub one_sided: bool,
     /// Where it was defined.
     pub loc: SourceLoc,
 }
@@ -306,6 +311,11 @@ impl Material {
     /// True when the material has a specular part of either kind.
     pub fn is_specular(&self) -> bool {
         self.is_mirror() || self.is_transmissive()
+    }
+    /// True when light travelling along `d` onto a surface with geometric normal `n` of
+    /// this material arrives on a side that takes no light (the back of a one-sided one).
+    pub fn refuses(&self, d: glam::DVec3, n: glam::DVec3) -> bool {
+        self.one_sided && d.dot(n) > 0.0
     }
 }
 

@@ -327,6 +327,7 @@ impl MtlPending {
             mirror,
             transmit,
             ior: self.ni.map_or(1.5, |n| n.clamp(1.0, 4.0)),
+            one_sided: false,
             loc: SourceLoc { file: label.to_string(), line: self.line },
         }
     }

@@ -94,6 +94,7 @@ struct RawMaterial {
     mirror: Option<SVec>,
     transmit: Option<SVec>,
     ior: Option<Spanned<f64>>,
+    sides: Option<Spanned<i64>>,
 }
 
 /// A `[[triangle]]` or `[[quad]]` entry.
@@ -511,7 +512,21 @@ impl<'a> Ctx<'a> {
                 return Err(self.err(&m.name, format!("material[{i}]"), msg));
             }
         }
-        Ok(Material { name, diffuse, mirror, transmit, ior, loc: self.loc(&m.name) })
+        let one_sided = match &m.sides {
+            None => false,
+            Some(v) => {
+                let n = self.int_in(v, &f("sides"), 1, 2)?;
+                if n == 1 && !transmit.is_black() {
+                    return Err(self.err(
+                        v,
+                        f("sides"),
+                        "a transmissive (glass) material has two sides: sides = 1 needs transmit = 0",
+                    ));
+                }
+                n == 1
+            }
+        };
+        Ok(Material { name, diffuse, mirror, transmit, ior, one_sided, loc: self.loc(&m.name) })
     }
 }
 

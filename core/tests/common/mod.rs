@@ -27,6 +27,7 @@ pub fn material(name: &str, diffuse: f64, mirror: f64, transmit: f64) -> Materia
         mirror: Rgb::splat(mirror),
         transmit: Rgb::splat(transmit),
         ior: 1.5,
+        one_sided: false,
         loc: loc(),
     }
 }

@@ -9,6 +9,7 @@ fn material(name: &str, diffuse: f64, mirror: f64, transmit: f64) -> Material {
         mirror: Rgb::splat(mirror),
         transmit: Rgb::splat(transmit),
         ior: 1.5,
+        one_sided: false,
         loc: SourceLoc::default(),
     }
 }
