@@ -201,9 +201,18 @@ impl StartedCluster {
                     .map_err(anyhow::Error::from)
             });
         if result.is_err() {
-            // The render failed: its nodes may be retrying a host that is gone. Stop the
-            // forks and report; the node threads end on their own (retry deadline).
+            // The render failed: its nodes may still be starting, or retrying a host that is
+            // gone. Stop the forks and report; the node threads end on their own (retry
+            // deadline). The runtime they run on must outlive them (a timer made on a
+            // runtime being shut down panics), so it is dropped on a thread of its own once
+            // they have ended.
             let _ = stop_tx.send(());
+            let _ = std::thread::Builder::new().name("magg-host-cleanup".into()).spawn(move || {
+                for t in node_threads {
+                    let _ = t.join();
+                }
+                drop(rt);
+            });
             return result;
         }
         let mut node_err = None;
