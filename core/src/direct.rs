@@ -29,14 +29,15 @@ pub fn irradiance(
     let tmin = offset_scale(p);
     for i in 0..view.header.lights.len() {
         // Copies out of the header, so that the shadow ray may borrow the view.
-        let (to_light, intensity) = {
+        let (w, dist, intensity) = {
             let l = &view.header.lights[i];
             let to_light = l.position - p;
             let r2 = to_light.length_squared();
             if !(r2 > 0.0) || !r2.is_finite() {
                 continue;
             }
-            let w = to_light / r2.sqrt();
+            let dist = r2.sqrt();
+            let w = to_light / dist;
             let cos = facing.dot(w);
             if !(cos > 0.0) {
                 continue;
@@ -45,10 +46,9 @@ pub fn irradiance(
             if i.is_black() {
                 continue;
             }
-            (to_light, i.scale(cos / r2))
+            (w, dist, i.scale(cos / r2))
         };
-        let dist = to_light.length();
-        let ray = Ray::new(p, to_light / dist);
+        let ray = Ray::new(p, w);
         view.counters.view_rays += 1;
         if !occluded(view, scratch, &ray, tmin, dist * (1.0 - 1e-9), patch)? {
             e = e.add(intensity);

@@ -138,7 +138,8 @@ pub fn trace_pair(
     }
     let erec = view.element(element)?;
     let prec = view.patch(erec.patch)?;
-    if plan.skips_diffuse_pairs() && header.materials.get(prec.material as usize).is_none_or(|m| !m.is_specular()) {
+    let material = header.materials.get(prec.material as usize);
+    if plan.skips_diffuse_pairs() && material.is_none_or(|m| !m.is_specular()) {
         // Its direct light is computed at VRT and nothing bounces on from it.
         return Ok(out);
     }
@@ -148,6 +149,8 @@ pub fn trace_pair(
         return Ok(out);
     }
     let normal = triangle_normal(&prec.v);
+    // Every ray from the point light reaches the element's plane from the same side.
+    let on_back = material.is_some_and(|m| m.refuses(prec.v[0] - l.position, normal));
     let n = header.settings.light_rays.max(1);
     let seed = header.settings.seed;
     let mut rng = Rng::from_words(&[seed, 0x4c5254, light as u64, element as u64]);
@@ -181,7 +184,7 @@ pub fn trace_pair(
             continue;
         }
         out.tally.reached = out.tally.reached.add(flux);
-        if header.materials.get(prec.material as usize).is_some_and(|m| m.refuses(w, normal)) {
+        if on_back {
             // The back of a one-sided patch: absorbed, nothing deposited or reflected.
             out.tally.absorbed = out.tally.absorbed.add(flux);
             continue;

@@ -82,10 +82,12 @@ fn radiance(
     let Some(m) = Surface::of(view, prec.material) else {
         return Ok(Rgb::BLACK);
     };
-    if m.one_sided && ray.direction.dot(triangle_normal(&prec.v)) > 0.0 {
+    let normal = triangle_normal(&prec.v);
+    if m.one_sided && ray.direction.dot(normal) > 0.0 {
         // The back of a one-sided patch takes no light and reflects none.
         return Ok(Rgb::BLACK);
     }
+    let at = Arrival::new(ray.at(hit.t), ray.direction, normal);
     let mut l = Rgb::BLACK;
     if !m.diffuse.is_black() {
         view.counters.shades += 1;
@@ -96,8 +98,7 @@ fn radiance(
             irr = irr.add(view.vertex_energy(e.vertices[k])?.scale(w[k]));
         }
         if m.direct_vrt {
-            let facing = Arrival::new(ray.at(hit.t), ray.direction, triangle_normal(&prec.v)).normal;
-            irr = irr.add(direct::irradiance(view, scratch, ray.at(hit.t), facing, hit.patch)?);
+            irr = irr.add(direct::irradiance(view, scratch, at.p, at.normal, hit.patch)?);
         }
         l = l.add(m.diffuse.mul(irr).scale(1.0 / PI));
         if let Some(ambient) = m.ambient {
@@ -107,9 +108,6 @@ fn radiance(
     if depth >= m.vrt_depth || (!m.is_specular()) {
         return Ok(l);
     }
-    let p = ray.at(hit.t);
-    let normal = triangle_normal(&prec.v);
-    let at = Arrival::new(p, ray.direction, normal);
     if m.is_mirror() {
         let r = radiance(view, scratch, &at.spawn(at.reflected()), depth + 1, hit.patch)?;
         l = l.add(m.mirror.mul(r));

@@ -11,7 +11,6 @@ use magg_core::camera::CameraRig;
 use magg_core::energy::from_fixed;
 use magg_core::geometry::solid_angle;
 use magg_core::scene::{DirectLight, Scene};
-use magg_core::subdivision::element_triangle;
 use std::f64::consts::PI;
 
 fn at_vrt(mut s: Scene) -> Scene {
@@ -139,11 +138,8 @@ fn light_via_a_mirror_still_comes_from_the_light_pass() {
         if info.patch >= 2 || !(info.centroid.x > 0.4 && info.centroid.x < 2.6 && info.centroid.z.abs() < 1.6) {
             continue;
         }
-        let patch = &s.patches[info.patch as usize];
-        let first = p.elements.iter().position(|x| x.patch == info.patch).unwrap();
-        let tri = element_triangle(&patch.vertices, patch.subdivisions.unwrap(), (e - first) as u32);
         got += from_fixed(out.element_flux[e], q).0[0];
-        want += rho * solid_angle(image, &tri);
+        want += rho * solid_angle(image, &element_tri(&s, &p, e));
     }
     let rel = (got - want).abs() / want;
     assert!(rel < 0.01, "floor flux {got} vs the mirrored light's {want} (relative error {rel})");

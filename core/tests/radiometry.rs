@@ -5,16 +5,7 @@ mod common;
 use common::*;
 use magg_core::energy::from_fixed;
 use magg_core::geometry::solid_angle;
-use magg_core::subdivision::element_triangle;
 use std::f64::consts::PI;
-
-/// Triangle of element `e` of a prepared scene.
-fn element_tri(s: &magg_core::scene::Scene, p: &magg_core::preprocess::PreparedScene, e: usize) -> [glam::DVec3; 3] {
-    let info = p.elements[e];
-    let patch = &s.patches[info.patch as usize];
-    let first = p.elements.iter().position(|x| x.patch == info.patch).unwrap();
-    element_triangle(&patch.vertices, patch.subdivisions.unwrap(), (e - first) as u32)
-}
 
 #[test]
 fn point_light_on_a_plane_matches_i_cos_over_r2() {

@@ -70,6 +70,14 @@ pub fn boxed(lo: DVec3, hi: DVec3, material: u32, n: u32, inward: bool) -> Vec<P
         .collect()
 }
 
+/// Triangle of element `e` of a prepared scene whose patches fix their subdivisions.
+pub fn element_tri(s: &Scene, p: &PreparedScene, e: usize) -> [DVec3; 3] {
+    let info = p.elements[e];
+    let patch = &s.patches[info.patch as usize];
+    let first = p.elements.iter().position(|x| x.patch == info.patch).unwrap();
+    magg_core::subdivision::element_triangle(&patch.vertices, patch.subdivisions.unwrap(), (e - first) as u32)
+}
+
 pub fn scene(patches: Vec<PatchDef>, materials: Vec<Material>, lights: Vec<Light>) -> Scene {
     Scene {
         name: "<test>".into(),
