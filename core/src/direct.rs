@@ -11,20 +11,21 @@ use crate::blocks::BlockError;
 use crate::color::Rgb;
 use crate::geometry::Ray;
 use crate::lrt::intensity_towards;
-use crate::scatter::offset_scale;
+use crate::scatter::{offset_scale, Arrival};
 use crate::trace::{occluded, TraceScratch};
 use crate::view::SceneView;
-use glam::DVec3;
 
-/// Irradiance at `p` on the side of unit normal `facing` (turned towards the viewer) of
-/// patch `patch`, from every light that sees `p` unoccluded: `I(w) cos(theta) / r^2`.
+/// Irradiance at the point of arrival `at` on patch `patch`, on the side the viewing ray
+/// came from, from every light that sees the point unoccluded: `I(w) cos(theta) / r^2`,
+/// the cosine taken with the shading normal. A light behind the geometric surface gives
+/// nothing, whatever the shading normal says: no light comes through a surface.
 pub fn irradiance(
     view: &mut SceneView,
     scratch: &mut TraceScratch,
-    p: DVec3,
-    facing: DVec3,
+    at: &Arrival,
     patch: u32,
 ) -> Result<Rgb, BlockError> {
+    let (p, facing, shading) = (at.p, at.normal, at.shading);
     let mut e = Rgb::BLACK;
     let tmin = offset_scale(p);
     for i in 0..view.header.lights.len() {
@@ -38,8 +39,8 @@ pub fn irradiance(
             }
             let dist = r2.sqrt();
             let w = to_light / dist;
-            let cos = facing.dot(w);
-            if !(cos > 0.0) {
+            let cos = shading.dot(w);
+            if !(cos > 0.0) || !(facing.dot(w) > 0.0) {
                 continue;
             }
             let i = intensity_towards(l, -w);

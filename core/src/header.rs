@@ -68,6 +68,10 @@ pub struct Counts {
     pub bvh_blocks: u32,
     /// Blocks of patch records.
     pub patch_blocks: u32,
+    /// Patches shaded with normals (each has a shading record).
+    pub shaded_patches: u32,
+    /// Blocks of shading records.
+    pub shading_blocks: u32,
     /// Blocks of element records.
     pub element_blocks: u32,
     /// Blocks of vertex energies.

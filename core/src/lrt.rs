@@ -22,7 +22,7 @@ use crate::color::Rgb;
 use crate::energy::{to_fixed, Fixed};
 use crate::geometry::{cosine_hemisphere, sample_spherical_triangle, solid_angle, triangle_normal, Ray};
 use crate::rng::{hammersley, Rng};
-use crate::scatter::{offset_scale, Arrival, Dielectric};
+use crate::scatter::{arrive, barycentric, offset_scale, Arrival, Dielectric};
 use crate::scene::Light;
 use crate::subdivision::{element_triangle, locate};
 use crate::trace::{cast, occluded, TraceScratch};
@@ -151,6 +151,7 @@ pub fn trace_pair(
     let normal = triangle_normal(&prec.v);
     // Every ray from the point light reaches the element's plane from the same side.
     let on_back = material.is_some_and(|m| m.refuses(prec.v[0] - l.position, normal));
+    let specular_here = material.is_some_and(|m| m.is_specular());
     let n = header.settings.light_rays.max(1);
     let seed = header.settings.seed;
     let mut rng = Rng::from_words(&[seed, 0x4c5254, light as u64, element as u64]);
@@ -194,7 +195,10 @@ pub fn trace_pair(
             deposits.push((element, flux));
         }
         let floor = flux.max_channel() * MIN_RELATIVE_FLUX;
-        scatter(view, &mut rng, &mut stack, &mut out.tally, p, w, normal, prec.material, erec.patch, flux, 0, 0, floor);
+        // Shading normals only bend specular directions here (deposits are flux, taken
+        // on the geometric surface), so a diffuse patch's are not read.
+        let at = if specular_here { arrive(view, &prec, p, w, normal, barycentric(&prec.v, p))? } else { Arrival::new(p, w, normal) };
+        scatter(view, &mut rng, &mut stack, &mut out.tally, at, prec.material, erec.patch, flux, 0, 0, floor);
         // Follow secondary rays depth-first.
         while let Some(s) = stack.pop() {
             view.counters.light_rays += 1;
@@ -205,21 +209,25 @@ pub fn trace_pair(
             };
             let hp = view.patch(hit.patch)?;
             let hn = triangle_normal(&hp.v);
-            if header.materials.get(hp.material as usize).is_some_and(|m| m.refuses(s.ray.direction, hn)) {
+            let hm = header.materials.get(hp.material as usize);
+            if hm.is_some_and(|m| m.refuses(s.ray.direction, hn)) {
                 out.tally.absorbed = out.tally.absorbed.add(s.flux);
                 continue;
             }
             let (local, _) = locate(hp.subdivisions, hit.bary);
             deposits.push((hp.first_element + local, s.flux));
-            let at = s.ray.at(hit.t);
+            let (p, d) = (s.ray.at(hit.t), s.ray.direction);
+            let at = if hm.is_some_and(|m| m.is_specular()) {
+                arrive(view, &hp, p, d, hn, hit.bary)?
+            } else {
+                Arrival::new(p, d, hn)
+            };
             scatter(
                 view,
                 &mut rng,
                 &mut stack,
                 &mut out.tally,
                 at,
-                s.ray.direction,
-                hn,
                 hp.material,
                 hit.patch,
                 s.flux,
@@ -251,9 +259,7 @@ fn scatter(
     rng: &mut Rng,
     stack: &mut Vec<Pending>,
     tally: &mut LrtTally,
-    p: DVec3,
-    d: DVec3,
-    normal: DVec3,
+    at: Arrival,
     material: u32,
     patch: u32,
     flux: Rgb,
@@ -267,7 +273,6 @@ fn scatter(
         tally.absorbed = tally.absorbed.add(flux);
         return;
     };
-    let at = Arrival::new(p, d, normal);
     let absorbed = Rgb([
         (1.0 - m.diffuse.0[0] - m.mirror.0[0] - m.transmit.0[0]).max(0.0),
         (1.0 - m.diffuse.0[1] - m.mirror.0[1] - m.transmit.0[1]).max(0.0),

@@ -19,8 +19,10 @@
 //! assert!(at.spawn(refracted).origin.y < 0.0);
 //! ```
 
+use crate::blocks::{BlockError, PatchRecord, NO_SHADING};
 use crate::geometry::Ray;
 use crate::math::Normalized;
+use crate::view::SceneView;
 use glam::DVec3;
 
 /// Offset from a surface point for a new ray, scaled to the coordinates' magnitude (the
@@ -69,8 +71,57 @@ pub fn refract(d: DVec3, n: DVec3, eta: f64) -> Option<DVec3> {
     Some((d * eta + n * (eta * cos_i - cos_t)).normalized())
 }
 
-/// A ray's arrival at a surface point: the point, the incoming direction and the
-/// geometric normal turned to face the side the ray came from.
+/// The shading normal at barycentric weights `bary` of a patch whose corners have unit
+/// normals `n`: their weighted sum, normalised. `None` where it has no direction (three
+/// normals that cancel), which shades flat.
+pub fn interpolate_normal(n: &[DVec3; 3], bary: [f64; 3]) -> Option<DVec3> {
+    let s = n[0] * bary[0] + n[1] * bary[1] + n[2] * bary[2];
+    let len = s.length();
+    (len > 0.0 && len.is_finite()).then(|| s / len)
+}
+
+/// The arrival of direction `d` at point `p` of patch `patch` (unit geometric normal
+/// `normal`, barycentric weights `bary`), shaded with the patch's normals when it has
+/// them (read through the view's cache).
+pub fn arrive(
+    view: &mut SceneView,
+    patch: &PatchRecord,
+    p: DVec3,
+    d: DVec3,
+    normal: DVec3,
+    bary: [f64; 3],
+) -> Result<Arrival, BlockError> {
+    let at = Arrival::new(p, d, normal);
+    if patch.shading == NO_SHADING {
+        return Ok(at);
+    }
+    let normals = view.shading_normals(patch)?;
+    Ok(at.with_shading(normals.and_then(|n| interpolate_normal(&n, bary))))
+}
+
+/// Barycentric weights of point `p` (in or near the plane of `v`) for the corners of `v`.
+pub fn barycentric(v: &[DVec3; 3], p: DVec3) -> [f64; 3] {
+    let (e1, e2, q) = (v[1] - v[0], v[2] - v[0], p - v[0]);
+    let (d11, d12, d22) = (e1.dot(e1), e1.dot(e2), e2.dot(e2));
+    let (q1, q2) = (q.dot(e1), q.dot(e2));
+    let det = d11 * d22 - d12 * d12;
+    if !(det > 0.0) {
+        return [1.0 / 3.0; 3];
+    }
+    let b1 = (d22 * q1 - d12 * q2) / det;
+    let b2 = (d11 * q2 - d12 * q1) / det;
+    [1.0 - b1 - b2, b1, b2]
+}
+
+/// A ray's arrival at a surface point: the point, the incoming direction, the geometric
+/// normal turned to face the side the ray came from, and the shading normal on that side.
+///
+/// The shading normal (from a mesh's vertex normals, [`Arrival::with_shading`]) bends
+/// the mirror and refraction directions and the cosine of direct light; the geometric
+/// one decides the side, the index ratio and where new rays start. A direction made with
+/// the shading normal that would leave on the wrong side of the geometric surface (a
+/// reflection into it, a refraction back out) is made with the geometric normal instead,
+/// so no ray crosses a surface it should not and no energy is made or lost.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Arrival {
     /// The surface point.
@@ -79,6 +130,9 @@ pub struct Arrival {
     pub d: DVec3,
     /// The unit normal on the incident side (`d . normal <= 0`).
     pub normal: DVec3,
+    /// The unit shading normal on the incident side (`d . shading < 0`); the geometric
+    /// `normal` for a flat patch.
+    pub shading: DVec3,
     /// True when the ray hit the front (the side the patch's winding points to).
     pub front: bool,
 }
@@ -103,7 +157,26 @@ impl Arrival {
     /// `normal` (either side).
     pub fn new(p: DVec3, d: DVec3, normal: DVec3) -> Self {
         let front = d.dot(normal) < 0.0;
-        Arrival { p, d, normal: if front { normal } else { -normal }, front }
+        let normal = if front { normal } else { -normal };
+        Arrival { p, d, normal, shading: normal, front }
+    }
+
+    /// The arrival shaded with unit normal `shading` (given on the patch's front side, as
+    /// stored), or flat for `None`. A shading normal the ray does not arrive against (it
+    /// comes from behind the shading normal's side) is not used: the arrival stays flat.
+    pub fn with_shading(self, shading: Option<DVec3>) -> Self {
+        let Some(s) = shading else { return self };
+        let s = if self.front { s } else { -s };
+        if self.d.dot(s) < 0.0 {
+            Arrival { shading: s, ..self }
+        } else {
+            self
+        }
+    }
+
+    /// True when the arrival is shaded with its geometric normal.
+    fn is_flat(&self) -> bool {
+        self.shading == self.normal
     }
 
     /// Index ratio `n_i / n_t` at a dielectric of index `ior` in air, by the side hit.
@@ -115,21 +188,33 @@ impl Arrival {
         }
     }
 
-    /// The mirror direction.
+    /// The mirror direction (about the shading normal, unless that sends it into the
+    /// surface).
     pub fn reflected(&self) -> DVec3 {
+        if !self.is_flat() {
+            let r = reflect(self.d, self.shading);
+            if r.dot(self.normal) > 0.0 {
+                return r;
+            }
+        }
         reflect(self.d, self.normal)
     }
 
     /// The split at a dielectric of index `ior`; `refraction` false (the effects plan
     /// leaves refraction out) reflects everything.
     pub fn dielectric(&self, ior: f64, refraction: bool) -> Dielectric {
-        let eta = self.eta(ior);
-        let fresnel = fresnel_dielectric(-self.d.dot(self.normal), eta);
-        let refracted = if refraction { refract(self.d, self.normal, eta) } else { None };
-        match refracted {
-            Some(refracted) if fresnel < 1.0 => Dielectric::Split { fresnel, refracted },
-            _ => Dielectric::Reflected,
+        if !self.is_flat() {
+            let split = split_about(self.d, self.shading, self.eta(ior), refraction);
+            match split {
+                // Refracted through the geometric surface, as it must be; or all reflected
+                // (total internal reflection about the shading normal, or no refraction),
+                // along [`Arrival::reflected`].
+                Dielectric::Split { refracted, .. } if refracted.dot(self.normal) < 0.0 => return split,
+                Dielectric::Reflected => return split,
+                Dielectric::Split { .. } => {}
+            }
         }
+        split_about(self.d, self.normal, self.eta(ior), refraction)
     }
 
     /// A new ray leaving the point along `dir`, its origin pushed off the surface to the
@@ -137,6 +222,17 @@ impl Arrival {
     pub fn spawn(&self, dir: DVec3) -> Ray {
         let side = if dir.dot(self.normal) >= 0.0 { self.normal } else { -self.normal };
         Ray::new(self.p + side * offset_scale(self.p), dir)
+    }
+}
+
+/// The Fresnel split of unit `d` at a dielectric with unit normal `n` facing the incident
+/// side and index ratio `eta`.
+fn split_about(d: DVec3, n: DVec3, eta: f64, refraction: bool) -> Dielectric {
+    let fresnel = fresnel_dielectric(-d.dot(n), eta);
+    let refracted = if refraction { refract(d, n, eta) } else { None };
+    match refracted {
+        Some(refracted) if fresnel < 1.0 => Dielectric::Split { fresnel, refracted },
+        _ => Dielectric::Reflected,
     }
 }
 
@@ -224,5 +320,40 @@ mod tests {
         // Along the surface counts as leaving on the normal's side.
         assert_eq!(at.spawn(DVec3::X).origin, p + UP * eps);
         assert_eq!(at.spawn(DVec3::X).direction, DVec3::X);
+    }
+
+    #[test]
+    fn shading_normals_bend_reflection_and_refraction_but_never_through_the_surface() {
+        let tilt = DVec3::new(0.3, 1.0, 0.0).normalize();
+        let d = DVec3::new(0.0, -1.0, 0.0);
+        let at = Arrival::new(DVec3::ZERO, d, UP).with_shading(Some(tilt));
+        assert_eq!(at.shading, tilt);
+        assert_eq!(at.reflected(), reflect(d, tilt));
+        let Dielectric::Split { fresnel, refracted } = at.dielectric(1.5, true) else { panic!("refracts") };
+        assert_eq!(fresnel, fresnel_dielectric(-d.dot(tilt), 1.0 / 1.5));
+        assert_eq!(Some(refracted), refract(d, tilt, 1.0 / 1.5));
+        // From the back, the stored (front) normal is turned to the incident side.
+        let below = Arrival::new(DVec3::ZERO, -d, UP).with_shading(Some(tilt));
+        assert_eq!((below.normal, below.shading), (-UP, -tilt));
+        // A grazing ray whose mirror image about the shading normal would dive into the
+        // surface is reflected about the geometric normal instead.
+        let graze = DVec3::new(0.264, -0.1, 0.0).normalize();
+        let at = Arrival::new(DVec3::ZERO, graze, UP).with_shading(Some(tilt));
+        assert!(reflect(graze, tilt).dot(UP) <= 0.0);
+        assert_eq!(at.reflected(), reflect(graze, UP));
+        // A shading normal the ray does not arrive against is not used.
+        let at = Arrival::new(DVec3::ZERO, DVec3::new(0.99, -0.141, 0.0).normalize(), UP).with_shading(Some(tilt));
+        assert_eq!(at.shading, at.normal);
+    }
+
+    #[test]
+    fn interpolated_normals_and_barycentrics() {
+        let n = [DVec3::X, DVec3::Y, DVec3::Z];
+        let s = interpolate_normal(&n, [0.5, 0.5, 0.0]).unwrap();
+        assert!((s - DVec3::new(1.0, 1.0, 0.0).normalize()).length() < 1e-15);
+        assert_eq!(interpolate_normal(&[DVec3::X, -DVec3::X, DVec3::X], [0.5, 0.5, 0.0]), None);
+        let v = [DVec3::ZERO, DVec3::X, DVec3::Y];
+        let b = barycentric(&v, DVec3::new(0.25, 0.5, 0.0));
+        assert!((b[0] - 0.25).abs() < 1e-15 && (b[1] - 0.25).abs() < 1e-15 && (b[2] - 0.5).abs() < 1e-15);
     }
 }

@@ -8,6 +8,7 @@ use crate::blocks::bvh::{
 use crate::blocks::*;
 use crate::color::Rgb;
 use crate::header::SceneHeader;
+use glam::DVec3;
 use std::sync::Arc;
 
 /// Operation counts of the kernels (the basis of the compute cost model).
@@ -89,6 +90,19 @@ impl SceneView {
         }
         let (b, at) = self.header.layout.patch_slot(id);
         Ok(PatchRecord::decode(self.cache.get(b)?, at))
+    }
+
+    /// The shading normals of patch record `p`, `None` for a flat patch.
+    pub fn shading_normals(&mut self, p: &PatchRecord) -> Result<Option<[DVec3; 3]>, BlockError> {
+        if p.shading == NO_SHADING {
+            return Ok(None);
+        }
+        let count = self.header.counts.shaded_patches;
+        if p.shading >= count {
+            return Err(BlockError::BadId { kind: "shading", id: p.shading as u64, count: count as u64 });
+        }
+        let (b, at) = self.header.layout.shading_slot(p.shading);
+        Ok(Some(ShadingRecord::decode(self.cache.get(b)?, at).normals))
     }
 
     /// Element record `id`.

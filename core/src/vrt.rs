@@ -13,7 +13,7 @@ use crate::color::Rgb;
 use crate::direct;
 use crate::geometry::{triangle_normal, Ray};
 use crate::rng::{hammersley, Rng};
-use crate::scatter::{offset_scale, Arrival, Dielectric};
+use crate::scatter::{arrive, offset_scale, Dielectric};
 use crate::subdivision::locate;
 use crate::trace::{cast, TraceScratch, NO_PATCH};
 use crate::view::SceneView;
@@ -87,7 +87,7 @@ fn radiance(
         // The back of a one-sided patch takes no light and reflects none.
         return Ok(Rgb::BLACK);
     }
-    let at = Arrival::new(ray.at(hit.t), ray.direction, normal);
+    let at = arrive(view, &prec, ray.at(hit.t), ray.direction, normal, hit.bary)?;
     let mut l = Rgb::BLACK;
     if !m.diffuse.is_black() {
         view.counters.shades += 1;
@@ -98,7 +98,7 @@ fn radiance(
             irr = irr.add(view.vertex_energy(e.vertices[k])?.scale(w[k]));
         }
         if m.direct_vrt {
-            irr = irr.add(direct::irradiance(view, scratch, at.p, at.normal, hit.patch)?);
+            irr = irr.add(direct::irradiance(view, scratch, &at, hit.patch)?);
         }
         l = l.add(m.diffuse.mul(irr).scale(1.0 / PI));
         if let Some(ambient) = m.ambient {

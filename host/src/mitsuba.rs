@@ -24,7 +24,7 @@
 //! transport, which the integrator given at render time decides (`deploy/mitsuba-reference.py`).
 
 use magg_core::color::Rgb;
-use magg_core::scene::{Material, Scene};
+use magg_core::scene::{Material, PatchDef, Scene};
 use std::fmt::Write as _;
 use std::path::Path;
 
@@ -119,24 +119,27 @@ pub fn write(scene: &Scene, dir: &Path) -> anyhow::Result<Notes> {
         ));
     }
     for (id, m) in scene.materials.iter().enumerate() {
-        let triangles: Vec<[[f64; 3]; 3]> = scene
-            .patches
-            .iter()
-            .filter(|p| p.material as usize == id)
-            .map(|p| p.vertices.map(|v| v.to_array()))
-            .collect();
-        if triangles.is_empty() {
-            continue;
+        // Flat patches in one PLY, smooth ones (with their corner normals) in another.
+        for smooth in [false, true] {
+            let patches: Vec<&PatchDef> = scene
+                .patches
+                .iter()
+                .filter(|p| p.material as usize == id && p.normals.is_some() == smooth)
+                .collect();
+            if patches.is_empty() {
+                continue;
+            }
+            let file = if smooth { format!("material-{id}-smooth.ply") } else { format!("material-{id}.ply") };
+            let path = meshes.join(&file);
+            std::fs::write(&path, ply(&patches)).with_context(|| format!("cannot write {}", path.display()))?;
+            let shading = if smooth { "smooth" } else { "flat" };
+            let _ = writeln!(xml, "  <!-- material {:?}: {} triangles, {shading} -->", m.name, patches.len());
+            let _ = writeln!(xml, "  <shape type=\"ply\">");
+            let _ = writeln!(xml, "    <string name=\"filename\" value=\"meshes/{file}\"/>");
+            let _ = writeln!(xml, "    <boolean name=\"face_normals\" value=\"{}\"/>", !smooth);
+            bsdf(&mut xml, m, "    ");
+            let _ = writeln!(xml, "  </shape>");
         }
-        let file = format!("material-{id}.ply");
-        let path = meshes.join(&file);
-        std::fs::write(&path, ply(&triangles)).with_context(|| format!("cannot write {}", path.display()))?;
-        let _ = writeln!(xml, "  <!-- material {:?}: {} triangles -->", m.name, triangles.len());
-        let _ = writeln!(xml, "  <shape type=\"ply\">");
-        let _ = writeln!(xml, "    <string name=\"filename\" value=\"meshes/{file}\"/>");
-        let _ = writeln!(xml, "    <boolean name=\"face_normals\" value=\"true\"/>");
-        bsdf(&mut xml, m, "    ");
-        let _ = writeln!(xml, "  </shape>");
     }
     let _ = writeln!(xml, "</scene>");
     let path = dir.join("scene.xml");
@@ -221,24 +224,29 @@ impl Part {
     }
 }
 
-/// A binary little-endian PLY of unshared triangles (float32 positions).
-fn ply(triangles: &[[[f64; 3]; 3]]) -> Vec<u8> {
+/// A binary little-endian PLY of the patches as unshared triangles (float32 positions,
+/// and float32 normals when the patches are smooth: all of them or none).
+fn ply(patches: &[&PatchDef]) -> Vec<u8> {
+    let normals = patches.first().is_some_and(|p| p.normals.is_some());
+    let normal_props = if normals { "property float nx\nproperty float ny\nproperty float nz\n" } else { "" };
     let header = format!(
         "ply\nformat binary_little_endian 1.0\ncomment written by magg-host export\nelement vertex {}\n\
-         property float x\nproperty float y\nproperty float z\nelement face {}\n\
+         property float x\nproperty float y\nproperty float z\n{normal_props}element face {}\n\
          property list uchar int vertex_indices\nend_header\n",
-        triangles.len() * 3,
-        triangles.len()
+        patches.len() * 3,
+        patches.len()
     );
     let mut out = header.into_bytes();
-    for t in triangles {
-        for v in t {
-            for c in v {
-                out.extend_from_slice(&(*c as f32).to_le_bytes());
+    for p in patches {
+        for (k, v) in p.vertices.iter().enumerate() {
+            let mut put = |c: f64| out.extend_from_slice(&(c as f32).to_le_bytes());
+            v.to_array().into_iter().for_each(&mut put);
+            if let (true, Some(n)) = (normals, p.normals) {
+                n[k].to_array().into_iter().for_each(&mut put);
             }
         }
     }
-    for i in 0..triangles.len() {
+    for i in 0..patches.len() {
         out.push(3);
         for k in 0..3 {
             out.extend_from_slice(&((3 * i + k) as i32).to_le_bytes());

@@ -22,7 +22,7 @@ use crate::v1;
 use glam::DVec3;
 use magg_core::blocks::{
     bvh::{BVH_NODES_PER_BLOCK, BVH_TRIANGLES_PER_BLOCK},
-    Block, BlockLayout, CacheSize, BLOCK_SIZE, ELEMENTS_PER_BLOCK, NO_BLOCK, PATCHES_PER_BLOCK, VERTICES_PER_BLOCK,
+    Block, BlockLayout, CacheSize, BLOCK_SIZE, ELEMENTS_PER_BLOCK, NO_BLOCK, PATCHES_PER_BLOCK, SHADINGS_PER_BLOCK, VERTICES_PER_BLOCK,
 };
 use magg_core::color::Rgb;
 use magg_core::header::{BvhHeader, Counts, GridHeader, SceneHeader};
@@ -418,6 +418,8 @@ fn counts_from_wire(c: v1::Counts) -> Counts {
         subspace_blocks: c.subspace_blocks,
         bvh_blocks: c.bvh_blocks,
         patch_blocks: c.patch_blocks,
+        shaded_patches: c.shaded_patches,
+        shading_blocks: c.shading_blocks,
         element_blocks: c.element_blocks,
         vertex_blocks: c.vertex_blocks,
     }
@@ -431,19 +433,21 @@ fn check_layout(l: &BlockLayout, c: &Counts, bvh: &BvhHeader, accel: Accel) -> R
         return Err(invalid("layout.total", l.total, format!("at most {MAX_BLOCKS} blocks")));
     }
     if !(l.bvh_base <= l.patch_base
-        && l.patch_base <= l.element_base
+        && l.patch_base <= l.shading_base
+        && l.shading_base <= l.element_base
         && l.element_base <= l.vertex_base
         && l.vertex_base < l.total)
     {
         let v = format!(
-            "bvh {} patch {} element {} vertex {} total {}",
-            l.bvh_base, l.patch_base, l.element_base, l.vertex_base, l.total
+            "bvh {} patch {} shading {} element {} vertex {} total {}",
+            l.bvh_base, l.patch_base, l.shading_base, l.element_base, l.vertex_base, l.total
         );
-        return Err(invalid("layout", v, "bvh_base <= patch_base <= element_base <= vertex_base < total"));
+        let want = "bvh_base <= patch_base <= shading_base <= element_base <= vertex_base < total";
+        return Err(invalid("layout", v, want));
     }
     let blocks_for = |n: u32, per: usize| (n as usize).div_ceil(per) as u64;
     let (grid, uses_bvh) = (accel == Accel::Grid, accel == Accel::Bvh);
-    let checks: [(&str, u64, u64); 13] = [
+    let checks: [(&str, u64, u64); 16] = [
         ("counts.subspace_blocks", c.subspace_blocks as u64, l.bvh_base as u64),
         ("counts.bvh_blocks", c.bvh_blocks as u64, (l.patch_base - l.bvh_base) as u64),
         ("counts.bvh_blocks", c.bvh_blocks as u64, bvh.node_blocks as u64 + bvh.triangle_blocks as u64),
@@ -452,7 +456,10 @@ fn check_layout(l: &BlockLayout, c: &Counts, bvh: &BvhHeader, accel: Accel) -> R
         // most one leaf-triangle block per triangle, at least as many as they fill (below).
         ("bvh.nodes", (bvh.nodes > 0) as u64, uses_bvh as u64),
         ("counts.subspace_blocks", (c.subspace_blocks > 0 && uses_bvh) as u64, 0),
-        ("counts.patch_blocks", c.patch_blocks as u64, (l.element_base - l.patch_base) as u64),
+        ("counts.patch_blocks", c.patch_blocks as u64, (l.shading_base - l.patch_base) as u64),
+        ("counts.shading_blocks", c.shading_blocks as u64, (l.element_base - l.shading_base) as u64),
+        ("counts.shading_blocks", c.shading_blocks as u64, blocks_for(c.shaded_patches, SHADINGS_PER_BLOCK)),
+        ("counts.shaded_patches", (c.shaded_patches > c.patches) as u64, 0),
         ("counts.element_blocks", c.element_blocks as u64, (l.vertex_base - l.element_base) as u64),
         ("counts.vertex_blocks", c.vertex_blocks as u64, (l.total - l.vertex_base) as u64),
         ("counts.patch_blocks", c.patch_blocks as u64, blocks_for(c.patches, PATCHES_PER_BLOCK)),
@@ -548,6 +555,7 @@ impl From<&SceneHeader> for v1::SceneHeader {
             layout: Some(v1::BlockLayout {
                 bvh_base: l.bvh_base,
                 patch_base: l.patch_base,
+                shading_base: l.shading_base,
                 element_base: l.element_base,
                 vertex_base: l.vertex_base,
                 total: l.total,
@@ -560,6 +568,8 @@ impl From<&SceneHeader> for v1::SceneHeader {
                 subspace_blocks: c.subspace_blocks,
                 bvh_blocks: c.bvh_blocks,
                 patch_blocks: c.patch_blocks,
+                shaded_patches: c.shaded_patches,
+                shading_blocks: c.shading_blocks,
                 element_blocks: c.element_blocks,
                 vertex_blocks: c.vertex_blocks,
             }),
@@ -595,6 +605,7 @@ impl TryFrom<v1::SceneHeader> for SceneHeader {
         let layout = BlockLayout {
             bvh_base: l.bvh_base,
             patch_base: l.patch_base,
+            shading_base: l.shading_base,
             element_base: l.element_base,
             vertex_base: l.vertex_base,
             total: l.total,

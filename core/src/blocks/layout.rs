@@ -14,6 +14,12 @@ pub const NO_BLOCK: u32 = u32::MAX;
 pub const PATCH_RECORD: usize = 96;
 /// Patch records per block.
 pub const PATCHES_PER_BLOCK: usize = BLOCK_SIZE / PATCH_RECORD;
+/// Bytes of one shading record: the unit shading normals of a patch's 3 corners, 9 x f32.
+pub const SHADING_RECORD: usize = 36;
+/// Shading records per block.
+pub const SHADINGS_PER_BLOCK: usize = BLOCK_SIZE / SHADING_RECORD;
+/// A patch record's `shading` when the patch has no shading record (shaded flat).
+pub const NO_SHADING: u32 = u32::MAX;
 /// Bytes of one element record: patch, local index, 3 vertex ids, area.
 pub const ELEMENT_RECORD: usize = 32;
 /// Element records per block.
@@ -37,6 +43,8 @@ pub enum BlockKind {
     Bvh,
     /// Patch records.
     Patch,
+    /// Shading normals of the patches that have them.
+    Shading,
     /// Element records.
     Element,
     /// Vertex irradiance records.
@@ -44,15 +52,17 @@ pub enum BlockKind {
 }
 
 /// Where each kind of block starts in the global id space:
-/// `[subspace blocks][BVH blocks][patch blocks][element blocks][vertex-energy blocks]`.
-/// A scene traced through the grid has no BVH block, one traced through the BVH no
-/// subspace block.
+/// `[subspace blocks][BVH blocks][patch blocks][shading blocks][element blocks][vertex-energy
+/// blocks]`. A scene traced through the grid has no BVH block, one traced through the BVH
+/// no subspace block, one shaded flat no shading block.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct BlockLayout {
     /// First BVH block (the subspace blocks are those before it).
     pub bvh_base: u32,
     /// First patch block.
     pub patch_base: u32,
+    /// First shading block (the patch blocks are those before it).
+    pub shading_base: u32,
     /// First element block.
     pub element_base: u32,
     /// First vertex-energy block.
@@ -70,6 +80,8 @@ impl BlockLayout {
             Some(BlockKind::VertexEnergy)
         } else if id >= self.element_base {
             Some(BlockKind::Element)
+        } else if id >= self.shading_base {
+            Some(BlockKind::Shading)
         } else if id >= self.patch_base {
             Some(BlockKind::Patch)
         } else if id >= self.bvh_base {
@@ -82,6 +94,11 @@ impl BlockLayout {
     pub fn patch_slot(&self, p: u32) -> (u32, usize) {
         let p = p as usize;
         (self.patch_base + (p / PATCHES_PER_BLOCK) as u32, (p % PATCHES_PER_BLOCK) * PATCH_RECORD)
+    }
+    /// Block and byte offset of shading record `s`.
+    pub fn shading_slot(&self, s: u32) -> (u32, usize) {
+        let s = s as usize;
+        (self.shading_base + (s / SHADINGS_PER_BLOCK) as u32, (s % SHADINGS_PER_BLOCK) * SHADING_RECORD)
     }
     /// Block and byte offset of element `e`.
     pub fn element_slot(&self, e: u32) -> (u32, usize) {
@@ -110,6 +127,17 @@ pub struct PatchRecord {
     pub subdivisions: u32,
     /// Id of the patch's first element; its elements are consecutive.
     pub first_element: u32,
+    /// Its shading record ([`ShadingRecord`]), or [`NO_SHADING`] when shaded flat.
+    pub shading: u32,
+}
+
+/// The shading normals of a patch, as stored in a shading block: one unit normal per
+/// corner, on the front of the patch's plane. Kept as `f32` (their rounding, about 6e-8,
+/// is far below what shading can show) so that 56 fit in a block.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ShadingRecord {
+    /// Normals at the corners, in the patch's corner order.
+    pub normals: [DVec3; 3],
 }
 
 /// An element as stored in an element block.
@@ -168,6 +196,7 @@ impl PatchRecord {
         put_u32(b, at + 72, self.material);
         put_u32(b, at + 76, self.subdivisions);
         put_u32(b, at + 80, self.first_element);
+        put_u32(b, at + 84, self.shading);
     }
     /// Reads the record at byte offset `at`.
     pub fn decode(b: &Block, at: usize) -> PatchRecord {
@@ -176,7 +205,28 @@ impl PatchRecord {
             material: get_u32(b, at + 72),
             subdivisions: get_u32(b, at + 76),
             first_element: get_u32(b, at + 80),
+            shading: get_u32(b, at + 84),
         }
+    }
+}
+
+impl ShadingRecord {
+    /// Writes the record at byte offset `at` (each component rounded to `f32`).
+    pub fn encode(&self, b: &mut Block, at: usize) {
+        for (i, n) in self.normals.iter().enumerate() {
+            for (j, c) in n.to_array().into_iter().enumerate() {
+                let o = at + 12 * i + 4 * j;
+                b[o..o + 4].copy_from_slice(&(c as f32).to_le_bytes());
+            }
+        }
+    }
+    /// Reads the record at byte offset `at`.
+    pub fn decode(b: &Block, at: usize) -> ShadingRecord {
+        let n = |i: usize| {
+            let c = |j: usize| f64::from(get_f32(b, at + 12 * i + 4 * j));
+            DVec3::new(c(0), c(1), c(2))
+        };
+        ShadingRecord { normals: [n(0), n(1), n(2)] }
     }
 }
 
@@ -244,9 +294,16 @@ mod tests {
             material: 7,
             subdivisions: 20,
             first_element: 12345,
+            shading: 6,
         };
         p.encode(&mut b, PATCH_RECORD * (PATCHES_PER_BLOCK - 1));
         assert_eq!(PatchRecord::decode(&b, PATCH_RECORD * (PATCHES_PER_BLOCK - 1)), p);
+        let s = ShadingRecord { normals: [DVec3::Z, DVec3::new(0.6, 0.0, 0.8), DVec3::new(0.0, -0.5, 0.75)] };
+        s.encode(&mut b, SHADING_RECORD * (SHADINGS_PER_BLOCK - 1));
+        let back = ShadingRecord::decode(&b, SHADING_RECORD * (SHADINGS_PER_BLOCK - 1));
+        for (a, b) in back.normals.iter().zip(&s.normals) {
+            assert!((*a - *b).length() < 1e-7);
+        }
         let e = ElementRecord { patch: 3, local: 9, vertices: [1, 2, 3], area: 0.25 };
         e.encode(&mut b, 0);
         assert_eq!(ElementRecord::decode(&b, 0), e);

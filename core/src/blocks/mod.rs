@@ -1,9 +1,10 @@
 //! Scene data in 2 KB blocks, as in the paper's shared memories (§4.3).
 //!
-//! Five kinds of block: subspace blocks (the patch ids a grid cell overlaps; a long list
+//! Six kinds of block: subspace blocks (the patch ids a grid cell overlaps; a long list
 //! chains over several blocks) or BVH blocks (nodes and leaf triangles, [`bvh`]),
-//! whichever structure the scene is traced through, then patch blocks, element blocks
-//! and vertex-energy blocks.
+//! whichever structure the scene is traced through, then patch blocks, shading blocks
+//! (the corner normals of smoothly shaded patches, read only at hits), element blocks and
+//! vertex-energy blocks.
 //! Block ids are global; block `b` lives on fork `b mod F` ([`fork_of_block`]), and node
 //! `i`'s home fork is fork `i mod F` ([`home_fork_of_node`]). A node reads blocks through
 //! an LRU [`BlockCache`] of C blocks in front of a [`BlockSource`] (an in-memory store

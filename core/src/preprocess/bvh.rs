@@ -291,6 +291,7 @@ mod tests {
         Mesh {
             patches,
             materials: Vec::new(),
+            normals: Vec::new(),
             subdivisions: Vec::new(),
             first_element: Vec::new(),
             elements: Vec::new(),

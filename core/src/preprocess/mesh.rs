@@ -14,6 +14,8 @@ pub(super) struct Mesh {
     pub patches: Vec<[DVec3; 3]>,
     /// Material of each patch.
     pub materials: Vec<u32>,
+    /// Shading normals of each patch, `None` for a flat one.
+    pub normals: Vec<Option<[DVec3; 3]>>,
     /// Subdivision count n of each patch.
     pub subdivisions: Vec<u32>,
     /// First element id of each patch.
@@ -98,6 +100,7 @@ pub(super) fn build(scene: &Scene) -> Result<Mesh, PrepareError> {
 
     Ok(Mesh {
         materials: scene.patches.iter().map(|p| p.material).collect(),
+        normals: scene.patches.iter().map(|p| p.normals).collect(),
         patches,
         subdivisions,
         first_element,

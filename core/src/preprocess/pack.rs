@@ -19,7 +19,8 @@ fn zero_block() -> Box<Block> {
 }
 
 /// Packs the subspace lists of `grid` (none for a scene traced through the BVH), the
-/// BVH's blocks if any, then the patches, elements and vertex energies.
+/// BVH's blocks if any, then the patches, the shading normals of the smooth ones, the
+/// elements and vertex energies.
 pub(super) fn pack(mesh: &Mesh, grid: &Grid, bvh: Option<Bvh>) -> Packed {
     let mut blocks: Vec<Box<Block>> = Vec::new();
     // Subspace blocks: one chain per non-empty cell.
@@ -52,6 +53,18 @@ pub(super) fn pack(mesh: &Mesh, grid: &Grid, bvh: Option<Bvh>) -> Packed {
         None => BvhHeader::default(),
     };
     let patch_base = blocks.len() as u32;
+    // Shading records in patch order, numbered as they come.
+    let mut shading_of = Vec::with_capacity(mesh.patches.len());
+    let mut smooth: Vec<[glam::DVec3; 3]> = Vec::new();
+    for n in &mesh.normals {
+        shading_of.push(match n {
+            Some(n) => {
+                smooth.push(*n);
+                smooth.len() as u32 - 1
+            }
+            None => NO_SHADING,
+        });
+    }
     for chunk in (0..mesh.patches.len()).collect::<Vec<_>>().chunks(PATCHES_PER_BLOCK) {
         let mut b = zero_block();
         for (k, &p) in chunk.iter().enumerate() {
@@ -60,8 +73,17 @@ pub(super) fn pack(mesh: &Mesh, grid: &Grid, bvh: Option<Bvh>) -> Packed {
                 material: mesh.materials[p],
                 subdivisions: mesh.subdivisions[p],
                 first_element: mesh.first_element[p],
+                shading: shading_of[p],
             }
             .encode(&mut b, k * PATCH_RECORD);
+        }
+        blocks.push(b);
+    }
+    let shading_base = blocks.len() as u32;
+    for chunk in smooth.chunks(SHADINGS_PER_BLOCK) {
+        let mut b = zero_block();
+        for (k, &normals) in chunk.iter().enumerate() {
+            ShadingRecord { normals }.encode(&mut b, k * SHADING_RECORD);
         }
         blocks.push(b);
     }
@@ -81,7 +103,8 @@ pub(super) fn pack(mesh: &Mesh, grid: &Grid, bvh: Option<Bvh>) -> Packed {
     for _ in 0..vertex_blocks {
         blocks.push(zero_block());
     }
-    let layout = BlockLayout { bvh_base, patch_base, element_base, vertex_base, total: blocks.len() as u32 };
+    let total = blocks.len() as u32;
+    let layout = BlockLayout { bvh_base, patch_base, shading_base, element_base, vertex_base, total };
     let counts = Counts {
         patches: mesh.patches.len() as u32,
         elements: mesh.elements.len() as u32,
@@ -89,7 +112,9 @@ pub(super) fn pack(mesh: &Mesh, grid: &Grid, bvh: Option<Bvh>) -> Packed {
         subspaces: grid.cells.len() as u32,
         subspace_blocks,
         bvh_blocks: patch_base - bvh_base,
-        patch_blocks: element_base - patch_base,
+        patch_blocks: shading_base - patch_base,
+        shaded_patches: smooth.len() as u32,
+        shading_blocks: element_base - shading_base,
         element_blocks: vertex_base - element_base,
         vertex_blocks: vertex_blocks as u32,
     };

@@ -27,7 +27,7 @@ use ::gltf::json;
 use ::gltf::mesh::Mode;
 use ::gltf::Document;
 use base64::Engine;
-use glam::{DMat4, DQuat, DVec3};
+use glam::{DMat3, DMat4, DQuat, DVec3};
 
 use super::error::SceneError;
 use super::mesh::{MaterialTable, MeshEntry, ModelTriangle, ReadFile, MAX_MESH_TRIANGLES};
@@ -367,16 +367,22 @@ pub(super) fn load(
                 },
                 (None, None) => return Err(entry.no_material(&format!("{label}: {at}"))),
             };
-            for corners in primitive_triangles(&prim, &buffers).map_err(|m| err(format!("{at}: {m}")))? {
+            // Normals go through the inverse transpose of the node's matrix.
+            let normal_matrix = DMat3::from_mat4(world).inverse().transpose();
+            for (corners, normals) in primitive_triangles(&prim, &buffers).map_err(|m| err(format!("{at}: {m}")))? {
                 let mut v = corners.map(|p| world.transform_point3(p));
+                let mut normals = normals.map(|n| n.map(|n| normal_matrix * n));
                 if !v.iter().all(|p| p.is_finite() && p.abs().max_element() <= MAX_COORDINATE) {
                     let msg = format!("{at}: node {} places a vertex past {MAX_COORDINATE:e}", node.index());
                     return Err(err(msg));
                 }
                 if flip {
                     v.swap(1, 2);
+                    if let Some(n) = normals.as_mut() {
+                        n.swap(1, 2);
+                    }
                 }
-                out.push((v, material));
+                out.push(ModelTriangle { v, material, normals });
             }
             if out.len() > MAX_MESH_TRIANGLES {
                 return Err(err(format!("more than {MAX_MESH_TRIANGLES} triangles once placed by its nodes")));
@@ -391,8 +397,11 @@ pub(super) fn load(
     Ok(out)
 }
 
+/// A primitive's triangle in its mesh's space, with its corners' `NORMAL`s if it has them.
+type PrimitiveTriangle = ([DVec3; 3], Option<[DVec3; 3]>);
+
 /// The triangles of a primitive in its mesh's space (empty for points and lines).
-fn primitive_triangles(prim: &::gltf::Primitive<'_>, buffers: &[Vec<u8>]) -> Result<Vec<[DVec3; 3]>, String> {
+fn primitive_triangles(prim: &::gltf::Primitive<'_>, buffers: &[Vec<u8>]) -> Result<Vec<PrimitiveTriangle>, String> {
     let mode = prim.mode();
     if !matches!(mode, Mode::Triangles | Mode::TriangleStrip | Mode::TriangleFan) {
         return Ok(Vec::new());
@@ -403,6 +412,19 @@ fn primitive_triangles(prim: &::gltf::Primitive<'_>, buffers: &[Vec<u8>]) -> Res
     }
     let flat = read_accessor(&pos, buffers)?;
     let positions: Vec<DVec3> = flat.chunks_exact(3).map(|c| DVec3::new(c[0], c[1], c[2])).collect();
+    let normals: Option<Vec<DVec3>> = match prim.get(&::gltf::Semantic::Normals) {
+        Some(acc) => {
+            if acc.dimensions() != Dimensions::Vec3 || acc.data_type() != DataType::F32 {
+                return Err(format!("attributes[\"NORMAL\"] (accessors[{}]) is not VEC3 of floats", acc.index()));
+            }
+            let flat = read_accessor(&acc, buffers)?;
+            if flat.len() != 3 * positions.len() {
+                return Err(format!("attributes[\"NORMAL\"] has {} normals for {} positions", flat.len() / 3, positions.len()));
+            }
+            Some(flat.chunks_exact(3).map(|c| DVec3::new(c[0], c[1], c[2])).collect())
+        }
+        None => None,
+    };
     let indices: Vec<usize> = match prim.indices() {
         Some(acc) => {
             if acc.dimensions() != Dimensions::Scalar
@@ -418,19 +440,23 @@ fn primitive_triangles(prim: &::gltf::Primitive<'_>, buffers: &[Vec<u8>]) -> Res
         return Err(format!("index {bad} is out of range: {} vertices", positions.len()));
     }
     let n = indices.len();
-    let corner = |k: usize| positions[indices[k]];
-    let tris: Vec<[DVec3; 3]> = match mode {
+    let corner = |k: usize| (positions[indices[k]], normals.as_ref().map(|n| n[indices[k]]));
+    let triangle = |a: usize, b: usize, c: usize| -> PrimitiveTriangle {
+        let [(pa, na), (pb, nb), (pc, nc)] = [corner(a), corner(b), corner(c)];
+        ([pa, pb, pc], na.zip(nb).zip(nc).map(|((a, b), c)| [a, b, c]))
+    };
+    let tris: Vec<PrimitiveTriangle> = match mode {
         Mode::Triangles => {
             if n % 3 != 0 {
                 return Err(format!("{n} indices is not a whole number of triangles"));
             }
-            (0..n / 3).map(|t| [corner(3 * t), corner(3 * t + 1), corner(3 * t + 2)]).collect()
+            (0..n / 3).map(|t| triangle(3 * t, 3 * t + 1, 3 * t + 2)).collect()
         }
         // The spec's orders: strip i = (i, i + 1 + i % 2, i + 2 - i % 2); fan i = (i + 1, i + 2, 0).
         Mode::TriangleStrip => {
-            (0..n.saturating_sub(2)).map(|i| [corner(i), corner(i + 1 + i % 2), corner(i + 2 - i % 2)]).collect()
+            (0..n.saturating_sub(2)).map(|i| triangle(i, i + 1 + i % 2, i + 2 - i % 2)).collect()
         }
-        _ => (0..n.saturating_sub(2)).map(|i| [corner(i + 1), corner(i + 2), corner(0)]).collect(),
+        _ => (0..n.saturating_sub(2)).map(|i| triangle(i + 1, i + 2, 0)).collect(),
     };
     Ok(tris)
 }

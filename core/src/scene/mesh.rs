@@ -25,8 +25,21 @@ pub type ReadFile<'r> = &'r dyn Fn(&Path) -> std::io::Result<Vec<u8>>;
 /// 2 GiB OBJ holds, and past the renderer's default memory bound.
 pub(super) const MAX_MESH_TRIANGLES: usize = 20_000_000;
 
-/// A triangle in the model's own space with the index of its material.
-pub(super) type ModelTriangle = ([DVec3; 3], u32);
+/// A triangle in the model's own space with the index of its material and, where the
+/// file gives them, its corners' shading normals.
+#[derive(Clone, Debug, PartialEq)]
+pub(super) struct ModelTriangle {
+    /// Corner positions.
+    pub v: [DVec3; 3],
+    /// Index into the scene's materials.
+    pub material: u32,
+    /// The file's vertex normals at the corners (any length, not yet checked).
+    pub normals: Option<[DVec3; 3]>,
+}
+
+/// A placed mesh triangle: scene-space corners, material and unit shading normals (none:
+/// shaded flat).
+pub(super) type PlacedTriangle = ([DVec3; 3], u32, Option<[DVec3; 3]>);
 
 /// The scene's materials, which meshes extend with the materials their files define.
 pub(super) struct MaterialTable {
@@ -70,6 +83,25 @@ pub(super) struct MeshEntry<'a> {
     pub transform: Transform,
     /// Material overriding every material the file gives (MTL files are then not read).
     pub material: Option<u32>,
+    /// How the mesh is shaded: the file's normals, normals made from its faces, or flat.
+    pub shading: MeshShading,
+}
+
+/// Where a mesh's shading normals come from (`normals` and `crease_angle` of `[[mesh]]`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(super) struct MeshShading {
+    /// Use the normals the file gives (`normals = true`, the default).
+    pub file_normals: bool,
+    /// For faces the file gives no normals: the cosine of the crease angle, below which
+    /// two faces meeting at a vertex do not smooth into each other (`crease_angle =
+    /// DEGREES`); `None` shades them flat.
+    pub crease_cos: Option<f64>,
+}
+
+impl Default for MeshShading {
+    fn default() -> Self {
+        MeshShading { file_normals: true, crease_cos: None }
+    }
 }
 
 impl MeshEntry<'_> {
@@ -132,7 +164,7 @@ pub(super) fn load_mesh(
     base_dir: &Path,
     read: ReadFile<'_>,
     materials: &mut MaterialTable,
-) -> Result<Vec<ModelTriangle>, SceneError> {
+) -> Result<Vec<PlacedTriangle>, SceneError> {
     let path = base_dir.join(entry.file);
     let label = path.display().to_string();
     let Some(format) = MeshFormat::of(&path) else {
@@ -146,25 +178,34 @@ pub(super) fn load_mesh(
         MeshFormat::Ply => super::ply::load(entry, &label, &bytes)?,
         MeshFormat::Gltf => super::gltf::load(entry, &path, &label, &bytes, read, materials)?,
     };
-    place(entry, &label, triangles)
+    let mut placed = place(entry, &label, triangles)?;
+    if let Some(crease_cos) = entry.shading.crease_cos {
+        super::normals::smooth_by_crease(&mut placed, crease_cos);
+    }
+    Ok(placed)
 }
 
-/// Applies the entry's transform to a file's triangles, keeping their normals outward
-/// under a mirroring transform, refusing vertices sent past [`MAX_COORDINATE`] and
-/// skipping zero-area triangles.
-fn place(entry: &MeshEntry<'_>, label: &str, triangles: Vec<ModelTriangle>) -> Result<Vec<ModelTriangle>, SceneError> {
+/// Applies the entry's transform to a file's triangles and their normals, keeping the
+/// patches' fronts outward under a mirroring transform, refusing vertices sent past
+/// [`MAX_COORDINATE`] and skipping zero-area triangles.
+fn place(entry: &MeshEntry<'_>, label: &str, triangles: Vec<ModelTriangle>) -> Result<Vec<PlacedTriangle>, SceneError> {
     let flip = entry.transform.flips_winding();
     let mut out = Vec::with_capacity(triangles.len());
-    for (corners, material) in triangles {
-        let mut v = corners.map(|p| entry.transform.apply(p));
+    for t in triangles {
+        let mut v = t.v.map(|p| entry.transform.apply(p));
+        let mut normals = t.normals.filter(|_| entry.shading.file_normals).map(|n| n.map(|n| entry.transform.normal(n)));
         if flip {
             v.swap(1, 2);
+            if let Some(n) = normals.as_mut() {
+                n.swap(1, 2);
+            }
         }
         if !v.iter().all(|p| p.is_finite() && p.abs().max_element() <= MAX_COORDINATE) {
             return Err(entry.err("scale", format!("the transform sends a vertex past {MAX_COORDINATE:e}")));
         }
         if !is_degenerate(&v) {
-            out.push((v, material));
+            let normals = normals.and_then(|n| super::normals::shading_normals(&v, n));
+            out.push((v, t.material, normals));
         }
     }
     if out.is_empty() {
@@ -223,6 +264,12 @@ impl Transform {
     /// Applies the transform to a point.
     pub(super) fn apply(&self, p: DVec3) -> DVec3 {
         self.rotation * (p * self.scale) + self.translate
+    }
+
+    /// Applies the transform to a normal (the inverse transpose: rotate `n / scale`);
+    /// not normalised.
+    pub(super) fn normal(&self, n: DVec3) -> DVec3 {
+        self.rotation * (n / self.scale)
     }
 
     /// True when the transform mirrors space (negative determinant), so that triangles

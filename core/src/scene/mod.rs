@@ -15,6 +15,7 @@ mod field;
 mod gltf;
 mod mesh;
 mod model;
+mod normals;
 mod obj;
 mod parse;
 mod path;

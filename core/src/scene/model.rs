@@ -333,6 +333,11 @@ pub struct PatchDef {
     /// two halves of a quad carry the quad's longest edge (diagonal included), so that
     /// they subdivide identically and weld without a seam whatever the element size.
     pub size_hint: Option<f64>,
+    /// Unit shading normals at the corners (from a mesh file's vertex normals or made
+    /// behind its crease angle), each on the front side of the patch's plane; `None`
+    /// shades the patch flat. They bend shading and specular directions only: the
+    /// geometric normal keeps deciding sides and ray offsets.
+    pub normals: Option<[DVec3; 3]>,
     /// Where it was defined (the `[[quad]]`, `[[triangle]]` or `[[mesh]]` entry).
     pub loc: SourceLoc,
 }

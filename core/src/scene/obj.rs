@@ -73,7 +73,11 @@ pub(super) fn load(
             // parse_obj checked every index; stay safe anyway.
             *o = mesh.positions.get(k).copied().ok_or_else(|| entry.file_err("face index out of range".into()))?;
         }
-        out.push((v, material));
+        let normals = face.normals.and_then(|n| {
+            let [a, b, c] = n.map(|k| mesh.normals.get(k).copied());
+            Some([a?, b?, c?])
+        });
+        out.push(ModelTriangle { v, material, normals });
     }
     Ok(out)
 }
@@ -111,6 +115,8 @@ fn load_mtllibs(
 pub(super) struct ObjMesh {
     /// `v` positions, in file order.
     pub positions: Vec<DVec3>,
+    /// `vn` normals, in file order.
+    pub normals: Vec<DVec3>,
     /// Triangles, in file order.
     pub faces: Vec<ObjFace>,
     /// `mtllib` files, in file order.
@@ -124,6 +130,8 @@ pub(super) struct ObjMesh {
 pub(super) struct ObjFace {
     /// Indices into [`ObjMesh::positions`] (checked in range).
     pub corners: [usize; 3],
+    /// Indices into [`ObjMesh::normals`] (checked in range), when every corner names one.
+    pub normals: Option<[usize; 3]>,
     /// Index into [`ObjMesh::usemtl_names`] of the `usemtl` in force, if any.
     pub usemtl: Option<usize>,
     /// 1-based line of the `f` statement.
@@ -145,7 +153,6 @@ const OBJ_IGNORED: &[&str] = &[
     "g",
     "s",
     "vt",
-    "vn",
     "vp",
     "l",
     "p",
@@ -196,9 +203,18 @@ pub(super) fn parse_obj(label: &str, text: &str) -> Result<ObjMesh, SceneError> 
                 }
                 mesh.positions.push(DVec3::from_array(xyz));
             }
+            "vn" => {
+                let xyz = tokens
+                    .map(|tok| parse_number(tok).map_err(|m| err(format!("vn: {m}"))))
+                    .collect::<Result<Vec<_>, _>>()?;
+                let [x, y, z] = xyz[..] else {
+                    return Err(err(format!("vn needs 3 numbers, found {}", xyz.len())));
+                };
+                mesh.normals.push(DVec3::new(x, y, z));
+            }
             "f" => {
                 let corners = tokens
-                    .map(|tok| resolve_corner(tok, mesh.positions.len()))
+                    .map(|tok| resolve_corner(tok, mesh.positions.len(), mesh.normals.len()))
                     .collect::<Result<Vec<_>, _>>()
                     .map_err(|m| err(format!("f: {m}")))?;
                 if corners.len() < 3 {
@@ -207,7 +223,12 @@ pub(super) fn parse_obj(label: &str, text: &str) -> Result<ObjMesh, SceneError> 
                 let first = corners[0];
                 for pair in corners[1..].windows(2) {
                     if let [b, c] = pair {
-                        mesh.faces.push(ObjFace { corners: [first, *b, *c], usemtl: current, line });
+                        let normals = match (first.1, b.1, c.1) {
+                            (Some(x), Some(y), Some(z)) => Some([x, y, z]),
+                            _ => None,
+                        };
+                        let corners = [first.0, b.0, c.0];
+                        mesh.faces.push(ObjFace { corners, normals, usemtl: current, line });
                     }
                 }
             }
@@ -241,28 +262,39 @@ pub(super) fn parse_obj(label: &str, text: &str) -> Result<ObjMesh, SceneError> 
     Ok(mesh)
 }
 
-/// Resolves one face corner (`v`, `v/vt`, `v//vn`, `v/vt/vn`) to a 0-based position index.
-fn resolve_corner(tok: &str, count: usize) -> Result<usize, String> {
-    let mut parts = tok.split('/');
-    let v = parts.next().unwrap_or("");
-    let mut extra = 0;
-    for p in parts {
-        extra += 1;
-        if extra > 2 || (!p.is_empty() && p.parse::<i64>().is_err()) {
-            return Err(format!("{} is not a vertex reference (v, v/vt, v//vn or v/vt/vn)", shown(tok)));
-        }
+/// One face corner (`v`, `v/vt`, `v//vn`, `v/vt/vn`), resolved: the 0-based position
+/// index and, where it names one, the 0-based `vn` index.
+fn resolve_corner(tok: &str, positions: usize, normals: usize) -> Result<(usize, Option<usize>), String> {
+    let parts: Vec<&str> = tok.split('/').collect();
+    let bad = || format!("{} is not a vertex reference (v, v/vt, v//vn or v/vt/vn)", shown(tok));
+    if parts.len() > 3 || parts[1..].iter().any(|p| !p.is_empty() && p.parse::<i64>().is_err()) {
+        return Err(bad());
     }
-    let i: i64 = v.parse().map_err(|_| format!("{} is not a vertex index", shown(tok)))?;
+    let i: i64 = parts[0].parse().map_err(|_| format!("{} is not a vertex index", shown(tok)))?;
+    let v = resolve_index(i, positions, "vertex", "vertices")?;
+    let n = match parts.get(2) {
+        Some(p) if !p.is_empty() => {
+            let k: i64 = p.parse().map_err(|_| bad())?;
+            Some(resolve_index(k, normals, "normal", "normals (vn)")?)
+        }
+        _ => None,
+    };
+    Ok((v, n))
+}
+
+/// A 1-based (or negative, relative) OBJ index among `count` entries defined so far, as
+/// a 0-based index.
+fn resolve_index(i: i64, count: usize, what: &str, plural: &str) -> Result<usize, String> {
     let count_i = i64::try_from(count).unwrap_or(i64::MAX);
     let index = match i {
-        0 => return Err("vertex index 0 is not valid (OBJ indices start at 1)".to_string()),
+        0 => return Err(format!("{what} index 0 is not valid (OBJ indices start at 1)")),
         i if i > 0 => i - 1,
         i => count_i.saturating_add(i),
     };
     if index < 0 || index >= count_i {
-        return Err(format!("vertex index {i} is out of range: {count} vertices defined so far"));
+        return Err(format!("{what} index {i} is out of range: {count} {plural} defined so far"));
     }
-    usize::try_from(index).map_err(|_| format!("vertex index {i} is out of range"))
+    usize::try_from(index).map_err(|_| format!("{what} index {i} is out of range"))
 }
 
 /// A finite number, or why not.

@@ -15,7 +15,7 @@ use toml::Spanned;
 
 use super::error::SceneError;
 use super::field::field_at;
-use super::mesh::{self, MaterialTable, MeshEntry, ReadFile, Transform};
+use super::mesh::{self, MaterialTable, MeshEntry, MeshShading, ReadFile, Transform};
 use super::model::{
     Accel, Camera, CameraPath, DirectLight, Exposure, GridSpec, Light, Material, PatchDef, RenderSettings, Scene,
     SourceLoc, Spot, MAX_COORDINATE, MAX_RADIOMETRIC,
@@ -117,6 +117,10 @@ struct RawMesh {
     rotate: Option<SVec>,
     scale: Option<Spanned<toml::Value>>,
     subdivisions: Option<Spanned<i64>>,
+    /// Shade with the file's vertex normals (default true).
+    normals: Option<Spanned<bool>>,
+    /// Make normals from the faces, for faces the file gives none: degrees.
+    crease_angle: Option<Spanned<f64>>,
 }
 
 /// Subdivision counts allowed in `subdivisions =`.
@@ -590,6 +594,7 @@ impl PatchBuilder<'_, '_> {
             material,
             subdivisions,
             size_hint: None,
+            normals: None,
             loc: self.cx.loc(&t.vertices),
         });
         Ok(())
@@ -611,7 +616,7 @@ impl PatchBuilder<'_, '_> {
         let size_hint = Some(longest);
         let loc = self.cx.loc(&q.vertices);
         for tri in [[v[0], v[1], v[2]], [v[0], v[2], v[3]]] {
-            self.patches.push(PatchDef { vertices: tri, material, subdivisions, size_hint, loc: loc.clone() });
+            self.patches.push(PatchDef { vertices: tri, material, subdivisions, size_hint, normals: None, loc: loc.clone() });
         }
         Ok(())
     }
@@ -642,6 +647,11 @@ impl PatchBuilder<'_, '_> {
         };
         let subdivisions = self.subdivisions(&m.subdivisions, &f("subdivisions"))?;
         let material = m.material.as_ref().map(|s| self.material_ref(s, &f("material"))).transpose()?;
+        let crease = m.crease_angle.as_ref().map(|a| cx.float_in(a, &f("crease_angle"), 0.0, false, 180.0)).transpose()?;
+        let shading = MeshShading {
+            file_normals: m.normals.as_ref().is_none_or(|b| *b.get_ref()),
+            crease_cos: crease.map(|deg| deg.to_radians().cos()),
+        };
         let entry = MeshEntry {
             file: path.get_ref(),
             key,
@@ -649,9 +659,11 @@ impl PatchBuilder<'_, '_> {
             field: format!("mesh[{i}]"),
             transform: Transform::new(scale, rotate, translate),
             material,
+            shading,
         };
-        for (vertices, material) in mesh::load_mesh(&entry, base_dir, read, &mut self.materials)? {
-            self.patches.push(PatchDef { vertices, material, subdivisions, size_hint: None, loc: entry.at.clone() });
+        for (vertices, material, normals) in mesh::load_mesh(&entry, base_dir, read, &mut self.materials)? {
+            let loc = entry.at.clone();
+            self.patches.push(PatchDef { vertices, material, subdivisions, size_hint: None, normals, loc });
         }
         Ok(())
     }

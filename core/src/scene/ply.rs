@@ -33,14 +33,15 @@ pub(super) fn load(entry: &MeshEntry<'_>, label: &str, bytes: &[u8]) -> Result<V
     let Some(material) = entry.material else {
         return Err(entry.no_material(&format!("{label} (a PLY file has no materials)")));
     };
-    Ok(mesh.triangles.into_iter().map(|t| (t, material)).collect())
+    Ok(mesh.triangles.into_iter().map(|(v, normals)| ModelTriangle { v, material, normals }).collect())
 }
 
 /// A PLY file's triangles, in file order, oriented by the vertex normals if any.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub(super) struct PlyMesh {
-    /// The triangles (zero-area ones included: placement skips them).
-    pub triangles: Vec<[DVec3; 3]>,
+    /// The triangles (zero-area ones included: placement skips them), with their corners'
+    /// normals where the vertices carry them.
+    pub triangles: Vec<([DVec3; 3], Option<[DVec3; 3]>)>,
     /// Whether the vertices carried normals.
     pub normals: bool,
 }
@@ -434,12 +435,16 @@ fn read_body(header: &Header, data: &mut Data<'_>) -> Result<PlyMesh, String> {
         for pair in rest.windows(2) {
             let (b, c) = (vertex(pair[0])?, vertex(pair[1])?);
             let mut t = [a.0, b.0, c.0];
+            let mut normals = None;
             if let (Some(na), Some(nb), Some(nc)) = (a.1, b.1, c.1) {
+                let mut n = [na, nb, nc];
                 if (t[1] - t[0]).cross(t[2] - t[0]).dot(na + nb + nc) < 0.0 {
                     t.swap(1, 2);
+                    n.swap(1, 2);
                 }
+                normals = Some(n);
             }
-            triangles.push(t);
+            triangles.push((t, normals));
         }
     }
     Ok(PlyMesh { triangles, normals: has_normals })

@@ -112,6 +112,8 @@ fn inconsistent_layouts_are_refused() {
     assert_eq!(field_of(&refused(|h| h.layout.as_mut().unwrap().total += 1)), "counts.vertex_blocks");
     assert_eq!(field_of(&refused(|h| h.counts.as_mut().unwrap().elements += 10_000)), "counts.element_blocks");
     assert_eq!(field_of(&refused(|h| h.counts.as_mut().unwrap().patches = 0)), "counts.patch_blocks");
+    let e = refused(|h| h.counts.as_mut().unwrap().shaded_patches = SHADINGS_PER_BLOCK as u32 + 1);
+    assert_eq!(field_of(&e), "counts.shading_blocks");
     let e = refused(|h| h.layout.as_mut().unwrap().total = MAX_BLOCKS + 1);
     assert_eq!(field_of(&e), "layout.total");
     let e = refused(|h| h.settings.as_mut().unwrap().max_elements = 1000);

@@ -68,6 +68,7 @@ fn load_with(bytes: &[u8], files: &[(&str, Vec<u8>)], material: Option<u32>) -> 
         field: "mesh[0]".into(),
         transform: Transform::new(DVec3::ONE, DVec3::ZERO, DVec3::ZERO),
         material,
+        shading: Default::default(),
     };
     let mut table = MaterialTable { list: Vec::new(), toml: HashMap::new(), from_file: HashMap::new() };
     let triangles = load(&entry, Path::new("d/m.gltf"), "d/m.gltf", bytes, &read, &mut table)?;
@@ -93,7 +94,7 @@ fn close(a: DVec3, b: [f64; 3]) -> bool {
 fn a_triangle_comes_with_its_base_colour_as_diffuse() {
     let l = load_ok(&document("[{\"mesh\":0}]", Some(&data_uri())));
     assert_eq!(l.triangles.len(), 1);
-    let (v, m) = l.triangles[0];
+    let (v, m) = (l.triangles[0].v, l.triangles[0].material);
     assert_eq!(v, [DVec3::ZERO, DVec3::X, DVec3::Y]);
     assert_eq!(m, 0);
     assert_eq!(l.materials[0].name, "m.gltf:red");
@@ -102,7 +103,7 @@ fn a_triangle_comes_with_its_base_colour_as_diffuse() {
     assert!(l.materials[0].mirror.is_black(), "metallic is ignored");
     // `material =` on the [[mesh]] wins.
     let l = load_with(document("[{\"mesh\":0}]", Some(&data_uri())).as_bytes(), &[], Some(7)).unwrap();
-    assert_eq!(l.triangles[0].1, 7);
+    assert_eq!(l.triangles[0].material, 7);
     assert!(l.materials.is_empty());
 }
 
@@ -114,20 +115,20 @@ fn node_transforms_compose_down_the_tree() {
         "[{{\"translation\":[10,0,0],\"children\":[1]}},{{\"mesh\":0,\"rotation\":[0,0,{s},{s}],\"scale\":[2,2,2]}}]"
     );
     let l = load_ok(&document(&nodes, Some(&data_uri())));
-    let v = l.triangles[0].0;
+    let v = l.triangles[0].v;
     assert!(close(v[0], [10.0, 0.0, 0.0]) && close(v[1], [10.0, 2.0, 0.0]) && close(v[2], [8.0, 0.0, 0.0]), "{v:?}");
     // The same as one column-major matrix.
     let nodes = "[{\"mesh\":0,\"matrix\":[0,2,0,0, -2,0,0,0, 0,0,2,0, 10,0,0,1]}]";
     let m = load_ok(&document(nodes, Some(&data_uri())));
-    for (a, b) in m.triangles[0].0.iter().zip(v) {
-        assert!(close(*a, b.to_array()), "{:?}", m.triangles[0].0);
+    for (a, b) in m.triangles[0].v.iter().zip(v) {
+        assert!(close(*a, b.to_array()), "{:?}", m.triangles[0].v);
     }
 }
 
 #[test]
 fn a_mirroring_node_keeps_the_triangle_facing_the_same_way() {
     let normal = |nodes: &str| {
-        let v = load_ok(&document(nodes, Some(&data_uri()))).triangles[0].0;
+        let v = load_ok(&document(nodes, Some(&data_uri()))).triangles[0].v;
         (v[1] - v[0]).cross(v[2] - v[0]).normalize()
     };
     assert!(close(normal("[{\"mesh\":0}]"), [0.0, 0.0, 1.0]));
@@ -242,4 +243,30 @@ fn the_stage_has_the_first_camera_and_the_point_and_spot_lights() {
     assert!(close(spot.direction, [0.0, -1.0, 0.0]), "{spot:?}");
     assert!((spot.half_angle_deg - 0.2f64.to_degrees()).abs() < 1e-4);
     assert!((spot.half_angle_deg + spot.falloff_deg - 0.5f64.to_degrees()).abs() < 1e-4);
+}
+
+#[test]
+fn normals_come_through_the_node_transform_by_its_inverse_transpose() {
+    let s = 0.5f32.sqrt();
+    let mut bin = buffer();
+    bin.extend([s, 0.0, s, s, 0.0, s, s, 0.0, s].iter().flat_map(|x| x.to_le_bytes()));
+    let json = document(r#"[{"mesh":0,"scale":[2,1,1]}]"#, None)
+        .replace(r#""attributes":{"POSITION":0}"#, r#""attributes":{"POSITION":0,"NORMAL":2}"#)
+        .replace(
+            r#"{"bufferView":1,"componentType":5123,"count":3,"type":"SCALAR"}]"#,
+            r#"{"bufferView":1,"componentType":5123,"count":3,"type":"SCALAR"},
+{"bufferView":2,"componentType":5126,"count":3,"type":"VEC3"}]"#,
+        )
+        .replace(
+            r#"{"buffer":0,"byteOffset":36,"byteLength":6}]"#,
+            r#"{"buffer":0,"byteOffset":36,"byteLength":6},{"buffer":0,"byteOffset":44,"byteLength":36}]"#,
+        )
+        .replace(r#""byteLength":44"#, r#""byteLength":80"#);
+    let l = load_with(&glb(&json, &bin), &[], None).unwrap_or_else(|e| panic!("{e}"));
+    let n = l.triangles[0].normals.expect("NORMAL read");
+    // Stretching x by 2 halves the normal's x.
+    let want = DVec3::new(0.5, 0.0, 1.0).normalize();
+    for c in n {
+        assert!((c.normalize() - want).length() < 1e-6, "{c:?}");
+    }
 }

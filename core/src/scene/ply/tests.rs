@@ -38,7 +38,7 @@ pub(crate) fn binary(big_endian: bool) -> Vec<u8> {
 }
 
 fn tris(m: &PlyMesh) -> Vec<[[f64; 3]; 3]> {
-    m.triangles.iter().map(|t| t.map(|v| v.to_array())).collect()
+    m.triangles.iter().map(|(t, _)| t.map(|v| v.to_array())).collect()
 }
 
 #[test]
@@ -77,6 +77,9 @@ fn vertex_normals_orient_the_triangles() {
     assert_eq!(tris(&up)[0], [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]]);
     let down = parse_ply("m.ply", text("-1").as_bytes()).unwrap();
     assert_eq!(tris(&down)[0], [[0.0, 0.0, 0.0], [0.0, 1.0, 0.0], [1.0, 0.0, 0.0]], "swapped to face -z");
+    // The normals come along, for smooth shading.
+    assert_eq!(up.triangles[0].1, Some([DVec3::Z; 3]));
+    assert_eq!(down.triangles[0].1, Some([DVec3::NEG_Z; 3]));
 }
 
 #[test]
