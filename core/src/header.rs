@@ -51,6 +51,25 @@ pub struct BvhHeader {
     pub triangle_blocks: u32,
 }
 
+/// Where a texture's texels lie: `width * height` sRGB texels, row by row from the top,
+/// from texture block `first_block` (counted from `layout.texture_base`) on.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
+pub struct TextureHeader {
+    /// Width in texels.
+    pub width: u32,
+    /// Height in texels.
+    pub height: u32,
+    /// Its first texture block, counted from the first texture block of the scene.
+    pub first_block: u32,
+}
+
+impl TextureHeader {
+    /// Texture blocks its texels fill.
+    pub fn blocks(&self) -> u32 {
+        (self.width as usize * self.height as usize).div_ceil(crate::blocks::TEXELS_PER_BLOCK) as u32
+    }
+}
+
 /// Counts of scene entities.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
 pub struct Counts {
@@ -72,6 +91,8 @@ pub struct Counts {
     pub shaded_patches: u32,
     /// Blocks of shading records.
     pub shading_blocks: u32,
+    /// Blocks of texels.
+    pub texture_blocks: u32,
     /// Blocks of element records.
     pub element_blocks: u32,
     /// Blocks of vertex energies.
@@ -89,6 +110,8 @@ pub struct SceneHeader {
     pub lights: Vec<Light>,
     /// Materials.
     pub materials: Vec<Material>,
+    /// Diffuse textures (their texels are in texture blocks).
+    pub textures: Vec<TextureHeader>,
     /// The subspace grid (with `settings.accel` BVH: the scene's bounds, one empty
     /// subspace).
     pub grid: GridHeader,

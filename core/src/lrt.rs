@@ -17,7 +17,7 @@
 //! Every random choice is seeded from (scene seed, light, element), so a pair re-run on
 //! another node deposits exactly the same values.
 
-use crate::blocks::BlockError;
+use crate::blocks::{BlockError, NO_SHADING};
 use crate::color::Rgb;
 use crate::energy::{to_fixed, Fixed};
 use crate::geometry::{cosine_hemisphere, sample_spherical_triangle, solid_angle, triangle_normal, Ray};
@@ -151,7 +151,7 @@ pub fn trace_pair(
     let normal = triangle_normal(&prec.v);
     // Every ray from the point light reaches the element's plane from the same side.
     let on_back = material.is_some_and(|m| m.refuses(prec.v[0] - l.position, normal));
-    let specular_here = material.is_some_and(|m| m.is_specular());
+    let shaded_here = prec.shading != NO_SHADING;
     let n = header.settings.light_rays.max(1);
     let seed = header.settings.seed;
     let mut rng = Rng::from_words(&[seed, 0x4c5254, light as u64, element as u64]);
@@ -195,10 +195,14 @@ pub fn trace_pair(
             deposits.push((element, flux));
         }
         let floor = flux.max_channel() * MIN_RELATIVE_FLUX;
-        // Shading normals only bend specular directions here (deposits are flux, taken
-        // on the geometric surface), so a diffuse patch's are not read.
-        let at = if specular_here { arrive(view, &prec, p, w, normal, barycentric(&prec.v, p))? } else { Arrival::new(p, w, normal) };
-        scatter(view, &mut rng, &mut stack, &mut out.tally, at, prec.material, erec.patch, flux, 0, 0, floor);
+        // Shading normals bend specular directions here and a texture colours what bounces
+        // diffusely (deposits are flux, taken on the geometric surface).
+        let (at, albedo) = if shaded_here {
+            arrive(view, &prec, p, w, normal, barycentric(&prec.v, p))?
+        } else {
+            (Arrival::new(p, w, normal), None)
+        };
+        scatter(view, &mut rng, &mut stack, &mut out.tally, at, albedo, prec.material, erec.patch, flux, 0, 0, floor);
         // Follow secondary rays depth-first.
         while let Some(s) = stack.pop() {
             view.counters.light_rays += 1;
@@ -217,17 +221,14 @@ pub fn trace_pair(
             let (local, _) = locate(hp.subdivisions, hit.bary);
             deposits.push((hp.first_element + local, s.flux));
             let (p, d) = (s.ray.at(hit.t), s.ray.direction);
-            let at = if hm.is_some_and(|m| m.is_specular()) {
-                arrive(view, &hp, p, d, hn, hit.bary)?
-            } else {
-                Arrival::new(p, d, hn)
-            };
+            let (at, albedo) = arrive(view, &hp, p, d, hn, hit.bary)?;
             scatter(
                 view,
                 &mut rng,
                 &mut stack,
                 &mut out.tally,
                 at,
+                albedo,
                 hp.material,
                 hit.patch,
                 s.flux,
@@ -260,6 +261,7 @@ fn scatter(
     stack: &mut Vec<Pending>,
     tally: &mut LrtTally,
     at: Arrival,
+    albedo: Option<Rgb>,
     material: u32,
     patch: u32,
     flux: Rgb,
@@ -273,10 +275,12 @@ fn scatter(
         tally.absorbed = tally.absorbed.add(flux);
         return;
     };
+    // A texture scales the diffuse part; what it takes away is absorbed.
+    let rho = albedo.map_or(m.diffuse, |a| m.diffuse.mul(a));
     let absorbed = Rgb([
-        (1.0 - m.diffuse.0[0] - m.mirror.0[0] - m.transmit.0[0]).max(0.0),
-        (1.0 - m.diffuse.0[1] - m.mirror.0[1] - m.transmit.0[1]).max(0.0),
-        (1.0 - m.diffuse.0[2] - m.mirror.0[2] - m.transmit.0[2]).max(0.0),
+        (1.0 - rho.0[0] - m.mirror.0[0] - m.transmit.0[0]).max(0.0),
+        (1.0 - rho.0[1] - m.mirror.0[1] - m.transmit.0[1]).max(0.0),
+        (1.0 - rho.0[2] - m.mirror.0[2] - m.transmit.0[2]).max(0.0),
     ]);
     tally.absorbed = tally.absorbed.add(flux.mul(absorbed));
 
@@ -312,7 +316,7 @@ fn scatter(
     }
 
     // Diffuse part.
-    let diff_flux = flux.mul(m.diffuse);
+    let diff_flux = flux.mul(rho);
     if diff_flux.is_black() {
         return;
     }

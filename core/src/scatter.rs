@@ -19,7 +19,7 @@
 //! assert!(at.spawn(refracted).origin.y < 0.0);
 //! ```
 
-use crate::blocks::{BlockError, PatchRecord, NO_SHADING};
+use crate::blocks::{BlockError, PatchRecord, NO_SHADING, NO_TEXTURE};
 use crate::geometry::Ray;
 use crate::math::Normalized;
 use crate::view::SceneView;
@@ -82,7 +82,8 @@ pub fn interpolate_normal(n: &[DVec3; 3], bary: [f64; 3]) -> Option<DVec3> {
 
 /// The arrival of direction `d` at point `p` of patch `patch` (unit geometric normal
 /// `normal`, barycentric weights `bary`), shaded with the patch's normals when it has
-/// them (read through the view's cache).
+/// them, and the linear albedo of the patch's texture at the point (`None`: the patch has
+/// no texture); both read through the view's cache.
 pub fn arrive(
     view: &mut SceneView,
     patch: &PatchRecord,
@@ -90,13 +91,18 @@ pub fn arrive(
     d: DVec3,
     normal: DVec3,
     bary: [f64; 3],
-) -> Result<Arrival, BlockError> {
+) -> Result<(Arrival, Option<crate::color::Rgb>), BlockError> {
     let at = Arrival::new(p, d, normal);
     if patch.shading == NO_SHADING {
-        return Ok(at);
+        return Ok((at, None));
     }
-    let normals = view.shading_normals(patch)?;
-    Ok(at.with_shading(normals.and_then(|n| interpolate_normal(&n, bary))))
+    let Some(rec) = view.shading(patch)? else { return Ok((at, None)) };
+    let at = at.with_shading(interpolate_normal(&rec.normals, bary));
+    if rec.texture == NO_TEXTURE {
+        return Ok((at, None));
+    }
+    let uv = rec.uv[0] * bary[0] + rec.uv[1] * bary[1] + rec.uv[2] * bary[2];
+    Ok((at, Some(view.texture_albedo(rec.texture, uv)?)))
 }
 
 /// Barycentric weights of point `p` (in or near the plane of `v`) for the corners of `v`.

@@ -8,7 +8,6 @@ use crate::blocks::bvh::{
 use crate::blocks::*;
 use crate::color::Rgb;
 use crate::header::SceneHeader;
-use glam::DVec3;
 use std::sync::Arc;
 
 /// Operation counts of the kernels (the basis of the compute cost model).
@@ -92,8 +91,9 @@ impl SceneView {
         Ok(PatchRecord::decode(self.cache.get(b)?, at))
     }
 
-    /// The shading normals of patch record `p`, `None` for a flat patch.
-    pub fn shading_normals(&mut self, p: &PatchRecord) -> Result<Option<[DVec3; 3]>, BlockError> {
+    /// The shading record of patch record `p` (normals, texture coordinates), `None` for
+    /// a flat, untextured patch.
+    pub fn shading(&mut self, p: &PatchRecord) -> Result<Option<ShadingRecord>, BlockError> {
         if p.shading == NO_SHADING {
             return Ok(None);
         }
@@ -102,7 +102,27 @@ impl SceneView {
             return Err(BlockError::BadId { kind: "shading", id: p.shading as u64, count: count as u64 });
         }
         let (b, at) = self.header.layout.shading_slot(p.shading);
-        Ok(Some(ShadingRecord::decode(self.cache.get(b)?, at).normals))
+        Ok(Some(ShadingRecord::decode(self.cache.get(b)?, at)))
+    }
+
+    /// The linear diffuse albedo of texture `id` at texture coordinates `uv`: bilinear
+    /// over its sRGB texels, read through the cache (texture coordinates repeat).
+    pub fn texture_albedo(&mut self, id: u32, uv: glam::DVec2) -> Result<Rgb, BlockError> {
+        let Some(&t) = self.header.textures.get(id as usize) else {
+            let count = self.header.textures.len() as u64;
+            return Err(BlockError::BadId { kind: "texture", id: id as u64, count });
+        };
+        let mut sum = [0.0f64; 3];
+        for ((x, y), w) in crate::scene::texture_taps(t.width, t.height, uv.x, uv.y) {
+            let i = y as usize * t.width as usize + x as usize;
+            let block = self.header.layout.texture_base + t.first_block + (i / TEXELS_PER_BLOCK) as u32;
+            let at = 3 * (i % TEXELS_PER_BLOCK);
+            let b = self.cache.get(block)?;
+            for (s, &c) in sum.iter_mut().zip(&b[at..at + 3]) {
+                *s += w * crate::scene::srgb_to_linear(c);
+            }
+        }
+        Ok(Rgb(sum))
     }
 
     /// Element record `id`.

@@ -87,7 +87,9 @@ fn radiance(
         // The back of a one-sided patch takes no light and reflects none.
         return Ok(Rgb::BLACK);
     }
-    let at = arrive(view, &prec, ray.at(hit.t), ray.direction, normal, hit.bary)?;
+    let (at, albedo) = arrive(view, &prec, ray.at(hit.t), ray.direction, normal, hit.bary)?;
+    // A texture multiplies the diffuse reflectance.
+    let diffuse = albedo.map_or(m.diffuse, |a| m.diffuse.mul(a));
     let mut l = Rgb::BLACK;
     if !m.diffuse.is_black() {
         view.counters.shades += 1;
@@ -100,9 +102,9 @@ fn radiance(
         if m.direct_vrt {
             irr = irr.add(direct::irradiance(view, scratch, &at, hit.patch)?);
         }
-        l = l.add(m.diffuse.mul(irr).scale(1.0 / PI));
+        l = l.add(diffuse.mul(irr).scale(1.0 / PI));
         if let Some(ambient) = m.ambient {
-            l = l.add(m.diffuse.mul(ambient));
+            l = l.add(diffuse.mul(ambient));
         }
     }
     if depth >= m.vrt_depth || (!m.is_specular()) {

@@ -28,25 +28,7 @@ fn parse(toml: &str, files: &[(&str, &str)]) -> Scene {
     parse_scene_str("s.toml", toml, Path::new("mem"), &read).unwrap_or_else(|e| panic!("{e}"))
 }
 
-const HEAD: &str = r#"
-[camera]
-eye = [0.0, 3.0, 0.01]
-look_at = [0.0, 0.0, 0.0]
-up = [0.0, 1.0, 0.0]
-fov = 60.0
-[render]
-width = 32
-height = 32
-pixel_samples = 1
-light_rays = 16
-ambient = [0.0, 0.0, 0.0]
-[[light]]
-position = [0.3, 1.5, 0.2]
-intensity = [2.0, 2.0, 2.0]
-[[material]]
-name = "white"
-diffuse = [0.5, 0.5, 0.5]
-"#;
+const HEAD: &str = TOP_DOWN_HEAD;
 
 /// A 4 x 4 floor quad at y = 0 (two triangles, wound upward) whose corners all carry the
 /// normal `n` (`None`: no `vn`).

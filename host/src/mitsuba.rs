@@ -112,6 +112,12 @@ pub fn write(scene: &Scene, dir: &Path) -> anyhow::Result<Notes> {
             rgb(s.background)
         );
     }
+    if !scene.textures.is_empty() {
+        notes.lines.push(format!(
+            "{} texture(s) are not exported: textured faces render with their material's Kd alone in Mitsuba",
+            scene.textures.len()
+        ));
+    }
     if !s.ambient.is_black() && s.diffuse_bounces == 0 {
         notes.lines.push(format!(
             "the ambient term ({}) is not exported: render magg with --set render.ambient=[0,0,0] to compare",

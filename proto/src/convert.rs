@@ -25,7 +25,7 @@ use magg_core::blocks::{
     Block, BlockLayout, CacheSize, BLOCK_SIZE, ELEMENTS_PER_BLOCK, NO_BLOCK, PATCHES_PER_BLOCK, SHADINGS_PER_BLOCK, VERTICES_PER_BLOCK,
 };
 use magg_core::color::Rgb;
-use magg_core::header::{BvhHeader, Counts, GridHeader, SceneHeader};
+use magg_core::header::{BvhHeader, Counts, GridHeader, SceneHeader, TextureHeader};
 use magg_core::math::Normalized;
 use magg_core::plan::EffectsPlan;
 use magg_core::scene::{
@@ -420,9 +420,34 @@ fn counts_from_wire(c: v1::Counts) -> Counts {
         patch_blocks: c.patch_blocks,
         shaded_patches: c.shaded_patches,
         shading_blocks: c.shading_blocks,
+        texture_blocks: c.texture_blocks,
         element_blocks: c.element_blocks,
         vertex_blocks: c.vertex_blocks,
     }
+}
+
+/// The textures of a header, checked against the texture blocks: each texture's texels
+/// fill its own run of blocks, the runs one after another from the first texture block.
+fn textures_from_wire(t: Vec<v1::TextureHeader>, c: &Counts) -> Result<Vec<TextureHeader>, ConvertError> {
+    let mut next = 0u64;
+    let mut out = Vec::with_capacity(t.len());
+    for (i, w) in t.into_iter().enumerate() {
+        let h = TextureHeader { width: w.width, height: w.height, first_block: w.first_block };
+        let side = 1..=magg_core::scene::MAX_TEXTURE_SIDE;
+        if !side.contains(&h.width) || !side.contains(&h.height) {
+            let v = format!("{} x {}", h.width, h.height);
+            return Err(invalid(&format!("textures[{i}]"), v, "each side 1..=16384"));
+        }
+        if h.first_block as u64 != next {
+            return Err(invalid(&format!("textures[{i}].first_block"), h.first_block, format!("{next}")));
+        }
+        next += h.blocks() as u64;
+        out.push(h);
+    }
+    if next != c.texture_blocks as u64 {
+        return Err(invalid("counts.texture_blocks", c.texture_blocks, format!("{next} (from the textures)")));
+    }
+    Ok(out)
 }
 
 /// Checks that the layout's bases are ordered, that each kind's block count matches the
@@ -434,20 +459,21 @@ fn check_layout(l: &BlockLayout, c: &Counts, bvh: &BvhHeader, accel: Accel) -> R
     }
     if !(l.bvh_base <= l.patch_base
         && l.patch_base <= l.shading_base
-        && l.shading_base <= l.element_base
+        && l.shading_base <= l.texture_base
+        && l.texture_base <= l.element_base
         && l.element_base <= l.vertex_base
         && l.vertex_base < l.total)
     {
         let v = format!(
-            "bvh {} patch {} shading {} element {} vertex {} total {}",
-            l.bvh_base, l.patch_base, l.shading_base, l.element_base, l.vertex_base, l.total
+            "bvh {} patch {} shading {} texture {} element {} vertex {} total {}",
+            l.bvh_base, l.patch_base, l.shading_base, l.texture_base, l.element_base, l.vertex_base, l.total
         );
-        let want = "bvh_base <= patch_base <= shading_base <= element_base <= vertex_base < total";
+        let want = "bvh_base <= patch_base <= shading_base <= texture_base <= element_base <= vertex_base < total";
         return Err(invalid("layout", v, want));
     }
     let blocks_for = |n: u32, per: usize| (n as usize).div_ceil(per) as u64;
     let (grid, uses_bvh) = (accel == Accel::Grid, accel == Accel::Bvh);
-    let checks: [(&str, u64, u64); 16] = [
+    let checks: [(&str, u64, u64); 17] = [
         ("counts.subspace_blocks", c.subspace_blocks as u64, l.bvh_base as u64),
         ("counts.bvh_blocks", c.bvh_blocks as u64, (l.patch_base - l.bvh_base) as u64),
         ("counts.bvh_blocks", c.bvh_blocks as u64, bvh.node_blocks as u64 + bvh.triangle_blocks as u64),
@@ -457,7 +483,8 @@ fn check_layout(l: &BlockLayout, c: &Counts, bvh: &BvhHeader, accel: Accel) -> R
         ("bvh.nodes", (bvh.nodes > 0) as u64, uses_bvh as u64),
         ("counts.subspace_blocks", (c.subspace_blocks > 0 && uses_bvh) as u64, 0),
         ("counts.patch_blocks", c.patch_blocks as u64, (l.shading_base - l.patch_base) as u64),
-        ("counts.shading_blocks", c.shading_blocks as u64, (l.element_base - l.shading_base) as u64),
+        ("counts.shading_blocks", c.shading_blocks as u64, (l.texture_base - l.shading_base) as u64),
+        ("counts.texture_blocks", c.texture_blocks as u64, (l.element_base - l.texture_base) as u64),
         ("counts.shading_blocks", c.shading_blocks as u64, blocks_for(c.shaded_patches, SHADINGS_PER_BLOCK)),
         ("counts.shaded_patches", (c.shaded_patches > c.patches) as u64, 0),
         ("counts.element_blocks", c.element_blocks as u64, (l.vertex_base - l.element_base) as u64),
@@ -540,6 +567,11 @@ impl From<&SceneHeader> for v1::SceneHeader {
             settings: Some(settings_to_wire(&h.settings)),
             lights: h.lights.iter().map(light_to_wire).collect(),
             materials: h.materials.iter().map(material_to_wire).collect(),
+            textures: h
+                .textures
+                .iter()
+                .map(|t| v1::TextureHeader { width: t.width, height: t.height, first_block: t.first_block })
+                .collect(),
             grid: Some(v1::GridHeader {
                 min: Some(vec3_to_wire(h.grid.min)),
                 max: Some(vec3_to_wire(h.grid.max)),
@@ -556,6 +588,7 @@ impl From<&SceneHeader> for v1::SceneHeader {
                 bvh_base: l.bvh_base,
                 patch_base: l.patch_base,
                 shading_base: l.shading_base,
+                texture_base: l.texture_base,
                 element_base: l.element_base,
                 vertex_base: l.vertex_base,
                 total: l.total,
@@ -570,6 +603,7 @@ impl From<&SceneHeader> for v1::SceneHeader {
                 patch_blocks: c.patch_blocks,
                 shaded_patches: c.shaded_patches,
                 shading_blocks: c.shading_blocks,
+                texture_blocks: c.texture_blocks,
                 element_blocks: c.element_blocks,
                 vertex_blocks: c.vertex_blocks,
             }),
@@ -606,6 +640,7 @@ impl TryFrom<v1::SceneHeader> for SceneHeader {
             bvh_base: l.bvh_base,
             patch_base: l.patch_base,
             shading_base: l.shading_base,
+            texture_base: l.texture_base,
             element_base: l.element_base,
             vertex_base: l.vertex_base,
             total: l.total,
@@ -619,6 +654,7 @@ impl TryFrom<v1::SceneHeader> for SceneHeader {
             triangle_blocks: b.triangle_blocks,
         };
         check_layout(&layout, &counts, &bvh, settings.accel)?;
+        let textures = textures_from_wire(h.textures, &counts)?;
         if counts.elements as u64 > settings.max_elements {
             let expected = format!("at most settings.max_elements = {}", settings.max_elements);
             return Err(invalid("counts.elements", counts.elements, expected));
@@ -629,7 +665,19 @@ impl TryFrom<v1::SceneHeader> for SceneHeader {
             return Err(invalid("energy_quantum", q, "a positive number"));
         }
         let plan = plan_from_wire(require(h.plan, "plan")?)?;
-        Ok(SceneHeader { camera, settings, lights, materials, grid, bvh, layout, counts, energy_quantum: q, plan })
+        Ok(SceneHeader {
+            camera,
+            settings,
+            lights,
+            materials,
+            textures,
+            grid,
+            bvh,
+            layout,
+            counts,
+            energy_quantum: q,
+            plan,
+        })
     }
 }
 

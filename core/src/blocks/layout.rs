@@ -14,12 +14,17 @@ pub const NO_BLOCK: u32 = u32::MAX;
 pub const PATCH_RECORD: usize = 96;
 /// Patch records per block.
 pub const PATCHES_PER_BLOCK: usize = BLOCK_SIZE / PATCH_RECORD;
-/// Bytes of one shading record: the unit shading normals of a patch's 3 corners, 9 x f32.
-pub const SHADING_RECORD: usize = 36;
+/// Bytes of one shading record: the unit shading normals of a patch's 3 corners (9 x
+/// f32), their texture coordinates (6 x f32) and the texture (u32).
+pub const SHADING_RECORD: usize = 64;
 /// Shading records per block.
 pub const SHADINGS_PER_BLOCK: usize = BLOCK_SIZE / SHADING_RECORD;
 /// A patch record's `shading` when the patch has no shading record (shaded flat).
 pub const NO_SHADING: u32 = u32::MAX;
+/// A shading record's `texture` when the patch has none.
+pub const NO_TEXTURE: u32 = u32::MAX;
+/// sRGB texels (3 bytes each) per texture block.
+pub const TEXELS_PER_BLOCK: usize = BLOCK_SIZE / 3;
 /// Bytes of one element record: patch, local index, 3 vertex ids, area.
 pub const ELEMENT_RECORD: usize = 32;
 /// Element records per block.
@@ -43,8 +48,10 @@ pub enum BlockKind {
     Bvh,
     /// Patch records.
     Patch,
-    /// Shading normals of the patches that have them.
+    /// Shading normals and texture coordinates of the patches that have them.
     Shading,
+    /// Texels of diffuse textures.
+    Texture,
     /// Element records.
     Element,
     /// Vertex irradiance records.
@@ -52,9 +59,10 @@ pub enum BlockKind {
 }
 
 /// Where each kind of block starts in the global id space:
-/// `[subspace blocks][BVH blocks][patch blocks][shading blocks][element blocks][vertex-energy
-/// blocks]`. A scene traced through the grid has no BVH block, one traced through the BVH
-/// no subspace block, one shaded flat no shading block.
+/// `[subspace blocks][BVH blocks][patch blocks][shading blocks][texture blocks][element
+/// blocks][vertex-energy blocks]`. A scene traced through the grid has no BVH block, one
+/// traced through the BVH no subspace block, one shaded flat no shading block, one without
+/// textures no texture block.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct BlockLayout {
     /// First BVH block (the subspace blocks are those before it).
@@ -63,6 +71,8 @@ pub struct BlockLayout {
     pub patch_base: u32,
     /// First shading block (the patch blocks are those before it).
     pub shading_base: u32,
+    /// First texture block.
+    pub texture_base: u32,
     /// First element block.
     pub element_base: u32,
     /// First vertex-energy block.
@@ -80,6 +90,8 @@ impl BlockLayout {
             Some(BlockKind::VertexEnergy)
         } else if id >= self.element_base {
             Some(BlockKind::Element)
+        } else if id >= self.texture_base {
+            Some(BlockKind::Texture)
         } else if id >= self.shading_base {
             Some(BlockKind::Shading)
         } else if id >= self.patch_base {
@@ -131,13 +143,18 @@ pub struct PatchRecord {
     pub shading: u32,
 }
 
-/// The shading normals of a patch, as stored in a shading block: one unit normal per
-/// corner, on the front of the patch's plane. Kept as `f32` (their rounding, about 6e-8,
-/// is far below what shading can show) so that 56 fit in a block.
+/// How a patch is shaded, as stored in a shading block: one unit normal per corner, on
+/// the front of the patch's plane (all zero: flat), and texture coordinates per corner
+/// for its texture. Kept as `f32` (their rounding, about 6e-8, is far below what shading
+/// can show) so that 32 fit in a block.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ShadingRecord {
-    /// Normals at the corners, in the patch's corner order.
+    /// Normals at the corners, in the patch's corner order; zero for a flat patch.
     pub normals: [DVec3; 3],
+    /// Texture coordinates at the corners.
+    pub uv: [glam::DVec2; 3],
+    /// Index of the texture in the scene header, or [`NO_TEXTURE`].
+    pub texture: u32,
 }
 
 /// An element as stored in an element block.
@@ -213,20 +230,19 @@ impl PatchRecord {
 impl ShadingRecord {
     /// Writes the record at byte offset `at` (each component rounded to `f32`).
     pub fn encode(&self, b: &mut Block, at: usize) {
-        for (i, n) in self.normals.iter().enumerate() {
-            for (j, c) in n.to_array().into_iter().enumerate() {
-                let o = at + 12 * i + 4 * j;
-                b[o..o + 4].copy_from_slice(&(c as f32).to_le_bytes());
-            }
+        let normals = self.normals.iter().flat_map(|n| n.to_array());
+        let uv = self.uv.iter().flat_map(|t| t.to_array());
+        for (k, c) in normals.chain(uv).enumerate() {
+            b[at + 4 * k..at + 4 * k + 4].copy_from_slice(&(c as f32).to_le_bytes());
         }
+        put_u32(b, at + 60, self.texture);
     }
     /// Reads the record at byte offset `at`.
     pub fn decode(b: &Block, at: usize) -> ShadingRecord {
-        let n = |i: usize| {
-            let c = |j: usize| f64::from(get_f32(b, at + 12 * i + 4 * j));
-            DVec3::new(c(0), c(1), c(2))
-        };
-        ShadingRecord { normals: [n(0), n(1), n(2)] }
+        let c = |k: usize| f64::from(get_f32(b, at + 4 * k));
+        let n = |i: usize| DVec3::new(c(3 * i), c(3 * i + 1), c(3 * i + 2));
+        let t = |i: usize| glam::DVec2::new(c(9 + 2 * i), c(10 + 2 * i));
+        ShadingRecord { normals: [n(0), n(1), n(2)], uv: [t(0), t(1), t(2)], texture: get_u32(b, at + 60) }
     }
 }
 
@@ -298,12 +314,15 @@ mod tests {
         };
         p.encode(&mut b, PATCH_RECORD * (PATCHES_PER_BLOCK - 1));
         assert_eq!(PatchRecord::decode(&b, PATCH_RECORD * (PATCHES_PER_BLOCK - 1)), p);
-        let s = ShadingRecord { normals: [DVec3::Z, DVec3::new(0.6, 0.0, 0.8), DVec3::new(0.0, -0.5, 0.75)] };
+        let uv = [glam::DVec2::new(0.0, 1.0), glam::DVec2::new(0.5, 0.25), glam::DVec2::new(-2.0, 3.0)];
+        let normals = [DVec3::Z, DVec3::new(0.6, 0.0, 0.8), DVec3::new(0.0, -0.5, 0.75)];
+        let s = ShadingRecord { normals, uv, texture: 3 };
         s.encode(&mut b, SHADING_RECORD * (SHADINGS_PER_BLOCK - 1));
         let back = ShadingRecord::decode(&b, SHADING_RECORD * (SHADINGS_PER_BLOCK - 1));
         for (a, b) in back.normals.iter().zip(&s.normals) {
             assert!((*a - *b).length() < 1e-7);
         }
+        assert_eq!((back.uv, back.texture), (uv, 3));
         let e = ElementRecord { patch: 3, local: 9, vertices: [1, 2, 3], area: 0.25 };
         e.encode(&mut b, 0);
         assert_eq!(ElementRecord::decode(&b, 0), e);

@@ -292,6 +292,7 @@ mod tests {
             patches,
             materials: Vec::new(),
             normals: Vec::new(),
+            textured: Vec::new(),
             subdivisions: Vec::new(),
             first_element: Vec::new(),
             elements: Vec::new(),

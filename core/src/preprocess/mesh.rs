@@ -16,6 +16,8 @@ pub(super) struct Mesh {
     pub materials: Vec<u32>,
     /// Shading normals of each patch, `None` for a flat one.
     pub normals: Vec<Option<[DVec3; 3]>>,
+    /// Texture coordinates and texture of each textured patch.
+    pub textured: Vec<Option<([glam::DVec2; 3], u32)>>,
     /// Subdivision count n of each patch.
     pub subdivisions: Vec<u32>,
     /// First element id of each patch.
@@ -101,6 +103,7 @@ pub(super) fn build(scene: &Scene) -> Result<Mesh, PrepareError> {
     Ok(Mesh {
         materials: scene.patches.iter().map(|p| p.material).collect(),
         normals: scene.patches.iter().map(|p| p.normals).collect(),
+        textured: scene.patches.iter().map(|p| p.uv.zip(p.texture)).collect(),
         patches,
         subdivisions,
         first_element,

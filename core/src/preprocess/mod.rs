@@ -132,12 +132,13 @@ fn prepare_here(scene: &Scene, plan: EffectsPlan, start: Instant) -> Result<Prep
         Accel::Bvh => (grid::bounds_only(&mesh), Some(bvh::build_and_pack(&mesh))),
     };
     let binnings = bvh.as_ref().map_or(0, |b| b.binnings);
-    let packed = pack::pack(&mesh, &grid, bvh);
+    let packed = pack::pack(&mesh, &grid, bvh, &scene.textures);
     let header = SceneHeader {
         camera: scene.camera.clone(),
         settings: scene.settings.clone(),
         lights: scene.lights.clone(),
         materials: scene.materials.clone(),
+        textures: packed.textures,
         grid: packed.grid,
         bvh: packed.bvh,
         layout: packed.layout,

@@ -4,7 +4,8 @@ use super::bvh::Bvh;
 use super::grid::Grid;
 use super::mesh::Mesh;
 use crate::blocks::*;
-use crate::header::{BvhHeader, Counts, GridHeader};
+use crate::header::{BvhHeader, Counts, GridHeader, TextureHeader};
+use crate::scene::Texture;
 
 pub(super) struct Packed {
     pub blocks: Vec<Box<Block>>,
@@ -12,6 +13,7 @@ pub(super) struct Packed {
     pub grid: GridHeader,
     pub bvh: BvhHeader,
     pub counts: Counts,
+    pub textures: Vec<TextureHeader>,
 }
 
 fn zero_block() -> Box<Block> {
@@ -21,7 +23,7 @@ fn zero_block() -> Box<Block> {
 /// Packs the subspace lists of `grid` (none for a scene traced through the BVH), the
 /// BVH's blocks if any, then the patches, the shading normals of the smooth ones, the
 /// elements and vertex energies.
-pub(super) fn pack(mesh: &Mesh, grid: &Grid, bvh: Option<Bvh>) -> Packed {
+pub(super) fn pack(mesh: &Mesh, grid: &Grid, bvh: Option<Bvh>, textures: &[Texture]) -> Packed {
     let mut blocks: Vec<Box<Block>> = Vec::new();
     // Subspace blocks: one chain per non-empty cell.
     let mut cell_first_block = vec![NO_BLOCK; grid.cells.len()];
@@ -53,17 +55,18 @@ pub(super) fn pack(mesh: &Mesh, grid: &Grid, bvh: Option<Bvh>) -> Packed {
         None => BvhHeader::default(),
     };
     let patch_base = blocks.len() as u32;
-    // Shading records in patch order, numbered as they come.
+    // Shading records in patch order, numbered as they come: a patch with normals or a
+    // texture has one.
     let mut shading_of = Vec::with_capacity(mesh.patches.len());
-    let mut smooth: Vec<[glam::DVec3; 3]> = Vec::new();
-    for n in &mesh.normals {
-        shading_of.push(match n {
-            Some(n) => {
-                smooth.push(*n);
-                smooth.len() as u32 - 1
-            }
-            None => NO_SHADING,
-        });
+    let mut smooth: Vec<ShadingRecord> = Vec::new();
+    for (n, t) in mesh.normals.iter().zip(&mesh.textured) {
+        if n.is_none() && t.is_none() {
+            shading_of.push(NO_SHADING);
+            continue;
+        }
+        let (uv, texture) = t.unwrap_or(([glam::DVec2::ZERO; 3], NO_TEXTURE));
+        smooth.push(ShadingRecord { normals: n.unwrap_or([glam::DVec3::ZERO; 3]), uv, texture });
+        shading_of.push(smooth.len() as u32 - 1);
     }
     for chunk in (0..mesh.patches.len()).collect::<Vec<_>>().chunks(PATCHES_PER_BLOCK) {
         let mut b = zero_block();
@@ -82,10 +85,22 @@ pub(super) fn pack(mesh: &Mesh, grid: &Grid, bvh: Option<Bvh>) -> Packed {
     let shading_base = blocks.len() as u32;
     for chunk in smooth.chunks(SHADINGS_PER_BLOCK) {
         let mut b = zero_block();
-        for (k, &normals) in chunk.iter().enumerate() {
-            ShadingRecord { normals }.encode(&mut b, k * SHADING_RECORD);
+        for (k, rec) in chunk.iter().enumerate() {
+            rec.encode(&mut b, k * SHADING_RECORD);
         }
         blocks.push(b);
+    }
+    let texture_base = blocks.len() as u32;
+    let mut texture_headers = Vec::with_capacity(textures.len());
+    for t in textures {
+        texture_headers.push(TextureHeader { width: t.width, height: t.height, first_block: blocks.len() as u32 - texture_base });
+        for chunk in t.texels.chunks(TEXELS_PER_BLOCK) {
+            let mut b = zero_block();
+            for (k, texel) in chunk.iter().enumerate() {
+                b[3 * k..3 * k + 3].copy_from_slice(texel);
+            }
+            blocks.push(b);
+        }
     }
     let element_base = blocks.len() as u32;
     for (chunk_idx, chunk) in mesh.elements.chunks(ELEMENTS_PER_BLOCK).enumerate() {
@@ -104,7 +119,7 @@ pub(super) fn pack(mesh: &Mesh, grid: &Grid, bvh: Option<Bvh>) -> Packed {
         blocks.push(zero_block());
     }
     let total = blocks.len() as u32;
-    let layout = BlockLayout { bvh_base, patch_base, shading_base, element_base, vertex_base, total };
+    let layout = BlockLayout { bvh_base, patch_base, shading_base, texture_base, element_base, vertex_base, total };
     let counts = Counts {
         patches: mesh.patches.len() as u32,
         elements: mesh.elements.len() as u32,
@@ -114,7 +129,8 @@ pub(super) fn pack(mesh: &Mesh, grid: &Grid, bvh: Option<Bvh>) -> Packed {
         bvh_blocks: patch_base - bvh_base,
         patch_blocks: shading_base - patch_base,
         shaded_patches: smooth.len() as u32,
-        shading_blocks: element_base - shading_base,
+        shading_blocks: texture_base - shading_base,
+        texture_blocks: element_base - texture_base,
         element_blocks: vertex_base - element_base,
         vertex_blocks: vertex_blocks as u32,
     };
@@ -124,5 +140,6 @@ pub(super) fn pack(mesh: &Mesh, grid: &Grid, bvh: Option<Bvh>) -> Packed {
         grid: GridHeader { min: grid.min, max: grid.max, dims: grid.dims, cell_first_block },
         bvh: bvh_header,
         counts,
+        textures: texture_headers,
     }
 }

@@ -382,7 +382,7 @@ pub(super) fn load(
                         n.swap(1, 2);
                     }
                 }
-                out.push(ModelTriangle { v, material, normals });
+                out.push(ModelTriangle { v, material, normals, uv: None, texture: None });
             }
             if out.len() > MAX_MESH_TRIANGLES {
                 return Err(err(format!("more than {MAX_MESH_TRIANGLES} triangles once placed by its nodes")));

@@ -10,12 +10,13 @@
 //! `read` callback, as bytes.
 
 use std::collections::HashMap;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use super::error::SceneError;
 use super::model::{Material, SourceLoc, MAX_COORDINATE};
 use super::shape::is_degenerate;
-use glam::{DMat3, DVec3};
+use super::texture::Texture;
+use glam::{DMat3, DVec2, DVec3};
 
 /// How the scene loader reads a file it names (a mesh, an MTL, a glTF buffer): the
 /// caller's I/O, which may refuse (size caps, folders the user did not allow).
@@ -33,14 +34,22 @@ pub(super) struct ModelTriangle {
     pub v: [DVec3; 3],
     /// Index into the scene's materials.
     pub material: u32,
-    /// The file's vertex normals at the corners (any length, not yet checked).
+    /// The file's vertex normals at the corners (any length, not yet checked; unit
+    /// shading normals once placed, `None` for a flat face).
     pub normals: Option<[DVec3; 3]>,
+    /// Texture coordinates at the corners.
+    pub uv: Option<[DVec2; 3]>,
+    /// Index into [`MaterialTable::textures`] of the face's diffuse texture.
+    pub texture: Option<u32>,
 }
 
-/// A placed mesh triangle: scene-space corners, material and unit shading normals (none:
-/// shaded flat).
-pub(super) type PlacedTriangle = ([DVec3; 3], u32, Option<[DVec3; 3]>);
-
+impl ModelTriangle {
+    /// A face with material `material` and nothing else.
+    #[cfg(test)]
+    pub(super) fn plain(v: [DVec3; 3], material: u32) -> Self {
+        ModelTriangle { v, material, normals: None, uv: None, texture: None }
+    }
+}
 /// The scene's materials, which meshes extend with the materials their files define.
 pub(super) struct MaterialTable {
     /// Every material, referenced by index (`[[material]]` tables first).
@@ -49,9 +58,39 @@ pub(super) struct MaterialTable {
     pub toml: HashMap<String, u32>,
     /// Index of each file material already added, by its scene name `file:name`.
     pub from_file: HashMap<String, u32>,
+    /// The textures mesh files brought (MTL `map_Kd`), each once.
+    pub textures: Vec<Texture>,
+    /// Index of each texture in `textures` by the path it was read from.
+    pub texture_ids: HashMap<PathBuf, u32>,
 }
 
 impl MaterialTable {
+    /// An empty table.
+    pub(super) fn new() -> Self {
+        MaterialTable {
+            list: Vec::new(),
+            toml: HashMap::new(),
+            from_file: HashMap::new(),
+            textures: Vec::new(),
+            texture_ids: HashMap::new(),
+        }
+    }
+
+    /// The index of the texture at `path` (read through `read` and decoded the first
+    /// time), or why it cannot be had.
+    pub(super) fn texture(&mut self, path: &Path, read: ReadFile<'_>) -> Result<u32, String> {
+        if let Some(&id) = self.texture_ids.get(path) {
+            return Ok(id);
+        }
+        let label = path.display().to_string();
+        let bytes = read(path).map_err(|e| format!("cannot read texture '{label}': {e}"))?;
+        let t = Texture::decode(&label, &bytes)?;
+        let id = u32::try_from(self.textures.len()).map_err(|_| "too many textures".to_string())?;
+        self.textures.push(t);
+        self.texture_ids.insert(path.to_path_buf(), id);
+        Ok(id)
+    }
+
     /// Adds a material that the mesh file of `entry` defines (once) and returns its
     /// index, or why it clashes. Its scene name is `file:name` (`meshes/sphere.obj:glass`).
     pub(super) fn add_file_material(&mut self, entry: &MeshEntry<'_>, m: &Material) -> Result<u32, String> {
@@ -164,7 +203,7 @@ pub(super) fn load_mesh(
     base_dir: &Path,
     read: ReadFile<'_>,
     materials: &mut MaterialTable,
-) -> Result<Vec<PlacedTriangle>, SceneError> {
+) -> Result<Vec<ModelTriangle>, SceneError> {
     let path = base_dir.join(entry.file);
     let label = path.display().to_string();
     let Some(format) = MeshFormat::of(&path) else {
@@ -188,16 +227,20 @@ pub(super) fn load_mesh(
 /// Applies the entry's transform to a file's triangles and their normals, keeping the
 /// patches' fronts outward under a mirroring transform, refusing vertices sent past
 /// [`MAX_COORDINATE`] and skipping zero-area triangles.
-fn place(entry: &MeshEntry<'_>, label: &str, triangles: Vec<ModelTriangle>) -> Result<Vec<PlacedTriangle>, SceneError> {
+fn place(entry: &MeshEntry<'_>, label: &str, triangles: Vec<ModelTriangle>) -> Result<Vec<ModelTriangle>, SceneError> {
     let flip = entry.transform.flips_winding();
     let mut out = Vec::with_capacity(triangles.len());
     for t in triangles {
         let mut v = t.v.map(|p| entry.transform.apply(p));
         let mut normals = t.normals.filter(|_| entry.shading.file_normals).map(|n| n.map(|n| entry.transform.normal(n)));
+        let mut uv = t.uv;
         if flip {
             v.swap(1, 2);
             if let Some(n) = normals.as_mut() {
                 n.swap(1, 2);
+            }
+            if let Some(c) = uv.as_mut() {
+                c.swap(1, 2);
             }
         }
         if !v.iter().all(|p| p.is_finite() && p.abs().max_element() <= MAX_COORDINATE) {
@@ -205,7 +248,7 @@ fn place(entry: &MeshEntry<'_>, label: &str, triangles: Vec<ModelTriangle>) -> R
         }
         if !is_degenerate(&v) {
             let normals = normals.and_then(|n| super::normals::shading_normals(&v, n));
-            out.push((v, t.material, normals));
+            out.push(ModelTriangle { v, material: t.material, normals, uv, texture: t.texture });
         }
     }
     if out.is_empty() {

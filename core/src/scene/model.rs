@@ -338,6 +338,11 @@ pub struct PatchDef {
     /// shades the patch flat. They bend shading and specular directions only: the
     /// geometric normal keeps deciding sides and ray offsets.
     pub normals: Option<[DVec3; 3]>,
+    /// Texture coordinates at the corners (OBJ `vt`), for `texture`.
+    pub uv: Option<[glam::DVec2; 3]>,
+    /// Index into `Scene::textures` of the texture multiplying this patch's diffuse
+    /// reflectance (its material's `map_Kd`); used only with `uv`.
+    pub texture: Option<u32>,
     /// Where it was defined (the `[[quad]]`, `[[triangle]]` or `[[mesh]]` entry).
     pub loc: SourceLoc,
 }
@@ -357,4 +362,6 @@ pub struct Scene {
     pub materials: Vec<Material>,
     /// Triangle patches.
     pub patches: Vec<PatchDef>,
+    /// Diffuse textures, referenced by index from patches.
+    pub textures: Vec<super::texture::Texture>,
 }

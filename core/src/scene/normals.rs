@@ -8,7 +8,7 @@
 //! its triangle's plane (`n . n_g > 0`), so that the kernels never meet a normal that
 //! would send a ray through the surface it leaves from the front.
 
-use super::mesh::PlacedTriangle;
+use super::mesh::ModelTriangle;
 use crate::math::Normalized;
 use glam::DVec3;
 use std::collections::HashMap;
@@ -57,19 +57,20 @@ fn toward_face(u: DVec3, ng: DVec3) -> DVec3 {
 /// crease angle of this one's (`n_u . n_t >= crease_cos`). A cube stays faceted at a
 /// crease angle under 90 degrees, a tessellated sphere turns smooth. Sums run in triangle
 /// order, so the normals do not depend on hashing.
-pub(super) fn smooth_by_crease(tris: &mut [PlacedTriangle], crease_cos: f64) {
+pub(super) fn smooth_by_crease(tris: &mut [ModelTriangle], crease_cos: f64) {
     let key = |p: DVec3| p.to_array().map(f64::to_bits);
     // Area-weighted normals (twice the area, by length) and unit normals of every face.
     let faces: Vec<(DVec3, DVec3)> = tris
         .iter()
-        .map(|(v, _, _)| {
+        .map(|t| {
+            let v = &t.v;
             let c = (v[1] - v[0]).cross(v[2] - v[0]);
             (c, c.normalized())
         })
         .collect();
     let mut around: HashMap<[u64; 3], Vec<usize>> = HashMap::new();
-    for (i, (v, _, _)) in tris.iter().enumerate() {
-        for p in v {
+    for (i, t) in tris.iter().enumerate() {
+        for p in &t.v {
             let list = around.entry(key(*p)).or_default();
             if list.last() != Some(&i) {
                 list.push(i);
@@ -77,20 +78,20 @@ pub(super) fn smooth_by_crease(tris: &mut [PlacedTriangle], crease_cos: f64) {
         }
     }
     for i in 0..tris.len() {
-        if tris[i].2.is_some() {
+        if tris[i].normals.is_some() {
             continue;
         }
         let own = faces[i].1;
         let mut n = [DVec3::ZERO; 3];
-        for (k, p) in tris[i].0.iter().enumerate() {
+        for (k, p) in tris[i].v.iter().enumerate() {
             for &u in around.get(&key(*p)).map_or(&[][..], Vec::as_slice) {
                 if faces[u].1.dot(own) >= crease_cos {
                     n[k] += faces[u].0;
                 }
             }
         }
-        let v = tris[i].0;
-        tris[i].2 = shading_normals(&v, n);
+        let v = tris[i].v;
+        tris[i].normals = shading_normals(&v, n);
     }
 }
 
@@ -127,14 +128,14 @@ mod tests {
     }
 
     /// The eight triangles of an octahedron (unit, centred at the origin), wound outward.
-    fn octahedron() -> Vec<PlacedTriangle> {
+    fn octahedron() -> Vec<ModelTriangle> {
         let mut out = Vec::new();
         for sx in [1.0, -1.0] {
             for sy in [1.0, -1.0] {
                 for sz in [1.0, -1.0] {
                     let (a, b, c) = (DVec3::X * sx, DVec3::Y * sy, DVec3::Z * sz);
                     let v = if sx * sy * sz > 0.0 { [a, b, c] } else { [a, c, b] };
-                    out.push((v, 0, None));
+                    out.push(ModelTriangle::plain(v, 0));
                 }
             }
         }
@@ -145,8 +146,8 @@ mod tests {
     fn a_wide_crease_angle_smooths_to_the_vertex_directions() {
         let mut tris = octahedron();
         smooth_by_crease(&mut tris, (120f64).to_radians().cos());
-        for (v, _, n) in &tris {
-            let n = n.unwrap();
+        for t in &tris {
+            let (v, n) = (t.v, t.normals.unwrap());
             for k in 0..3 {
                 // Four faces of equal area meet at each vertex: their mean is the vertex.
                 assert!((n[k] - v[k]).length() < 1e-12, "{:?} at {:?}", n[k], v[k]);
@@ -157,10 +158,11 @@ mod tests {
     #[test]
     fn a_narrow_crease_angle_keeps_the_faces_flat_and_file_normals_stay() {
         let mut tris = octahedron();
-        tris[0].2 = Some([DVec3::X; 3]);
+        tris[0].normals = Some([DVec3::X; 3]);
         smooth_by_crease(&mut tris, (60f64).to_radians().cos());
-        assert_eq!(tris[0].2, Some([DVec3::X; 3]));
-        for (v, _, n) in &tris[1..] {
+        assert_eq!(tris[0].normals, Some([DVec3::X; 3]));
+        for t in &tris[1..] {
+            let (v, n) = (t.v, t.normals);
             let ng = (v[1] - v[0]).cross(v[2] - v[0]).normalize();
             for k in 0..3 {
                 assert!((n.unwrap()[k] - ng).length() < 1e-12);

@@ -19,7 +19,7 @@ use super::error::SceneError;
 use super::mesh::{shown, utf8, MaterialTable, MeshEntry, ModelTriangle, ReadFile};
 use super::model::{Material, SourceLoc, MAX_COORDINATE};
 use crate::color::Rgb;
-use glam::DVec3;
+use glam::{DVec2, DVec3};
 
 /// Parses a mesh's OBJ file `bytes` (read from `obj_path`, named `label`) and its MTL
 /// files (read through `read`), and returns its triangles in the model's space with their
@@ -39,15 +39,27 @@ pub(super) fn load(
     let mesh = parse_obj(obj_label, utf8(obj_label, "obj", bytes)?)?;
 
     // Material of each `usemtl` name (None: defined nowhere, reported at its first face).
+    // ... and its texture (`map_Kd`), if any.
     let mut usemtl_ids = Vec::new();
+    let mut usemtl_textures: Vec<Option<u32>> = Vec::new();
     if entry.material.is_none() {
         let mtl = load_mtllibs(&mesh, obj_path, obj_label, read)?;
         for name in &mesh.usemtl_names {
-            let id = match mtl.iter().find(|mm| mm.name == *name) {
-                Some(mm) => Some(materials.add_file_material(entry, mm).map_err(|m| entry.file_err(m))?),
-                None => materials.toml.get(name).copied(),
+            let (id, texture) = match mtl.iter().find(|mm| mm.material.name == *name) {
+                Some(mm) => {
+                    let id = materials.add_file_material(entry, &mm.material).map_err(|m| entry.file_err(m))?;
+                    let texture = match &mm.map_kd {
+                        Some((path, line)) => Some(materials.texture(path, read).map_err(|m| {
+                            SceneError::new(SourceLoc { file: mm.label.clone(), line: *line }, "map_Kd", m)
+                        })?),
+                        None => None,
+                    };
+                    (Some(id), texture)
+                }
+                None => (materials.toml.get(name).copied(), None),
             };
             usemtl_ids.push(id);
+            usemtl_textures.push(texture);
         }
     }
 
@@ -77,7 +89,12 @@ pub(super) fn load(
             let [a, b, c] = n.map(|k| mesh.normals.get(k).copied());
             Some([a?, b?, c?])
         });
-        out.push(ModelTriangle { v, material, normals });
+        let uv = face.uvs.and_then(|t| {
+            let [a, b, c] = t.map(|k| mesh.uvs.get(k).copied());
+            Some([a?, b?, c?])
+        });
+        let texture = face.usemtl.and_then(|u| usemtl_textures.get(u).copied().flatten()).filter(|_| uv.is_some());
+        out.push(ModelTriangle { v, material, normals, uv, texture });
     }
     Ok(out)
 }
@@ -89,9 +106,9 @@ fn load_mtllibs(
     obj_path: &Path,
     obj_label: &str,
     read: ReadFile<'_>,
-) -> Result<Vec<Material>, SceneError> {
+) -> Result<Vec<MtlMaterial>, SceneError> {
     let dir = obj_path.parent().map_or_else(PathBuf::new, Path::to_path_buf);
-    let mut out: Vec<Material> = Vec::new();
+    let mut out: Vec<MtlMaterial> = Vec::new();
     for lib in &mesh.mtllibs {
         let path = dir.join(&lib.file);
         let label = path.display().to_string();
@@ -99,15 +116,25 @@ fn load_mtllibs(
             let at = SourceLoc { file: obj_label.to_string(), line: lib.line };
             SceneError::new(at, "mtllib", format!("cannot read MTL file '{label}': {e}"))
         })?;
-        for mm in parse_mtl(&label, utf8(&label, "mtl", &bytes)?)? {
-            if let Some(first) = out.iter().find(|o| o.name == mm.name) {
-                let msg = format!("material '{}' is already defined at {}", mm.name, first.loc);
+        for (mm, map) in parse_mtl_maps(&label, utf8(&label, "mtl", &bytes)?)? {
+            if let Some(first) = out.iter().find(|o| o.material.name == mm.name) {
+                let msg = format!("material '{}' is already defined at {}", mm.name, first.material.loc);
                 return Err(SceneError::new(mm.loc.clone(), "newmtl", msg));
             }
-            out.push(mm);
+            // A texture is named relative to its MTL file.
+            let map_kd = map.map(|m| (path.parent().map_or_else(PathBuf::new, Path::to_path_buf).join(&m.file), m.line));
+            out.push(MtlMaterial { material: mm, map_kd, label: label.clone() });
         }
     }
     Ok(out)
+}
+
+/// A material of an OBJ's MTL files, with the path of its `map_Kd` texture and that
+/// statement's line, and the MTL file's label.
+struct MtlMaterial {
+    material: Material,
+    map_kd: Option<(PathBuf, u32)>,
+    label: String,
 }
 
 /// An OBJ file's geometry: positions and triangles (after fan triangulation).
@@ -117,6 +144,8 @@ pub(super) struct ObjMesh {
     pub positions: Vec<DVec3>,
     /// `vn` normals, in file order.
     pub normals: Vec<DVec3>,
+    /// `vt` texture coordinates, in file order.
+    pub uvs: Vec<DVec2>,
     /// Triangles, in file order.
     pub faces: Vec<ObjFace>,
     /// `mtllib` files, in file order.
@@ -130,6 +159,8 @@ pub(super) struct ObjMesh {
 pub(super) struct ObjFace {
     /// Indices into [`ObjMesh::positions`] (checked in range).
     pub corners: [usize; 3],
+    /// Indices into [`ObjMesh::uvs`] (checked in range), when every corner names one.
+    pub uvs: Option<[usize; 3]>,
     /// Indices into [`ObjMesh::normals`] (checked in range), when every corner names one.
     pub normals: Option<[usize; 3]>,
     /// Index into [`ObjMesh::usemtl_names`] of the `usemtl` in force, if any.
@@ -152,7 +183,6 @@ const OBJ_IGNORED: &[&str] = &[
     "o",
     "g",
     "s",
-    "vt",
     "vp",
     "l",
     "p",
@@ -203,6 +233,16 @@ pub(super) fn parse_obj(label: &str, text: &str) -> Result<ObjMesh, SceneError> 
                 }
                 mesh.positions.push(DVec3::from_array(xyz));
             }
+            "vt" => {
+                let uv = tokens
+                    .map(|tok| parse_number(tok).map_err(|m| err(format!("vt: {m}"))))
+                    .collect::<Result<Vec<_>, _>>()?;
+                // `vt u [v [w]]`: v defaults to 0, w is ignored.
+                let (Some(&u), 1..=3) = (uv.first(), uv.len()) else {
+                    return Err(err(format!("vt needs 1 to 3 numbers, found {}", uv.len())));
+                };
+                mesh.uvs.push(DVec2::new(u, uv.get(1).copied().unwrap_or(0.0)));
+            }
             "vn" => {
                 let xyz = tokens
                     .map(|tok| parse_number(tok).map_err(|m| err(format!("vn: {m}"))))
@@ -214,7 +254,7 @@ pub(super) fn parse_obj(label: &str, text: &str) -> Result<ObjMesh, SceneError> 
             }
             "f" => {
                 let corners = tokens
-                    .map(|tok| resolve_corner(tok, mesh.positions.len(), mesh.normals.len()))
+                    .map(|tok| resolve_corner(tok, [mesh.positions.len(), mesh.uvs.len(), mesh.normals.len()]))
                     .collect::<Result<Vec<_>, _>>()
                     .map_err(|m| err(format!("f: {m}")))?;
                 if corners.len() < 3 {
@@ -223,12 +263,13 @@ pub(super) fn parse_obj(label: &str, text: &str) -> Result<ObjMesh, SceneError> 
                 let first = corners[0];
                 for pair in corners[1..].windows(2) {
                     if let [b, c] = pair {
-                        let normals = match (first.1, b.1, c.1) {
+                        let all = |k: usize| match (first[k], b[k], c[k]) {
                             (Some(x), Some(y), Some(z)) => Some([x, y, z]),
                             _ => None,
                         };
-                        let corners = [first.0, b.0, c.0];
-                        mesh.faces.push(ObjFace { corners, normals, usemtl: current, line });
+                        let corners = all(0).unwrap_or_default();
+                        let (uvs, normals) = (all(1), all(2));
+                        mesh.faces.push(ObjFace { corners, uvs, normals, usemtl: current, line });
                     }
                 }
             }
@@ -262,24 +303,24 @@ pub(super) fn parse_obj(label: &str, text: &str) -> Result<ObjMesh, SceneError> 
     Ok(mesh)
 }
 
-/// One face corner (`v`, `v/vt`, `v//vn`, `v/vt/vn`), resolved: the 0-based position
-/// index and, where it names one, the 0-based `vn` index.
-fn resolve_corner(tok: &str, positions: usize, normals: usize) -> Result<(usize, Option<usize>), String> {
+/// One face corner (`v`, `v/vt`, `v//vn`, `v/vt/vn`), resolved against the counts of
+/// positions, texture coordinates and normals defined so far: the 0-based position, `vt`
+/// and `vn` indices (the last two where the corner names them).
+fn resolve_corner(tok: &str, counts: [usize; 3]) -> Result<[Option<usize>; 3], String> {
     let parts: Vec<&str> = tok.split('/').collect();
     let bad = || format!("{} is not a vertex reference (v, v/vt, v//vn or v/vt/vn)", shown(tok));
     if parts.len() > 3 || parts[1..].iter().any(|p| !p.is_empty() && p.parse::<i64>().is_err()) {
         return Err(bad());
     }
     let i: i64 = parts[0].parse().map_err(|_| format!("{} is not a vertex index", shown(tok)))?;
-    let v = resolve_index(i, positions, "vertex", "vertices")?;
-    let n = match parts.get(2) {
-        Some(p) if !p.is_empty() => {
-            let k: i64 = p.parse().map_err(|_| bad())?;
-            Some(resolve_index(k, normals, "normal", "normals (vn)")?)
+    let mut out = [Some(resolve_index(i, counts[0], "vertex", "vertices")?), None, None];
+    for (k, (what, plural)) in [(1, ("texture coordinate", "texture coordinates (vt)")), (2, ("normal", "normals (vn)"))] {
+        if let Some(p) = parts.get(k).filter(|p| !p.is_empty()) {
+            let j: i64 = p.parse().map_err(|_| bad())?;
+            out[k] = Some(resolve_index(j, counts[k], what, plural)?);
         }
-        _ => None,
-    };
-    Ok((v, n))
+    }
+    Ok(out)
 }
 
 /// A 1-based (or negative, relative) OBJ index among `count` entries defined so far, as
@@ -322,6 +363,7 @@ struct MtlPending {
     d: Option<f64>,
     tr: Option<f64>,
     ni: Option<f64>,
+    map_kd: Option<MapKd>,
 }
 
 impl MtlPending {
@@ -367,8 +409,23 @@ impl MtlPending {
 
 /// Parses an MTL file; `label` names it in errors. Unknown statements (`Ka`, `Ns`,
 /// `illum`, texture maps, ...) are ignored; a name defined twice is an error.
+#[cfg(test)]
 pub(super) fn parse_mtl(label: &str, text: &str) -> Result<Vec<Material>, SceneError> {
-    let mut done: Vec<Material> = Vec::new();
+    Ok(parse_mtl_maps(label, text)?.into_iter().map(|(m, _)| m).collect())
+}
+
+/// A `map_Kd` statement: the texture file (relative to the MTL's folder) and its line.
+#[derive(Clone, Debug, PartialEq)]
+pub(super) struct MapKd {
+    /// The file name, the statement's last token (options before it are ignored).
+    pub file: String,
+    /// 1-based line of the statement.
+    pub line: u32,
+}
+
+/// [`parse_mtl`], each material with its `map_Kd` if it has one.
+pub(super) fn parse_mtl_maps(label: &str, text: &str) -> Result<Vec<(Material, Option<MapKd>)>, SceneError> {
+    let mut done: Vec<(Material, Option<MapKd>)> = Vec::new();
     let mut pending: Option<MtlPending> = None;
     for (n, raw_line) in text.lines().enumerate() {
         let line = u32::try_from(n + 1).unwrap_or(u32::MAX);
@@ -384,15 +441,16 @@ pub(super) fn parse_mtl(label: &str, text: &str) -> Result<Vec<Material>, SceneE
                 return Err(err("newmtl needs a material name".to_string()));
             }
             if let Some(p) = pending.take() {
-                done.push(p.finish(label));
+                let map = p.map_kd.clone();
+                done.push((p.finish(label), map));
             }
-            if let Some(first) = done.iter().find(|m| m.name == name) {
+            if let Some((first, _)) = done.iter().find(|(m, _)| m.name == name) {
                 return Err(err(format!("material '{name}' is already defined at line {}", first.loc.line)));
             }
             pending = Some(MtlPending { name: name.to_string(), line, ..MtlPending::default() });
             continue;
         }
-        let known = matches!(keyword, "Kd" | "Ks" | "Tf" | "d" | "Tr" | "Ni");
+        let known = matches!(keyword, "Kd" | "Ks" | "Tf" | "d" | "Tr" | "Ni" | "map_Kd");
         let Some(p) = pending.as_mut() else {
             if known {
                 return Err(err(format!("{} before any newmtl", shown(keyword))));
@@ -402,6 +460,10 @@ pub(super) fn parse_mtl(label: &str, text: &str) -> Result<Vec<Material>, SceneE
         let args: Vec<&str> = tokens.collect();
         match keyword {
             "Kd" => p.kd = Some(parse_colour(&args).map_err(|m| err(format!("Kd: {m}")))?),
+            "map_Kd" => match args.last() {
+                Some(file) => p.map_kd = Some(MapKd { file: file.to_string(), line }),
+                None => return Err(err("map_Kd needs a file name".to_string())),
+            },
             "Ks" => p.ks = Some(parse_colour(&args).map_err(|m| err(format!("Ks: {m}")))?),
             "Tf" => p.tf = Some(parse_colour(&args).map_err(|m| err(format!("Tf: {m}")))?),
             "d" | "Tr" | "Ni" => {
@@ -420,7 +482,8 @@ pub(super) fn parse_mtl(label: &str, text: &str) -> Result<Vec<Material>, SceneE
         }
     }
     if let Some(p) = pending.take() {
-        done.push(p.finish(label));
+        let map = p.map_kd.clone();
+        done.push((p.finish(label), map));
     }
     Ok(done)
 }

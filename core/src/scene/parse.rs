@@ -185,7 +185,7 @@ pub fn parse_scene_with_path(
 
     let mut builder = PatchBuilder {
         cx: &cx,
-        materials: MaterialTable { list: materials, toml: by_name, from_file: HashMap::new() },
+        materials: MaterialTable { list: materials, toml: by_name, ..MaterialTable::new() },
         patches: Vec::new(),
     };
     // Patches in file order, whatever their kind.
@@ -205,7 +205,8 @@ pub fn parse_scene_with_path(
         return Err(cx.whole_file("triangle", "the scene has no [[triangle]], [[quad]] or [[mesh]]"));
     }
     let PatchBuilder { materials, patches, .. } = builder;
-    Ok((Scene { name: file_label.to_string(), camera, settings, lights, materials: materials.list, patches }, path))
+    let textures = materials.textures;
+    Ok((Scene { name: file_label.to_string(), camera, settings, lights, materials: materials.list, patches, textures }, path))
 }
 
 enum Entry<'a> {
@@ -594,7 +595,7 @@ impl PatchBuilder<'_, '_> {
             material,
             subdivisions,
             size_hint: None,
-            normals: None,
+            normals: None, uv: None, texture: None,
             loc: self.cx.loc(&t.vertices),
         });
         Ok(())
@@ -616,7 +617,7 @@ impl PatchBuilder<'_, '_> {
         let size_hint = Some(longest);
         let loc = self.cx.loc(&q.vertices);
         for tri in [[v[0], v[1], v[2]], [v[0], v[2], v[3]]] {
-            self.patches.push(PatchDef { vertices: tri, material, subdivisions, size_hint, normals: None, loc: loc.clone() });
+            self.patches.push(PatchDef { vertices: tri, material, subdivisions, size_hint, normals: None, uv: None, texture: None, loc: loc.clone() });
         }
         Ok(())
     }
@@ -661,9 +662,17 @@ impl PatchBuilder<'_, '_> {
             material,
             shading,
         };
-        for (vertices, material, normals) in mesh::load_mesh(&entry, base_dir, read, &mut self.materials)? {
-            let loc = entry.at.clone();
-            self.patches.push(PatchDef { vertices, material, subdivisions, size_hint: None, normals, loc });
+        for t in mesh::load_mesh(&entry, base_dir, read, &mut self.materials)? {
+            self.patches.push(PatchDef {
+                vertices: t.v,
+                material: t.material,
+                subdivisions,
+                size_hint: None,
+                normals: t.normals,
+                uv: t.uv,
+                texture: t.texture,
+                loc: entry.at.clone(),
+            });
         }
         Ok(())
     }

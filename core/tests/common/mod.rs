@@ -39,8 +39,8 @@ pub fn light(p: DVec3, i: f64) -> Light {
 /// A quad (a, b, c, d), counter-clockwise from the front, as two triangles sharing n.
 pub fn quad(a: DVec3, b: DVec3, c: DVec3, d: DVec3, material: u32, n: u32) -> Vec<PatchDef> {
     vec![
-        PatchDef { vertices: [a, b, c], material, subdivisions: Some(n), size_hint: None, normals: None, loc: loc() },
-        PatchDef { vertices: [a, c, d], material, subdivisions: Some(n), size_hint: None, normals: None, loc: loc() },
+        PatchDef { vertices: [a, b, c], material, subdivisions: Some(n), size_hint: None, normals: None, uv: None, texture: None, loc: loc() },
+        PatchDef { vertices: [a, c, d], material, subdivisions: Some(n), size_hint: None, normals: None, uv: None, texture: None, loc: loc() },
     ]
 }
 
@@ -95,6 +95,7 @@ pub fn scene(patches: Vec<PatchDef>, materials: Vec<Material>, lights: Vec<Light
         lights,
         materials,
         patches,
+        textures: Vec::new(),
     }
 }
 
@@ -121,7 +122,7 @@ pub fn view_of(p: &PreparedScene) -> SceneView {
 
 /// A single triangle patch with a fixed subdivision count.
 pub fn tri(a: DVec3, b: DVec3, c: DVec3, material: u32, n: u32) -> PatchDef {
-    PatchDef { vertices: [a, b, c], material, subdivisions: Some(n), size_hint: None, normals: None, loc: loc() }
+    PatchDef { vertices: [a, b, c], material, subdivisions: Some(n), size_hint: None, normals: None, uv: None, texture: None, loc: loc() }
 }
 
 /// A closed octahedron of 8 patches (vertices at +-1 on each axis, outward winding),
@@ -146,3 +147,27 @@ pub fn octahedron(n: u32, light_at: DVec3, grid: [u32; 3]) -> Scene {
     s.settings.accel = magg_core::scene::Accel::Grid;
     s
 }
+
+/// The head of a TOML scene seen from straight above a floor at y = 0: a 32 x 32 image,
+/// one viewing ray per pixel, no ambient, one light at (0.3, 1.5, 0.2) of 2 W/sr, and a
+/// white diffuse material (0.5). Tests append their `[[mesh]]`.
+#[allow(dead_code)]
+pub const TOP_DOWN_HEAD: &str = r#"
+[camera]
+eye = [0.0, 3.0, 0.01]
+look_at = [0.0, 0.0, 0.0]
+up = [0.0, 1.0, 0.0]
+fov = 60.0
+[render]
+width = 32
+height = 32
+pixel_samples = 1
+light_rays = 16
+ambient = [0.0, 0.0, 0.0]
+[[light]]
+position = [0.3, 1.5, 0.2]
+intensity = [2.0, 2.0, 2.0]
+[[material]]
+name = "white"
+diffuse = [0.5, 0.5, 0.5]
+"#;

@@ -19,7 +19,7 @@ fn scene() -> Scene {
         vertices: [DVec3::new(0.0, 0.0, z), DVec3::new(1.0, 0.0, z), DVec3::new(0.0, 1.0, z)],
         material,
         subdivisions: None,
-        size_hint: None, normals: None,
+        size_hint: None, normals: None, uv: None, texture: None,
         loc: SourceLoc::default(),
     };
     Scene {
@@ -43,6 +43,7 @@ fn scene() -> Scene {
             material("unused", 0.1, 0.0, 0.0),
         ],
         patches: vec![tri(0, 0.0), tri(0, -1.0), tri(1, -2.0)],
+        textures: Vec::new(),
     }
 }
 

@@ -70,7 +70,7 @@ fn load_with(bytes: &[u8], files: &[(&str, Vec<u8>)], material: Option<u32>) -> 
         material,
         shading: Default::default(),
     };
-    let mut table = MaterialTable { list: Vec::new(), toml: HashMap::new(), from_file: HashMap::new() };
+    let mut table = MaterialTable::new();
     let triangles = load(&entry, Path::new("d/m.gltf"), "d/m.gltf", bytes, &read, &mut table)?;
     Ok(Loaded { triangles, materials: table.list })
 }
