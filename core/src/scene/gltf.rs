@@ -27,7 +27,7 @@ use ::gltf::json;
 use ::gltf::mesh::Mode;
 use ::gltf::Document;
 use base64::Engine;
-use glam::{DMat3, DMat4, DQuat, DVec3};
+use glam::{DMat3, DMat4, DQuat, DVec2, DVec3};
 
 use super::error::SceneError;
 use super::mesh::{MaterialTable, MeshEntry, ModelTriangle, ReadFile, MAX_MESH_TRIANGLES};
@@ -159,18 +159,7 @@ fn load_buffers(
             Source::Bin => {
                 bin.take().ok_or_else(|| err("refers to a GLB binary chunk the file does not have".into()))?
             }
-            Source::Uri(uri) if uri.starts_with("data:") => {
-                let (_, payload) =
-                    uri.split_once(";base64,").ok_or_else(|| err("a data: URI that is not base64".into()))?;
-                base64::engine::general_purpose::STANDARD
-                    .decode(payload)
-                    .map_err(|_| err("a data: URI whose base64 does not decode".into()))?
-            }
-            Source::Uri(uri) => {
-                let name = percent_decode(uri).ok_or_else(|| err("a URI that is not a relative file name".into()))?;
-                let path = dir.join(&name);
-                read(&path).map_err(|e| err(format!("cannot read buffer file '{}': {e}", path.display())))?
-            }
+            Source::Uri(uri) => uri_bytes(uri, &dir, read, "buffer").map_err(err)?,
         };
         if data.len() < buffer.length() {
             return Err(err(format!("{} bytes where byteLength says {} (truncated?)", data.len(), buffer.length())));
@@ -178,6 +167,60 @@ fn load_buffers(
         out.push(data);
     }
     Ok(out)
+}
+
+/// The bytes a URI of the file (in folder `dir`) names: a base64 `data:` URI, or a file
+/// beside it read through `read`; `what` ("buffer", "image") labels errors.
+fn uri_bytes(uri: &str, dir: &Path, read: ReadFile<'_>, what: &str) -> Result<Vec<u8>, String> {
+    if uri.starts_with("data:") {
+        let (_, payload) = uri.split_once(";base64,").ok_or("a data: URI that is not base64")?;
+        return base64::engine::general_purpose::STANDARD
+            .decode(payload)
+            .map_err(|_| "a data: URI whose base64 does not decode".to_string());
+    }
+    let name = percent_decode(uri).ok_or("a URI that is not a relative file name")?;
+    let path = dir.join(&name);
+    read(&path).map_err(|e| format!("cannot read {what} file '{}': {e}", path.display()))
+}
+
+/// The texture of glTF material `m`'s `baseColorTexture` (decoded once into
+/// `materials`) and the `TEXCOORD_n` set it uses; `None` when it has none.
+fn base_colour_texture(
+    doc: &Document,
+    m: usize,
+    buffers: &[Vec<u8>],
+    gltf_path: &Path,
+    read: ReadFile<'_>,
+    materials: &mut MaterialTable,
+) -> Result<Option<(u32, u32)>, String> {
+    let Some(mat) = doc.materials().nth(m) else { return Ok(None) };
+    let Some(info) = mat.pbr_metallic_roughness().base_color_texture() else { return Ok(None) };
+    let image = info.texture().source();
+    let at = format!("images[{}]", image.index());
+    let dir = gltf_path.parent().map_or_else(PathBuf::new, Path::to_path_buf);
+    // Textures are keyed by where they come from: a file, or an image of this glTF.
+    let (key, bytes) = match image.source() {
+        ::gltf::image::Source::Uri { uri, .. } if !uri.starts_with("data:") => {
+            let name = percent_decode(uri).ok_or_else(|| format!("{at}: a URI that is not a relative file name"))?;
+            let path = dir.join(name);
+            if let Some(&id) = materials.texture_ids.get(&path) {
+                return Ok(Some((id, info.tex_coord())));
+            }
+            let bytes = read(&path).map_err(|e| format!("{at}: cannot read image file '{}': {e}", path.display()))?;
+            (path, bytes)
+        }
+        ::gltf::image::Source::Uri { uri, .. } => {
+            (gltf_path.join(&at), uri_bytes(uri, &dir, read, "image").map_err(|m| format!("{at}: {m}"))?)
+        }
+        ::gltf::image::Source::View { view, .. } => {
+            let buf = buffers.get(view.buffer().index()).ok_or_else(|| format!("{at}: no such buffer"))?;
+            let end = view.offset().checked_add(view.length());
+            let bytes = end.and_then(|e| buf.get(view.offset()..e)).ok_or_else(|| format!("{at}: its buffer view lies past the end of its buffer"))?;
+            (gltf_path.join(&at), bytes.to_vec())
+        }
+    };
+    let id = materials.add_texture(key, &bytes).map_err(|m| format!("{at}: {m}"))?;
+    Ok(Some((id, info.tex_coord())))
 }
 
 /// A relative URI as a file name (`%20` decoded), or None for a URI with a scheme or
@@ -345,6 +388,7 @@ pub(super) fn load(
     let err = |m: String| file_err(label, m);
     let names = material_names(&doc);
     let mut material_ids: Vec<Option<u32>> = vec![None; names.len()];
+    let mut textures: Vec<Option<Option<(u32, u32)>>> = vec![None; names.len()];
     let mut out: Vec<ModelTriangle> = Vec::new();
     for (node, world) in placed_nodes(&doc).map_err(err)? {
         let Some(mesh) = node.mesh() else { continue };
@@ -367,9 +411,25 @@ pub(super) fn load(
                 },
                 (None, None) => return Err(entry.no_material(&format!("{label}: {at}"))),
             };
+            // The base colour texture, when the face takes the file's material.
+            let texture = match (entry.material, prim.material().index()) {
+                (None, Some(m)) => match textures.get(m).copied().flatten() {
+                    Some(t) => t,
+                    None => {
+                        let t = base_colour_texture(&doc, m, &buffers, path, read, materials)
+                            .map_err(|e| err(format!("materials[{m}].pbrMetallicRoughness.baseColorTexture: {e}")))?;
+                        if let Some(slot) = textures.get_mut(m) {
+                            *slot = Some(t);
+                        }
+                        t
+                    }
+                },
+                _ => None,
+            };
             // Normals go through the inverse transpose of the node's matrix.
             let normal_matrix = DMat3::from_mat4(world).inverse().transpose();
-            for (corners, normals) in primitive_triangles(&prim, &buffers).map_err(|m| err(format!("{at}: {m}")))? {
+            let tris = primitive_triangles(&prim, &buffers, texture.map(|t| t.1)).map_err(|m| err(format!("{at}: {m}")))?;
+            for (corners, normals, uv) in tris {
                 let mut v = corners.map(|p| world.transform_point3(p));
                 let mut normals = normals.map(|n| n.map(|n| normal_matrix * n));
                 if !v.iter().all(|p| p.is_finite() && p.abs().max_element() <= MAX_COORDINATE) {
@@ -382,7 +442,14 @@ pub(super) fn load(
                         n.swap(1, 2);
                     }
                 }
-                out.push(ModelTriangle { v, material, normals, uv: None, texture: None });
+                let mut uv = uv;
+                if flip {
+                    if let Some(c) = uv.as_mut() {
+                        c.swap(1, 2);
+                    }
+                }
+                let texture = texture.map(|t| t.0).filter(|_| uv.is_some());
+                out.push(ModelTriangle { v, material, normals, uv, texture });
             }
             if out.len() > MAX_MESH_TRIANGLES {
                 return Err(err(format!("more than {MAX_MESH_TRIANGLES} triangles once placed by its nodes")));
@@ -397,11 +464,17 @@ pub(super) fn load(
     Ok(out)
 }
 
-/// A primitive's triangle in its mesh's space, with its corners' `NORMAL`s if it has them.
-type PrimitiveTriangle = ([DVec3; 3], Option<[DVec3; 3]>);
+/// A primitive's triangle in its mesh's space, with its corners' `NORMAL`s and texture
+/// coordinates (v up, as magg takes them) if it has them.
+type PrimitiveTriangle = ([DVec3; 3], Option<[DVec3; 3]>, Option<[DVec2; 3]>);
 
-/// The triangles of a primitive in its mesh's space (empty for points and lines).
-fn primitive_triangles(prim: &::gltf::Primitive<'_>, buffers: &[Vec<u8>]) -> Result<Vec<PrimitiveTriangle>, String> {
+/// The triangles of a primitive in its mesh's space (empty for points and lines), with
+/// the texture coordinates of set `TEXCOORD_{uv_set}` when asked for.
+fn primitive_triangles(
+    prim: &::gltf::Primitive<'_>,
+    buffers: &[Vec<u8>],
+    uv_set: Option<u32>,
+) -> Result<Vec<PrimitiveTriangle>, String> {
     let mode = prim.mode();
     if !matches!(mode, Mode::Triangles | Mode::TriangleStrip | Mode::TriangleFan) {
         return Ok(Vec::new());
@@ -425,6 +498,23 @@ fn primitive_triangles(prim: &::gltf::Primitive<'_>, buffers: &[Vec<u8>]) -> Res
         }
         None => None,
     };
+    let uvs: Option<Vec<DVec2>> = match uv_set.and_then(|k| prim.get(&::gltf::Semantic::TexCoords(k)).map(|a| (k, a))) {
+        Some((k, acc)) => {
+            let scale = match (acc.data_type(), acc.normalized()) {
+                (DataType::F32, _) => 1.0,
+                (DataType::U8, true) => 1.0 / 255.0,
+                (DataType::U16, true) => 1.0 / 65535.0,
+                _ => return Err(format!("attributes[\"TEXCOORD_{k}\"] is not float or normalized unsigned")),
+            };
+            let flat = read_accessor(&acc, buffers)?;
+            if acc.dimensions() != Dimensions::Vec2 || flat.len() != 2 * positions.len() {
+                return Err(format!("attributes[\"TEXCOORD_{k}\"] is not one VEC2 per position"));
+            }
+            // glTF's t runs down the image; magg's v runs up.
+            Some(flat.chunks_exact(2).map(|c| DVec2::new(c[0] * scale, 1.0 - c[1] * scale)).collect())
+        }
+        None => None,
+    };
     let indices: Vec<usize> = match prim.indices() {
         Some(acc) => {
             if acc.dimensions() != Dimensions::Scalar
@@ -440,10 +530,11 @@ fn primitive_triangles(prim: &::gltf::Primitive<'_>, buffers: &[Vec<u8>]) -> Res
         return Err(format!("index {bad} is out of range: {} vertices", positions.len()));
     }
     let n = indices.len();
-    let corner = |k: usize| (positions[indices[k]], normals.as_ref().map(|n| n[indices[k]]));
     let triangle = |a: usize, b: usize, c: usize| -> PrimitiveTriangle {
-        let [(pa, na), (pb, nb), (pc, nc)] = [corner(a), corner(b), corner(c)];
-        ([pa, pb, pc], na.zip(nb).zip(nc).map(|((a, b), c)| [a, b, c]))
+        let [a, b, c] = [indices[a], indices[b], indices[c]];
+        let normals = normals.as_ref().map(|n| [n[a], n[b], n[c]]);
+        let uv = uvs.as_ref().map(|t| [t[a], t[b], t[c]]);
+        ([positions[a], positions[b], positions[c]], normals, uv)
     };
     let tris: Vec<PrimitiveTriangle> = match mode {
         Mode::Triangles => {

@@ -82,12 +82,20 @@ impl MaterialTable {
         if let Some(&id) = self.texture_ids.get(path) {
             return Ok(id);
         }
-        let label = path.display().to_string();
-        let bytes = read(path).map_err(|e| format!("cannot read texture '{label}': {e}"))?;
-        let t = Texture::decode(&label, &bytes)?;
+        let bytes = read(path).map_err(|e| format!("cannot read texture '{}': {e}", path.display()))?;
+        self.add_texture(path.to_path_buf(), &bytes)
+    }
+
+    /// Decodes the image `bytes` as the texture known by `key` (its file, or the glTF
+    /// image it is) and returns its index; the same key gives the same texture.
+    pub(super) fn add_texture(&mut self, key: PathBuf, bytes: &[u8]) -> Result<u32, String> {
+        if let Some(&id) = self.texture_ids.get(&key) {
+            return Ok(id);
+        }
+        let t = Texture::decode(&key.display().to_string(), bytes)?;
         let id = u32::try_from(self.textures.len()).map_err(|_| "too many textures".to_string())?;
         self.textures.push(t);
-        self.texture_ids.insert(path.to_path_buf(), id);
+        self.texture_ids.insert(key, id);
         Ok(id)
     }
 

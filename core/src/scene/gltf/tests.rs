@@ -270,3 +270,39 @@ fn normals_come_through_the_node_transform_by_its_inverse_transpose() {
         assert!((c.normalize() - want).length() < 1e-6, "{c:?}");
     }
 }
+
+#[test]
+fn a_base_colour_texture_and_its_texcoords_are_read() {
+    let mut png = Vec::new();
+    image::RgbImage::from_pixel(2, 1, image::Rgb([10, 200, 30]))
+        .write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)
+        .unwrap();
+    let mut bin = buffer();
+    bin.extend([0.0f32, 0.0, 1.0, 0.0, 0.0, 1.0].iter().flat_map(|x| x.to_le_bytes()));
+    bin.extend(&png);
+    let json = document(r#"[{"mesh":0}]"#, None)
+        .replace(r#""attributes":{"POSITION":0}"#, r#""attributes":{"POSITION":0,"TEXCOORD_0":2}"#)
+        .replace(
+            r#""metallicFactor":0}"#,
+            r#""metallicFactor":0,"baseColorTexture":{"index":0}}"#,
+        )
+        .replace(
+            r#"{"bufferView":1,"componentType":5123,"count":3,"type":"SCALAR"}]"#,
+            r#"{"bufferView":1,"componentType":5123,"count":3,"type":"SCALAR"},
+{"bufferView":2,"componentType":5126,"count":3,"type":"VEC2"}],
+"textures":[{"source":0}],"images":[{"bufferView":3,"mimeType":"image/png"}]"#,
+        )
+        .replace(
+            r#"{"buffer":0,"byteOffset":36,"byteLength":6}]"#,
+            &format!(
+                r#"{{"buffer":0,"byteOffset":36,"byteLength":6}},{{"buffer":0,"byteOffset":44,"byteLength":24}},{{"buffer":0,"byteOffset":68,"byteLength":{}}}]"#,
+                png.len()
+            ),
+        )
+        .replace(r#""byteLength":44"#, &format!(r#""byteLength":{}"#, 68 + png.len()));
+    let l = load_with(&glb(&json, &bin), &[], None).unwrap_or_else(|e| panic!("{e}"));
+    let t = &l.triangles[0];
+    assert_eq!(t.texture, Some(0));
+    // glTF's t runs down the image, magg's v up.
+    assert_eq!(t.uv, Some([glam::DVec2::new(0.0, 1.0), glam::DVec2::new(1.0, 1.0), glam::DVec2::new(0.0, 0.0)]));
+}
