@@ -24,7 +24,8 @@
 //! transport, which the integrator given at render time decides (`deploy/mitsuba-reference.py`).
 
 use magg_core::color::Rgb;
-use magg_core::scene::{Material, PatchDef, Scene};
+use magg_core::frame::Frame;
+use magg_core::scene::{srgb_to_linear, Material, PatchDef, Scene, Texture};
 use std::fmt::Write as _;
 use std::path::Path;
 
@@ -112,12 +113,6 @@ pub fn write(scene: &Scene, dir: &Path) -> anyhow::Result<Notes> {
             rgb(s.background)
         );
     }
-    if !scene.textures.is_empty() {
-        notes.lines.push(format!(
-            "{} texture(s) are not exported: textured faces render with their material's Kd alone in Mitsuba",
-            scene.textures.len()
-        ));
-    }
     if !s.ambient.is_black() && s.diffuse_bounces == 0 {
         notes.lines.push(format!(
             "the ambient term ({}) is not exported: render magg with --set render.ambient=[0,0,0] to compare",
@@ -125,17 +120,32 @@ pub fn write(scene: &Scene, dir: &Path) -> anyhow::Result<Notes> {
         ));
     }
     for (id, m) in scene.materials.iter().enumerate() {
-        // Flat patches in one PLY, smooth ones (with their corner normals) in another.
-        for smooth in [false, true] {
+        // One PLY per material, shading (flat or smooth) and texture.
+        let mut groups: Vec<(bool, Option<u32>)> = scene
+            .patches
+            .iter()
+            .filter(|p| p.material as usize == id)
+            .map(|p| (p.normals.is_some(), p.texture.filter(|_| p.uv.is_some())))
+            .collect();
+        groups.sort();
+        groups.dedup();
+        for (smooth, texture) in groups {
             let patches: Vec<&PatchDef> = scene
                 .patches
                 .iter()
-                .filter(|p| p.material as usize == id && p.normals.is_some() == smooth)
+                .filter(|p| {
+                    p.material as usize == id
+                        && p.normals.is_some() == smooth
+                        && p.texture.filter(|_| p.uv.is_some()) == texture
+                })
                 .collect();
-            if patches.is_empty() {
-                continue;
-            }
-            let file = if smooth { format!("material-{id}-smooth.ply") } else { format!("material-{id}.ply") };
+            let tag = match (smooth, texture) {
+                (false, None) => String::new(),
+                (true, None) => "-smooth".into(),
+                (false, Some(t)) => format!("-texture-{t}"),
+                (true, Some(t)) => format!("-smooth-texture-{t}"),
+            };
+            let file = format!("material-{id}{tag}.ply");
             let path = meshes.join(&file);
             std::fs::write(&path, ply(&patches)).with_context(|| format!("cannot write {}", path.display()))?;
             let shading = if smooth { "smooth" } else { "flat" };
@@ -143,7 +153,11 @@ pub fn write(scene: &Scene, dir: &Path) -> anyhow::Result<Notes> {
             let _ = writeln!(xml, "  <shape type=\"ply\">");
             let _ = writeln!(xml, "    <string name=\"filename\" value=\"meshes/{file}\"/>");
             let _ = writeln!(xml, "    <boolean name=\"face_normals\" value=\"{}\"/>", !smooth);
-            bsdf(&mut xml, m, "    ");
+            let texture = match texture.and_then(|t| scene.textures.get(t as usize).map(|x| (t, x))) {
+                Some((t, tex)) => Some(Bitmap { texture: tex, file: format!("meshes/material-{id}-texture-{t}.exr"), dir }),
+                None => None,
+            };
+            bsdf(&mut xml, m, texture.as_ref(), "    ")?;
             let _ = writeln!(xml, "  </shape>");
         }
     }
@@ -153,8 +167,38 @@ pub fn write(scene: &Scene, dir: &Path) -> anyhow::Result<Notes> {
     Ok(notes)
 }
 
-/// The BSDF of `m`: its parts, blended so that each keeps its own reflectance.
-fn bsdf(xml: &mut String, m: &Material, indent: &str) {
+/// A texture of the diffuse part, written as a linear EXR at `dir/file` (with the
+/// material's `Kd`, and the weight a blend gives the part, multiplied in).
+struct Bitmap<'a> {
+    texture: &'a Texture,
+    file: String,
+    dir: &'a Path,
+}
+
+impl Bitmap<'_> {
+    /// Writes the texture times `scale` and returns the XML of Mitsuba's bitmap texture.
+    fn write(&self, scale: Rgb) -> anyhow::Result<String> {
+        use anyhow::Context;
+        let t = self.texture;
+        let mut frame = Frame::new(t.width, t.height);
+        for (i, texel) in t.texels.iter().enumerate() {
+            let lin = Rgb(texel.map(srgb_to_linear));
+            frame.set(i as u32 % t.width, i as u32 / t.width, lin.mul(scale));
+        }
+        let path = self.dir.join(&self.file);
+        std::fs::write(&path, crate::images::encode_exr(&frame)?)
+            .with_context(|| format!("cannot write {}", path.display()))?;
+        Ok(format!(
+            "<texture type=\"bitmap\" name=\"reflectance\"><string name=\"filename\" value=\"{}\"/>\
+             <string name=\"filter_type\" value=\"bilinear\"/><string name=\"wrap_mode\" value=\"repeat\"/></texture>",
+            self.file
+        ))
+    }
+}
+
+/// The BSDF of `m`: its parts, blended so that each keeps its own reflectance; the
+/// diffuse part textured by `texture` when given.
+fn bsdf(xml: &mut String, m: &Material, texture: Option<&Bitmap<'_>>, indent: &str) -> anyhow::Result<()> {
     let mut parts: Vec<(f64, Part)> = Vec::new();
     for (part, c) in [(Part::Diffuse, m.diffuse), (Part::Mirror, m.mirror), (Part::Dielectric, m.transmit)] {
         if !c.is_black() {
@@ -163,17 +207,23 @@ fn bsdf(xml: &mut String, m: &Material, indent: &str) {
     }
     if parts.is_empty() {
         let _ = writeln!(xml, "{indent}<bsdf type=\"diffuse\"><rgb name=\"reflectance\" value=\"0, 0, 0\"/></bsdf>");
-        return;
+        return Ok(());
     }
-    blend(xml, m, &parts, 1.0, indent);
+    blend(xml, m, texture, &parts, 1.0, indent)
 }
 
 /// Writes `parts` as one BSDF whose total weight is `scale` (each part's colour divided
 /// by the weight its blend gives it, so the sum stays the material's).
-fn blend(xml: &mut String, m: &Material, parts: &[(f64, Part)], scale: f64, indent: &str) {
+fn blend(
+    xml: &mut String,
+    m: &Material,
+    texture: Option<&Bitmap<'_>>,
+    parts: &[(f64, Part)],
+    scale: f64,
+    indent: &str,
+) -> anyhow::Result<()> {
     if let [(_, part)] = parts {
-        part.write(xml, m, scale, indent);
-        return;
+        return part.write(xml, m, texture, scale, indent);
     }
     let (first, rest) = (&parts[0], &parts[1..]);
     let total: f64 = parts.iter().map(|p| p.0).sum();
@@ -181,9 +231,10 @@ fn blend(xml: &mut String, m: &Material, parts: &[(f64, Part)], scale: f64, inde
     let weight = (total - first.0) / total;
     let _ = writeln!(xml, "{indent}<bsdf type=\"blendbsdf\">");
     let _ = writeln!(xml, "{indent}  <float name=\"weight\" value=\"{weight}\"/>");
-    first.1.write(xml, m, scale * (1.0 - weight), &format!("{indent}  "));
-    blend(xml, m, rest, scale * weight, &format!("{indent}  "));
+    first.1.write(xml, m, texture, scale * (1.0 - weight), &format!("{indent}  "))?;
+    blend(xml, m, texture, rest, scale * weight, &format!("{indent}  "))?;
     let _ = writeln!(xml, "{indent}</bsdf>");
+    Ok(())
 }
 
 /// One part of a magg material.
@@ -196,17 +247,17 @@ enum Part {
 
 impl Part {
     /// Writes the part, its colour divided by `weight` (the share a blend gives it).
-    fn write(self, xml: &mut String, m: &Material, weight: f64, indent: &str) {
+    fn write(self, xml: &mut String, m: &Material, texture: Option<&Bitmap<'_>>, weight: f64, indent: &str) -> anyhow::Result<()> {
         let scaled = |c: Rgb| rgb(c.scale(1.0 / weight));
         // A one-sided material is Mitsuba's plain (one-sided) BSDF.
         let (open, close) = if m.one_sided { ("", "") } else { ("<bsdf type=\"twosided\">", "</bsdf>") };
         match self {
             Part::Diffuse => {
-                let _ = writeln!(
-                    xml,
-                    "{indent}{open}<bsdf type=\"diffuse\"><rgb name=\"reflectance\" value=\"{}\"/></bsdf>{close}",
-                    scaled(m.diffuse)
-                );
+                let reflectance = match texture {
+                    Some(b) => b.write(m.diffuse.scale(1.0 / weight))?,
+                    None => format!("<rgb name=\"reflectance\" value=\"{}\"/>", scaled(m.diffuse)),
+                };
+                let _ = writeln!(xml, "{indent}{open}<bsdf type=\"diffuse\">{reflectance}</bsdf>{close}");
             }
             Part::Mirror => {
                 let _ = writeln!(
@@ -227,17 +278,21 @@ impl Part {
                 );
             }
         }
+        Ok(())
     }
 }
 
 /// A binary little-endian PLY of the patches as unshared triangles (float32 positions,
-/// and float32 normals when the patches are smooth: all of them or none).
+/// float32 normals when the patches are smooth and texture coordinates when they are
+/// textured: all of them or none).
 fn ply(patches: &[&PatchDef]) -> Vec<u8> {
     let normals = patches.first().is_some_and(|p| p.normals.is_some());
+    let uv = patches.first().is_some_and(|p| p.texture.is_some() && p.uv.is_some());
     let normal_props = if normals { "property float nx\nproperty float ny\nproperty float nz\n" } else { "" };
+    let uv_props = if uv { "property float u\nproperty float v\n" } else { "" };
     let header = format!(
         "ply\nformat binary_little_endian 1.0\ncomment written by magg-host export\nelement vertex {}\n\
-         property float x\nproperty float y\nproperty float z\n{normal_props}element face {}\n\
+         property float x\nproperty float y\nproperty float z\n{normal_props}{uv_props}element face {}\n\
          property list uchar int vertex_indices\nend_header\n",
         patches.len() * 3,
         patches.len()
@@ -249,6 +304,11 @@ fn ply(patches: &[&PatchDef]) -> Vec<u8> {
             v.to_array().into_iter().for_each(&mut put);
             if let (true, Some(n)) = (normals, p.normals) {
                 n[k].to_array().into_iter().for_each(&mut put);
+            }
+            // Mitsuba's bitmaps put v = 0 at the image's top row; magg's v runs up.
+            if let (true, Some(t)) = (uv, p.uv) {
+                put(t[k].x);
+                put(1.0 - t[k].y);
             }
         }
     }

@@ -103,3 +103,26 @@ fn what_is_left_out_is_said() {
     let notes = write(&s, &dir).unwrap();
     assert!(notes.lines.iter().any(|l| l.contains("ambient")), "{notes:?}");
 }
+
+#[test]
+fn textured_and_smooth_patches_get_their_own_plys_with_uv_normals_and_an_exr_bitmap() {
+    let mut s = scene();
+    s.textures.push(Texture { name: "t.png".into(), width: 2, height: 1, texels: vec![[255, 255, 255], [0, 0, 0]] });
+    s.patches[0].uv = Some([glam::DVec2::ZERO, glam::DVec2::X, glam::DVec2::Y]);
+    s.patches[0].texture = Some(0);
+    s.patches[1].normals = Some([DVec3::Z; 3]);
+    // A fourth patch, so that this export's folder is not the other tests'.
+    s.patches.push(s.patches[2].clone());
+    let (xml, dir) = export(&s);
+    // white: one textured, one smooth; half: flat.
+    assert_eq!(xml.matches("<shape type=\"ply\">").count(), 3, "{xml}");
+    assert!(xml.contains("meshes/material-0-texture-0.exr") && xml.contains("type=\"bitmap\""), "{xml}");
+    let ply = std::fs::read(dir.join("meshes/material-0-texture-0.ply")).unwrap();
+    let header = String::from_utf8_lossy(&ply[..200]).into_owned();
+    assert!(header.contains("property float u\nproperty float v\n"), "{header}");
+    let smooth = std::fs::read(dir.join("meshes/material-0-smooth.ply")).unwrap();
+    assert!(String::from_utf8_lossy(&smooth[..200]).contains("property float nx"));
+    // The bitmap holds Kd times the linear texels: 0.75 and 0.
+    let exr = image::open(dir.join("meshes/material-0-texture-0.exr")).unwrap().into_rgb32f();
+    assert_eq!((exr.get_pixel(0, 0).0[0], exr.get_pixel(1, 0).0[0]), (0.75, 0.0));
+}
