@@ -10,6 +10,7 @@ fn material(name: &str, diffuse: f64, mirror: f64, transmit: f64) -> Material {
         transmit: Rgb::splat(transmit),
         ior: 1.5,
         one_sided: false,
+        emit: Rgb::BLACK,
         loc: SourceLoc::default(),
     }
 }
