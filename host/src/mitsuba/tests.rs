@@ -48,7 +48,10 @@ fn scene() -> Scene {
 }
 
 fn export(scene: &Scene) -> (String, std::path::PathBuf) {
-    let dir = std::env::temp_dir().join(format!("magg-mitsuba-{}-{}", std::process::id(), scene.patches.len()));
+    // One folder per call: tests run in parallel and export the same scene.
+    static CALLS: std::sync::atomic::AtomicU32 = std::sync::atomic::AtomicU32::new(0);
+    let call = CALLS.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+    let dir = std::env::temp_dir().join(format!("magg-mitsuba-{}-{call}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
     write(scene, &dir).unwrap();
     (std::fs::read_to_string(dir.join("scene.xml")).unwrap(), dir)
@@ -102,4 +105,17 @@ fn what_is_left_out_is_said() {
     let dir = std::env::temp_dir().join(format!("magg-mitsuba-notes-{}", std::process::id()));
     let notes = write(&s, &dir).unwrap();
     assert!(notes.lines.iter().any(|l| l.contains("ambient")), "{notes:?}");
+}
+
+#[test]
+fn an_emitting_material_gets_an_area_emitter() {
+    let mut s = scene();
+    assert!(!export(&s).0.contains("type=\"area\""));
+    s.materials[0].emit = Rgb::new(4.0, 2.0, 1.0);
+    let (xml, _) = export(&s);
+    assert_eq!(
+        xml.matches("<emitter type=\"area\"><rgb name=\"radiance\" value=\"4, 2, 1\"/></emitter>").count(),
+        1,
+        "{xml}"
+    );
 }

@@ -243,3 +243,16 @@ fn the_stage_has_the_first_camera_and_the_point_and_spot_lights() {
     assert!((spot.half_angle_deg - 0.2f64.to_degrees()).abs() < 1e-4);
     assert!((spot.half_angle_deg + spot.falloff_deg - 0.5f64.to_degrees()).abs() < 1e-4);
 }
+
+#[test]
+fn the_emissive_factor_times_its_strength_is_the_emitted_radiance() {
+    let plain = document("[{\"mesh\":0}]", Some(&data_uri()));
+    assert!(!load_ok(&plain).materials[0].is_emitter(), "no emissiveFactor: black");
+    let lamp = plain.replace("\"metallicFactor\":0}", "\"metallicFactor\":0},\"emissiveFactor\":[1,0.5,0.25]");
+    assert_eq!(load_ok(&lamp).materials[0].emit, Rgb::new(1.0, 0.5, 0.25));
+    let strong = lamp.replace(
+        "\"emissiveFactor\":[1,0.5,0.25]",
+        "\"emissiveFactor\":[1,0.5,0.25],\"extensions\":{\"KHR_materials_emissive_strength\":{\"emissiveStrength\":8}}",
+    );
+    assert_eq!(load_ok(&strong).materials[0].emit, Rgb::new(8.0, 4.0, 2.0));
+}
