@@ -22,7 +22,7 @@ fn scenes() -> Vec<PathBuf> {
 #[test]
 fn the_shipped_scenes_are_there() {
     let names: Vec<String> = scenes().iter().map(|p| p.file_name().unwrap().to_string_lossy().into_owned()).collect();
-    for want in ["cornell.toml", "diffuse.toml", "magg-paper.toml", "spot.toml"] {
+    for want in ["area.toml", "cornell.toml", "diffuse.toml", "magg-paper.toml", "spot.toml"] {
         assert!(names.iter().any(|n| n == want), "scenes/{want} missing: {names:?}");
     }
 }

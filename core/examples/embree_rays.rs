@@ -107,6 +107,7 @@ fn random_scene(n: usize) -> Scene {
             transmit: Rgb::BLACK,
             ior: 1.5,
             one_sided: false,
+            emit: Rgb::BLACK,
             loc: loc.clone(),
         }],
         patches,

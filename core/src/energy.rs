@@ -3,20 +3,26 @@
 //! Deposits are summed as integers (units of a per-scene quantum), so the total for an
 //! element does not depend on the order in which pairs finish or on which node traced
 //! them: integer addition is associative, floating-point addition is not. The quantum
-//! is `4 pi * sum of max light intensities / 2^52`: all deposits of a render sum to at
-//! most `(1 + lrt_depth + diffuse_bounces)` times the emitted flux, far inside `i64`.
+//! is `(4 pi * sum of max light intensities + sum of max emitter powers) / 2^52`: all
+//! deposits of a render sum to at most `(1 + lrt_depth + diffuse_bounces)` times the
+//! emitted flux, far inside `i64`.
 
 use crate::blocks::{encode_vertex_energy, Block, BlockLayout, BLOCK_SIZE, VERTICES_PER_BLOCK};
 use crate::color::Rgb;
+use crate::header::Emitter;
 use crate::preprocess::ElementInfo;
 use crate::scene::Light;
 
 /// Flux per channel in units of the scene's energy quantum.
 pub type Fixed = [i64; 3];
 
-/// The energy quantum (W per unit) for a set of lights.
-pub fn quantum_for(lights: &[Light]) -> f64 {
-    let total: f64 = lights.iter().map(|l| 4.0 * std::f64::consts::PI * l.intensity.max_channel()).sum();
+/// The energy quantum (W per unit) for a set of point lights and emitting elements.
+pub fn quantum_for(lights: &[Light], emitters: &[Emitter]) -> f64 {
+    let mut total: f64 = lights.iter().map(|l| 4.0 * std::f64::consts::PI * l.intensity.max_channel()).sum();
+    if !emitters.is_empty() {
+        // Scenes without emitters keep the quantum (and so the energies) they had.
+        total += emitters.iter().map(|e| e.power.max_channel()).sum::<f64>();
+    }
     if total > 0.0 && total.is_finite() {
         total / (1u64 << 52) as f64
     } else {

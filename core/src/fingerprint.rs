@@ -149,6 +149,11 @@ impl EnergyInputs {
             if mat.one_sided {
                 m.str("one-sided");
             }
+            if mat.is_emitter() {
+                // Only emitters hash it, so other scenes keep their fingerprints.
+                m.str("emit");
+                m.rgb(mat.emit);
+            }
         }
         let mut l = Fnv64::new();
         for light in &h.lights {

@@ -3,6 +3,7 @@
 //! layout).
 
 use crate::blocks::BlockLayout;
+use crate::color::Rgb;
 use crate::plan::EffectsPlan;
 use crate::scene::{Camera, Light, Material, RenderSettings};
 use glam::{DVec3, UVec3};
@@ -99,6 +100,17 @@ pub struct Counts {
     pub vertex_blocks: u32,
 }
 
+/// An element of an emitting material (`emit`): one light source of LRT. Its patch's
+/// front radiates `emit` in every direction of its hemisphere.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Emitter {
+    /// The element.
+    pub element: u32,
+    /// Flux it emits, W per channel: `pi * emit * area` (a one-sided Lambertian
+    /// emitter). Bounds what its pairs may deposit and sizes the energy quantum.
+    pub power: Rgb,
+}
+
 /// Everything a node keeps resident for the whole render.
 #[derive(Clone, Debug, PartialEq)]
 pub struct SceneHeader {
@@ -108,6 +120,9 @@ pub struct SceneHeader {
     pub settings: RenderSettings,
     /// Point lights.
     pub lights: Vec<Light>,
+    /// Emitting elements (area lights), ascending by element: LRT's light sources after
+    /// the point lights, light index `lights.len() + k` being `emitters[k]`.
+    pub emitters: Vec<Emitter>,
     /// Materials.
     pub materials: Vec<Material>,
     /// Diffuse textures (their texels are in texture blocks).
@@ -125,4 +140,17 @@ pub struct SceneHeader {
     pub energy_quantum: f64,
     /// Which passes run.
     pub plan: EffectsPlan,
+}
+
+impl SceneHeader {
+    /// LRT's light sources: the point lights, then the emitting elements. Pairs are
+    /// numbered over them light-major ([`crate::lrt::pair_id`]).
+    pub fn light_sources(&self) -> u32 {
+        (self.lights.len() + self.emitters.len()) as u32
+    }
+
+    /// Pairs of the light pass: every light source with every element.
+    pub fn pair_count(&self) -> u64 {
+        self.light_sources() as u64 * self.counts.elements as u64
+    }
 }

@@ -14,6 +14,10 @@
 //! and the pairs of elements that neither reflect specularly nor bounce diffusely are not
 //! traced at all.
 //!
+//! Area lights (elements of a material with `emit`) are light sources after the point
+//! lights: light index `lights + k` is emitting element k, so their pairs are numbered,
+//! leased and deposited exactly like the point lights' ([`area`]).
+//!
 //! Every random choice is seeded from (scene seed, light, element), so a pair re-run on
 //! another node deposits exactly the same values.
 
@@ -28,6 +32,8 @@ use crate::subdivision::{element_triangle, locate};
 use crate::trace::{cast, occluded, TraceScratch};
 use crate::view::SceneView;
 use glam::DVec3;
+
+mod area;
 
 /// Secondary rays whose flux falls below this fraction of their primary ray's flux are
 /// cut off (and counted as such in the tally).
@@ -129,7 +135,11 @@ pub fn trace_pair(
 ) -> Result<PairResult, BlockError> {
     let header = view.header.clone();
     let Some(l) = header.lights.get(light as usize) else {
-        return Err(BlockError::BadId { kind: "light", id: light as u64, count: header.lights.len() as u64 });
+        let emitter = (light as usize).checked_sub(header.lights.len()).and_then(|k| header.emitters.get(k));
+        return match emitter {
+            Some(e) => area::trace_emitter_pair(view, scratch, light, *e, element),
+            None => Err(BlockError::BadId { kind: "light", id: light as u64, count: header.light_sources() as u64 }),
+        };
     };
     let plan = &header.plan;
     let mut out = PairResult::default();
@@ -151,7 +161,6 @@ pub fn trace_pair(
     let normal = triangle_normal(&prec.v);
     // Every ray from the point light reaches the element's plane from the same side.
     let on_back = material.is_some_and(|m| m.refuses(prec.v[0] - l.position, normal));
-    let shaded_here = prec.shading != NO_SHADING;
     let n = header.settings.light_rays.max(1);
     let seed = header.settings.seed;
     let mut rng = Rng::from_words(&[seed, 0x4c5254, light as u64, element as u64]);
@@ -191,55 +200,83 @@ pub fn trace_pair(
             continue;
         }
         let p = ray.at(t_plane);
-        if !plan.direct_vrt {
+        if plan.deposits_direct(false) {
             deposits.push((element, flux));
         }
         let floor = flux.max_channel() * MIN_RELATIVE_FLUX;
-        // Shading normals bend specular directions here and a texture colours what bounces
-        // diffusely (deposits are flux, taken on the geometric surface).
-        let (at, albedo) = if shaded_here {
-            arrive(view, &prec, p, w, normal, barycentric(&prec.v, p))?
-        } else {
-            (Arrival::new(p, w, normal), None)
-        };
+        let (at, albedo) = arrival(view, &prec, p, w, normal, None)?;
         scatter(view, &mut rng, &mut stack, &mut out.tally, at, albedo, prec.material, erec.patch, flux, 0, 0, floor);
-        // Follow secondary rays depth-first.
-        while let Some(s) = stack.pop() {
-            view.counters.light_rays += 1;
-            let tmin = offset_scale(s.ray.origin);
-            let Some(hit) = cast(view, scratch, &s.ray, tmin, f64::INFINITY, s.from_patch, false)? else {
-                out.tally.escaped = out.tally.escaped.add(s.flux);
-                continue;
-            };
-            let hp = view.patch(hit.patch)?;
-            let hn = triangle_normal(&hp.v);
-            let hm = header.materials.get(hp.material as usize);
-            if hm.is_some_and(|m| m.refuses(s.ray.direction, hn)) {
-                out.tally.absorbed = out.tally.absorbed.add(s.flux);
-                continue;
-            }
-            let (local, _) = locate(hp.subdivisions, hit.bary);
-            deposits.push((hp.first_element + local, s.flux));
-            let (p, d) = (s.ray.at(hit.t), s.ray.direction);
-            let (at, albedo) = arrive(view, &hp, p, d, hn, hit.bary)?;
-            scatter(
-                view,
-                &mut rng,
-                &mut stack,
-                &mut out.tally,
-                at,
-                albedo,
-                hp.material,
-                hit.patch,
-                s.flux,
-                s.specular,
-                s.diffuse,
-                s.floor,
-            );
-        }
+        follow(view, scratch, &mut rng, &mut stack, &mut out.tally, &mut deposits)?;
     }
+    out.deposits = merged(deposits, header.energy_quantum);
+    Ok(out)
+}
 
-    // One entry per element, summed in generation order (deterministic).
+/// Follows the secondary rays on `stack` depth-first: each deposits on the element it
+/// reaches and scatters on from there.
+fn follow(
+    view: &mut SceneView,
+    scratch: &mut TraceScratch,
+    rng: &mut Rng,
+    stack: &mut Vec<Pending>,
+    tally: &mut LrtTally,
+    deposits: &mut Vec<(u32, Rgb)>,
+) -> Result<(), BlockError> {
+    while let Some(s) = stack.pop() {
+        view.counters.light_rays += 1;
+        let tmin = offset_scale(s.ray.origin);
+        let Some(hit) = cast(view, scratch, &s.ray, tmin, f64::INFINITY, s.from_patch, false)? else {
+            tally.escaped = tally.escaped.add(s.flux);
+            continue;
+        };
+        let hp = view.patch(hit.patch)?;
+        let hn = triangle_normal(&hp.v);
+        if view.header.materials.get(hp.material as usize).is_some_and(|m| m.refuses(s.ray.direction, hn)) {
+            tally.absorbed = tally.absorbed.add(s.flux);
+            continue;
+        }
+        let (local, _) = locate(hp.subdivisions, hit.bary);
+        deposits.push((hp.first_element + local, s.flux));
+        let (at, albedo) = arrival(view, &hp, s.ray.at(hit.t), s.ray.direction, hn, Some(hit.bary))?;
+        scatter(
+            view,
+            rng,
+            stack,
+            tally,
+            at,
+            albedo,
+            hp.material,
+            hit.patch,
+            s.flux,
+            s.specular,
+            s.diffuse,
+            s.floor,
+        );
+    }
+    Ok(())
+}
+
+/// The arrival of a light ray along `d` at point `p` of patch `patch` (geometric normal
+/// `normal`, barycentric weights `bary` when known): shading normals bend specular
+/// directions and a texture colours what bounces diffusely (deposits are flux, taken on
+/// the geometric surface). A patch without a shading record reads nothing more.
+fn arrival(
+    view: &mut SceneView,
+    patch: &crate::blocks::PatchRecord,
+    p: DVec3,
+    d: DVec3,
+    normal: DVec3,
+    bary: Option<[f64; 3]>,
+) -> Result<(Arrival, Option<Rgb>), BlockError> {
+    if patch.shading == NO_SHADING {
+        return Ok((Arrival::new(p, d, normal), None));
+    }
+    arrive(view, patch, p, d, normal, bary.unwrap_or_else(|| barycentric(&patch.v, p)))
+}
+
+/// One entry per element, sorted by element, each summed in generation order
+/// (deterministic), in fixed point.
+fn merged(mut deposits: Vec<(u32, Rgb)>, quantum: f64) -> Vec<(u32, Fixed)> {
     deposits.sort_by_key(|d| d.0);
     let mut merged: Vec<(u32, Rgb)> = Vec::new();
     for (e, f) in deposits {
@@ -248,8 +285,7 @@ pub fn trace_pair(
             _ => merged.push((e, f)),
         }
     }
-    out.deposits = merged.into_iter().map(|(e, f)| (e, to_fixed(f, header.energy_quantum))).collect();
-    Ok(out)
+    merged.into_iter().map(|(e, f)| (e, to_fixed(f, quantum))).collect()
 }
 
 /// Splits the flux arriving at a surface point into absorbed, diffusely ended and
@@ -329,7 +365,8 @@ fn scatter(
     }
 }
 
-/// Pair id of (light, element): pairs are numbered light-major.
+/// Pair id of (light, element): pairs are numbered light-major (the point lights, then
+/// the emitting elements, [`crate::header::SceneHeader::light_sources`]).
 pub fn pair_id(light: u32, element: u32, elements: u32) -> u64 {
     light as u64 * elements as u64 + element as u64
 }

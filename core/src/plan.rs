@@ -3,6 +3,12 @@
 //! Before rendering, the scene is analysed and each optional pass or ray kind is switched
 //! on or off with a reason. A pass left out costs nothing, and because every kernel only
 //! spawns rays whose weight is non-zero, forcing it on gives a bitwise-identical image.
+//!
+//! Area lights (patches of a material with `emit`) are always LRT's: their pairs
+//! (emitting element, element) deposit direct light on the elements whatever `direct`
+//! says, since VRT's shadow rays serve point and spot lights only
+//! ([`EffectsPlan::deposits_direct`]). So with emitters the pairs of diffuse elements are
+//! never skipped, and `direct = "vrt"` leaves on the elements the emitters' light too.
 
 use crate::scene::{DirectLight, Scene};
 
@@ -29,9 +35,12 @@ pub struct EffectsPlan {
     /// Viewing rays per pixel.
     pub pixel_samples: u32,
     /// Direct light from point and spot lights is computed at VRT, with one shadow ray
-    /// per light at each diffuse hit; light rays then deposit only what arrives via a
-    /// specular surface or a diffuse bounce.
+    /// per light at each diffuse hit; their light rays then deposit only what arrives via
+    /// a specular surface or a diffuse bounce.
     pub direct_vrt: bool,
+    /// Some patch emits (a material with `emit`): LRT traces (emitting element, element)
+    /// pairs after the point lights' pairs, and they deposit direct light on elements.
+    pub area_lights: bool,
     /// One line per decision, for people.
     pub reasons: Vec<String>,
 }
@@ -47,11 +56,22 @@ impl EffectsPlan {
         let any_dielectric = used(&|m| m.is_transmissive());
         let any_diffuse = used(&|m| !m.diffuse.is_black());
         let any_light = scene.lights.iter().any(|l| !l.intensity.is_black());
+        let emitting = scene
+            .patches
+            .iter()
+            .filter(|p| scene.materials.get(p.material as usize).is_some_and(|m| m.is_emitter()))
+            .count();
         let mut reasons = Vec::new();
 
-        let lrt = any_light && !scene.patches.is_empty();
+        let lrt = (any_light || emitting > 0) && !scene.patches.is_empty();
         if !lrt {
             reasons.push("no light with non-zero intensity: LRT off".to_string());
+        }
+        if emitting > 0 {
+            reasons.push(format!(
+                "{emitting} emitting patch(es): area lights, LRT traces (emitting element, element) pairs and \
+                 deposits their light on elements (whatever `direct` says)"
+            ));
         }
         let lrt_depth = if !lrt {
             0
@@ -100,7 +120,7 @@ impl EffectsPlan {
                 "ambient term off (zero ambient)".to_string()
             });
         }
-        let direct_vrt = direct_at_vrt(scene, lrt && any_diffuse, &mut reasons);
+        let direct_vrt = direct_at_vrt(scene, any_light && lrt && any_diffuse, &mut reasons);
         EffectsPlan {
             lrt,
             lrt_depth,
@@ -110,13 +130,23 @@ impl EffectsPlan {
             ambient,
             pixel_samples: s.pixel_samples,
             direct_vrt,
+            area_lights: emitting > 0,
             reasons,
         }
     }
 
-    /// True when no light ray can deposit anything on an element of a material without
-    /// mirror or transmissive parts: direct light is computed at VRT and light rays do
-    /// not bounce diffusely, so the pairs of such elements need not be traced.
+    /// True when the primary light rays of a pair deposit what they carry on the element
+    /// they reach (direct light): always for an emitter's pair (`emitter`), for a point
+    /// or spot light's pair unless direct light is computed at VRT.
+    pub fn deposits_direct(&self, emitter: bool) -> bool {
+        emitter || !self.direct_vrt
+    }
+
+    /// True when no light ray of a point or spot light can deposit anything on an element
+    /// of a material without mirror or transmissive parts: direct light is computed at
+    /// VRT and light rays do not bounce diffusely, so the pairs of such a light and such
+    /// an element need not be traced. Never said of an emitter's pairs, which always
+    /// deposit ([`EffectsPlan::deposits_direct`]).
     pub fn skips_diffuse_pairs(&self) -> bool {
         self.direct_vrt && self.diffuse_bounces == 0
     }
@@ -143,6 +173,9 @@ impl EffectsPlan {
         let mut v = vec!["preprocess"];
         if self.lrt {
             v.push("lrt");
+            if self.area_lights {
+                v.push("lrt_area");
+            }
             if self.lrt_depth > 0 {
                 v.push("lrt_specular");
             }

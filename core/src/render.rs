@@ -77,7 +77,8 @@ struct LightPass {
     pairs: u64,
 }
 
-/// LRT: nodes pull (light, element) pairs from a shared counter.
+/// LRT: nodes pull (light, element) pairs from a shared counter (lights: the point
+/// lights, then the emitting elements).
 fn light_pass(
     views: &mut [SceneView],
     cores: &[usize],
@@ -85,10 +86,9 @@ fn light_pass(
     progress: &dyn Progress,
 ) -> Result<LightPass, RenderError> {
     let n_el = header.counts.elements;
-    let n_lights = header.lights.len() as u32;
     let flux: Vec<[AtomicI64; 3]> =
         (0..n_el).map(|_| [AtomicI64::new(0), AtomicI64::new(0), AtomicI64::new(0)]).collect();
-    let total_pairs = if header.plan.lrt { n_lights as u64 * n_el as u64 } else { 0 };
+    let total_pairs = if header.plan.lrt { header.pair_count() } else { 0 };
     let next_pair = AtomicU64::new(0);
     const PAIR_BATCH: u64 = 8;
     progress.begin("light ray tracing", total_pairs);

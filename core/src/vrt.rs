@@ -3,7 +3,8 @@
 //! At a diffuse hit the irradiance is interpolated from the hit element's vertices (plus,
 //! when the plan computes direct light here, what the lights give through one shadow ray
 //! each, [`crate::direct`]) and radiance is `rho_d / pi * E + rho_d * ambient` (the
-//! ambient term only when the plan keeps it). Mirror and dielectric parts recurse with Fresnel weights to the plan's VRT
+//! ambient term only when the plan keeps it), plus `emit` on the front of an area light.
+//! Mirror and dielectric parts recurse with Fresnel weights to the plan's VRT
 //! depth. Each pixel is seeded from (scene seed, pixel), so the image does not depend on
 //! which node traced which subscreen.
 
@@ -91,6 +92,10 @@ fn radiance(
     // A texture multiplies the diffuse reflectance.
     let diffuse = albedo.map_or(m.diffuse, |a| m.diffuse.mul(a));
     let mut l = Rgb::BLACK;
+    if at.front && !m.emit.is_black() {
+        // An area light's front: its radiance, plus what it reflects.
+        l = m.emit;
+    }
     if !m.diffuse.is_black() {
         view.counters.shades += 1;
         let (local, w) = locate(prec.subdivisions, hit.bary);
@@ -143,6 +148,8 @@ struct Surface {
     direct_vrt: bool,
     /// Only the front takes and reflects light.
     one_sided: bool,
+    /// Radiance emitted from the front (area lights).
+    emit: Rgb,
 }
 
 impl Surface {
@@ -160,6 +167,7 @@ impl Surface {
             refraction: h.plan.refraction,
             direct_vrt: h.plan.direct_vrt,
             one_sided: m.one_sided,
+            emit: m.emit,
         })
     }
     fn is_mirror(&self) -> bool {

@@ -40,10 +40,23 @@ fn every_scene_file_parses() {
     assert!(names.len() >= 5, "expected the shipped scenes, found {names:?}");
     for name in &names {
         let s = load(name);
-        assert!(!s.patches.is_empty() && !s.lights.is_empty(), "{name}");
+        let emits = s.patches.iter().any(|p| s.materials[p.material as usize].is_emitter());
+        assert!(!s.patches.is_empty() && (!s.lights.is_empty() || emits), "{name}: nothing lit");
         for p in &s.patches {
             assert!((p.material as usize) < s.materials.len(), "{name}: patch material out of range");
         }
+    }
+}
+
+#[test]
+fn area_scene_is_lit_only_by_a_ceiling_lamp_facing_down() {
+    let s = load("area.toml");
+    assert!(s.lights.is_empty());
+    let lamps: Vec<&PatchDef> = s.patches.iter().filter(|p| s.materials[p.material as usize].is_emitter()).collect();
+    assert_eq!(lamps.len(), 2, "one quad");
+    for p in lamps {
+        assert!((normal(p) - DVec3::NEG_Y).length() < 1e-12, "the lamp's front faces the floor");
+        assert!(centroid(p).y > 1.9);
     }
 }
 

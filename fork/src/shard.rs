@@ -119,21 +119,20 @@ pub struct Shard {
     node_key: NodeKey,
 }
 
-/// The most fixed-point energy per channel that one pair of each light may deposit in
-/// all: the light's whole flux, 4 pi I, once for its first hit and once for each bounce
-/// after it (every surface reflects at most what reaches it), plus a quantum of
-/// rounding for every ray at every bounce. A node that deposits more is not tracing
-/// this scene.
+/// The most fixed-point energy per channel that one pair of each light source may
+/// deposit in all: for a point light its whole flux, 4 pi I, for an emitting element
+/// twice its power (what its rays can carry at most, `magg_core::lrt`'s area lights),
+/// once for the first hit and once for each bounce after it (every surface reflects at
+/// most what reaches it), plus a quantum of rounding for every ray at every bounce. A
+/// node that deposits more is not tracing this scene.
 fn flux_bounds(header: &SceneHeader) -> Vec<[i128; 3]> {
     let s = &header.settings;
     let hits = 1.0 + s.lrt_depth as f64 + s.diffuse_bounces as f64;
     let rounding = s.light_rays as f64 * (hits + 1.0);
     let q = header.energy_quantum;
-    header
-        .lights
-        .iter()
-        .map(|l| l.intensity.0.map(|i| (4.0 * std::f64::consts::PI * i * hits / q + rounding).ceil().min(1e36) as i128))
-        .collect()
+    let bound = |flux: [f64; 3]| flux.map(|f| (f * hits / q + rounding).ceil().min(1e36) as i128);
+    let points = header.lights.iter().map(|l| bound(l.intensity.0.map(|i| 4.0 * std::f64::consts::PI * i)));
+    points.chain(header.emitters.iter().map(|e| bound(e.power.0.map(|p| 2.0 * p)))).collect()
 }
 
 impl Shard {
@@ -163,8 +162,8 @@ impl Shard {
         let owned: Vec<u32> = (0..header.counts.elements)
             .filter(|&e| fork_of_block(header.layout.element_slot(e).0, f) == index)
             .collect();
-        let lights = header.lights.len() as u32;
-        let pair_count = lights as u64 * header.counts.elements as u64;
+        let lights = header.light_sources();
+        let pair_count = header.pair_count();
         let own_pairs = lights as u64 * owned.len() as u64;
         let need = pair_state_bytes(pair_count, own_pairs, forks as u64);
         if need > max_mb.saturating_mul(1 << 20) {
@@ -388,9 +387,9 @@ impl Shard {
         }
     }
 
-    /// The id range of pairs: `lights * elements`.
+    /// The id range of pairs: `light sources * elements`.
     pub fn pair_count(&self) -> u64 {
-        self.header.lights.len() as u64 * self.header.counts.elements as u64
+        self.header.pair_count()
     }
 
     /// Refuses a pair id out of range or whose element another fork owns.

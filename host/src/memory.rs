@@ -13,7 +13,7 @@
 
 use anyhow::bail;
 use magg_core::preprocess::subdivisions_of;
-use magg_core::scene::Scene;
+use magg_core::scene::{PatchDef, Scene};
 
 /// Bytes charged per element.
 pub const BYTES_PER_ELEMENT: f64 = 400.0;
@@ -26,13 +26,13 @@ pub const DEFAULT_MAX_MEMORY_MB: u64 = 4096;
 /// process (0: none, as with `--embedded` or `--forks-at`).
 pub fn estimate(scene: &Scene, forks: u32) -> (f64, f64, f64) {
     let s = &scene.settings;
-    let elements: f64 = scene
-        .patches
-        .iter()
-        .map(|p| subdivisions_of(&p.vertices, p.subdivisions, p.size_hint, s.element_size).powi(2))
-        .sum();
+    let elements_of = |p: &PatchDef| subdivisions_of(&p.vertices, p.subdivisions, p.size_hint, s.element_size).powi(2);
+    let elements: f64 = scene.patches.iter().map(elements_of).sum();
+    // Emitting elements are light sources too.
+    let emitting = |p: &&PatchDef| scene.materials.get(p.material as usize).is_some_and(|m| m.is_emitter());
+    let emitters: f64 = scene.patches.iter().filter(emitting).map(elements_of).sum();
     let pixels = s.width as f64 * s.height as f64;
-    let pairs = elements * scene.lights.len() as f64;
+    let pairs = elements * (scene.lights.len() as f64 + emitters);
     let pair_bytes = pairs * 2.0 * forks as f64 / 8.0;
     (elements, pairs, elements * BYTES_PER_ELEMENT + pixels * BYTES_PER_PIXEL + pair_bytes)
 }

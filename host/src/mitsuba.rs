@@ -17,6 +17,8 @@
 //!   `blendbsdf`s with weights that keep each part's reflectance exactly; opaque parts are
 //!   `twosided`, as magg's patches reflect on both faces, except for `sides = 1`
 //!   materials, which are Mitsuba's one-sided BSDFs;
+//! - emitting materials (`emit`): an `area` emitter on their shape, whose radiance is
+//!   `emit` (both one-sided, on the front);
 //! - the background as a `constant` emitter when it is not black.
 //!
 //! Not written: the ambient term (there is no such light in a physically based renderer:
@@ -158,6 +160,14 @@ pub fn write(scene: &Scene, dir: &Path) -> anyhow::Result<Notes> {
                 None => None,
             };
             bsdf(&mut xml, m, texture.as_ref(), "    ")?;
+            if m.is_emitter() {
+                // Mitsuba's area emitter radiates from the front, by the winding, as magg's.
+                let _ = writeln!(
+                    xml,
+                    "    <emitter type=\"area\"><rgb name=\"radiance\" value=\"{}\"/></emitter>",
+                    rgb(m.emit)
+                );
+            }
             let _ = writeln!(xml, "  </shape>");
         }
     }

@@ -196,7 +196,7 @@ impl Worker {
     fn pairs(&mut self) -> Result<(), NodeError> {
         let h = self.view.header.clone();
         let elements = h.counts.elements as u64;
-        let total = elements * h.lights.len() as u64;
+        let total = h.pair_count();
         let mut scratch = TraceScratch::default();
         let max = if self.scheme == Scheme::Paper { 1 } else { PAIR_BATCH };
         let pace = self.pace.clone();

@@ -25,7 +25,7 @@ use magg_core::blocks::{
     Block, BlockLayout, CacheSize, BLOCK_SIZE, ELEMENTS_PER_BLOCK, NO_BLOCK, PATCHES_PER_BLOCK, SHADINGS_PER_BLOCK, VERTICES_PER_BLOCK,
 };
 use magg_core::color::Rgb;
-use magg_core::header::{BvhHeader, Counts, GridHeader, SceneHeader, TextureHeader};
+use magg_core::header::{BvhHeader, Counts, Emitter, GridHeader, SceneHeader, TextureHeader};
 use magg_core::math::Normalized;
 use magg_core::plan::EffectsPlan;
 use magg_core::scene::{
@@ -240,6 +240,7 @@ fn material_to_wire(m: &Material) -> v1::Material {
         transmit: Some(rgb_to_wire(m.transmit)),
         ior: m.ior,
         one_sided: m.one_sided,
+        emit: m.is_emitter().then(|| rgb_to_wire(m.emit)),
     }
 }
 
@@ -261,7 +262,33 @@ fn material_from_wire(i: usize, m: v1::Material) -> Result<Material, ConvertErro
     if m.one_sided && !transmit.is_black() {
         return Err(invalid(f("one_sided"), true, "false for a transmissive material"));
     }
-    Ok(Material { name, diffuse, mirror, transmit, ior, one_sided: m.one_sided, loc: wire_loc() })
+    let emit = match m.emit {
+        Some(e) => rgb_from_wire(Some(e), &f("emit"), f64::MAX)?,
+        None => Rgb::BLACK,
+    };
+    Ok(Material { name, diffuse, mirror, transmit, ior, one_sided: m.one_sided, emit, loc: wire_loc() })
+}
+
+fn emitter_to_wire(e: &Emitter) -> v1::Emitter {
+    v1::Emitter { element: e.element, power: Some(rgb_to_wire(e.power)) }
+}
+
+/// The emitting elements of a header: ascending element ids below `elements`, each with
+/// a finite, non-negative power.
+fn emitters_from_wire(list: Vec<v1::Emitter>, elements: u32) -> Result<Vec<Emitter>, ConvertError> {
+    let mut out: Vec<Emitter> = Vec::with_capacity(list.len().min(elements as usize));
+    for (i, e) in list.into_iter().enumerate() {
+        let f = |name: &str| format!("emitters[{i}].{name}");
+        if e.element >= elements {
+            return Err(invalid(f("element"), e.element, format!("an element id below {elements}")));
+        }
+        if out.last().is_some_and(|last| last.element >= e.element) {
+            return Err(invalid(f("element"), e.element, "ascending, each element once"));
+        }
+        let power = rgb_from_wire(e.power, &f("power"), f64::MAX)?;
+        out.push(Emitter { element: e.element, power });
+    }
+    Ok(out)
 }
 
 fn settings_to_wire(s: &RenderSettings) -> v1::RenderSettings {
@@ -381,6 +408,7 @@ fn plan_to_wire(p: &EffectsPlan) -> v1::EffectsPlan {
         pixel_samples: p.pixel_samples,
         reasons: p.reasons.clone(),
         direct_vrt: p.direct_vrt,
+        area_lights: p.area_lights,
     }
 }
 
@@ -403,6 +431,7 @@ fn plan_from_wire(p: v1::EffectsPlan) -> Result<EffectsPlan, ConvertError> {
         ambient: p.ambient,
         pixel_samples: in_range(p.pixel_samples, 1, 4096, "plan.pixel_samples")?,
         direct_vrt: p.direct_vrt,
+        area_lights: p.area_lights,
         reasons,
     })
 }
@@ -566,6 +595,7 @@ impl From<&SceneHeader> for v1::SceneHeader {
             camera: Some(camera_to_wire(&h.camera)),
             settings: Some(settings_to_wire(&h.settings)),
             lights: h.lights.iter().map(light_to_wire).collect(),
+            emitters: h.emitters.iter().map(emitter_to_wire).collect(),
             materials: h.materials.iter().map(material_to_wire).collect(),
             textures: h
                 .textures
@@ -665,10 +695,12 @@ impl TryFrom<v1::SceneHeader> for SceneHeader {
             return Err(invalid("energy_quantum", q, "a positive number"));
         }
         let plan = plan_from_wire(require(h.plan, "plan")?)?;
+        let emitters = emitters_from_wire(h.emitters, counts.elements)?;
         Ok(SceneHeader {
             camera,
             settings,
             lights,
+            emitters,
             materials,
             textures,
             grid,

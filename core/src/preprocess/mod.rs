@@ -13,7 +13,7 @@ mod pack;
 mod weld;
 
 use crate::blocks::Block;
-use crate::header::SceneHeader;
+use crate::header::{Emitter, SceneHeader};
 use crate::plan::EffectsPlan;
 use crate::scene::{Accel, Scene};
 use glam::DVec3;
@@ -100,6 +100,18 @@ pub struct PrepareOps {
     pub blocks: u64,
 }
 
+/// The elements of emitting materials, ascending, with the flux each emits.
+fn emitters_of(scene: &Scene, elements: &[ElementInfo]) -> Vec<Emitter> {
+    elements
+        .iter()
+        .enumerate()
+        .filter_map(|(e, info)| {
+            let m = scene.patches.get(info.patch as usize).and_then(|p| scene.materials.get(p.material as usize))?;
+            m.is_emitter().then(|| Emitter { element: e as u32, power: m.emit.scale(std::f64::consts::PI * info.area) })
+        })
+        .collect()
+}
+
 /// Prepares `scene` with the plan derived from it.
 pub fn prepare(scene: &Scene) -> Result<PreparedScene, PrepareError> {
     prepare_with_plan(scene, EffectsPlan::for_scene(scene))
@@ -133,17 +145,19 @@ fn prepare_here(scene: &Scene, plan: EffectsPlan, start: Instant) -> Result<Prep
     };
     let binnings = bvh.as_ref().map_or(0, |b| b.binnings);
     let packed = pack::pack(&mesh, &grid, bvh, &scene.textures);
+    let emitters = emitters_of(scene, &mesh.elements);
     let header = SceneHeader {
         camera: scene.camera.clone(),
         settings: scene.settings.clone(),
         lights: scene.lights.clone(),
+        energy_quantum: crate::energy::quantum_for(&scene.lights, &emitters),
+        emitters,
         materials: scene.materials.clone(),
         textures: packed.textures,
         grid: packed.grid,
         bvh: packed.bvh,
         layout: packed.layout,
         counts: packed.counts,
-        energy_quantum: crate::energy::quantum_for(&scene.lights),
         plan,
     };
     let ops = PrepareOps {

@@ -11,8 +11,9 @@
 //!   whose transform mirrors space keeps its triangles facing outward;
 //! - materials: the base colour factor (its RGB) becomes the diffuse reflectance of a
 //!   magg material made per glTF material, named `file:name` (`file:material[3]` when the
-//!   name is missing or not unique). Metallic, roughness, emission, alpha and textures are
-//!   ignored. A primitive without a material takes the `[[mesh]]`'s `material =`;
+//!   name is missing or not unique); the emissive factor, times
+//!   `KHR_materials_emissive_strength` where given, becomes its `emit` radiance (an area
+//!   light). Metallic, roughness, alpha and textures are ignored. A primitive without a material takes the `[[mesh]]`'s `material =`;
 //! - cameras and `KHR_lights_punctual` lights, for [`gltf_stage`] only: inside a TOML
 //!   scene a glTF file brings its meshes and materials, not its camera or lights.
 //!
@@ -572,10 +573,20 @@ fn material_names(doc: &Document) -> Vec<String> {
         .collect()
 }
 
-/// The magg material of glTF material `m`: its base colour factor as the diffuse part.
+/// The magg material of glTF material `m`: its base colour factor as the diffuse part,
+/// its emissive factor (times `KHR_materials_emissive_strength`) as the radiance it emits.
 fn gltf_material(doc: &Document, m: usize, names: &[String], label: &str) -> Option<Material> {
     let mat = doc.materials().nth(m)?;
     let [r, g, b, _] = mat.pbr_metallic_roughness().base_color_factor().map(|c| f64::from(c).clamp(0.0, 1.0));
+    let strength = mat.emissive_strength().map_or(1.0, f64::from);
+    let emit = mat.emissive_factor().map(|c| {
+        let x = f64::from(c) * strength;
+        if x.is_finite() {
+            x.clamp(0.0, MAX_RADIOMETRIC)
+        } else {
+            0.0
+        }
+    });
     Some(Material {
         name: names.get(m)?.clone(),
         diffuse: Rgb::new(r, g, b),
@@ -583,6 +594,7 @@ fn gltf_material(doc: &Document, m: usize, names: &[String], label: &str) -> Opt
         transmit: Rgb::BLACK,
         ior: 1.5,
         one_sided: false,
+        emit: Rgb(emit),
         loc: SourceLoc { file: label.to_string(), line: 0 },
     })
 }

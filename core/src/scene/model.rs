@@ -295,11 +295,19 @@ pub struct Material {
     /// the back black, so nothing leaks through a thin wall (`sides = 1`). Two-sided
     /// (false) by default; never set for a transmissive material.
     pub one_sided: bool,
+    /// Radiance leaving the front of its patches (W m^-2 sr^-1 per channel), the same in
+    /// every direction: the patches are area lights (`emit = [r, g, b]`). Black for
+    /// a material that emits nothing (the default). Only the front emits.
+    pub emit: Rgb,
     /// Where it was defined.
     pub loc: SourceLoc,
 }
 
 impl Material {
+    /// True when its patches emit light (area lights).
+    pub fn is_emitter(&self) -> bool {
+        !self.emit.is_black()
+    }
     /// True when the material has an ideal-mirror part.
     pub fn is_mirror(&self) -> bool {
         !self.mirror.is_black()

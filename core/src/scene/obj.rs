@@ -7,7 +7,8 @@
 //!   `vn`, `vp`, `l`, `p` and the other display statements are ignored; free-form
 //!   geometry (`cstype`, `curv`, `surf`, ...) and unknown statements are errors.
 //! - MTL: `newmtl`, `Kd` (diffuse), `Ks` (ideal mirror), `Tf`, `d`, `Tr` (transmission),
-//!   `Ni` (index of refraction); every other statement is ignored. See [`parse_mtl`] for
+//!   `Ni` (index of refraction), `Ke` (emission: the material's `emit`, an area light);
+//!   every other statement is ignored. See [`parse_mtl`] for
 //!   how these become a valid material.
 //!
 //! Errors name the OBJ or MTL file and its line. Nothing here does I/O: the MTL files
@@ -17,7 +18,7 @@ use std::path::{Path, PathBuf};
 
 use super::error::SceneError;
 use super::mesh::{shown, utf8, MaterialTable, MeshEntry, ModelTriangle, ReadFile};
-use super::model::{Material, SourceLoc, MAX_COORDINATE};
+use super::model::{Material, SourceLoc, MAX_COORDINATE, MAX_RADIOMETRIC};
 use crate::color::Rgb;
 use glam::{DVec2, DVec3};
 
@@ -364,6 +365,7 @@ struct MtlPending {
     tr: Option<f64>,
     ni: Option<f64>,
     map_kd: Option<MapKd>,
+    ke: Option<Rgb>,
 }
 
 impl MtlPending {
@@ -376,6 +378,8 @@ impl MtlPending {
     ///    `diffuse + mirror + transmit` is still above 1, the three are divided by that sum
     ///    (keeping their ratio).
     /// 4. `ior = Ni` clamped to `[1, 4]`, 1.5 when absent.
+    /// 5. `emit = Ke` (radiance, W m^-2 sr^-1) clamped to `[0, MAX_RADIOMETRIC]`, black
+    ///    when absent.
     fn finish(self, label: &str) -> Material {
         let clamp = |c: Rgb| Rgb(c.0.map(|x| x.clamp(0.0, 1.0)));
         let opacity = self.d.or(self.tr.map(|t| 1.0 - t)).map(|o| o.clamp(0.0, 1.0));
@@ -402,6 +406,7 @@ impl MtlPending {
             transmit,
             ior: self.ni.map_or(1.5, |n| n.clamp(1.0, 4.0)),
             one_sided: false,
+            emit: Rgb(self.ke.unwrap_or(Rgb::BLACK).0.map(|x| x.clamp(0.0, MAX_RADIOMETRIC))),
             loc: SourceLoc { file: label.to_string(), line: self.line },
         }
     }
@@ -450,7 +455,7 @@ pub(super) fn parse_mtl_maps(label: &str, text: &str) -> Result<Vec<(Material, O
             pending = Some(MtlPending { name: name.to_string(), line, ..MtlPending::default() });
             continue;
         }
-        let known = matches!(keyword, "Kd" | "Ks" | "Tf" | "d" | "Tr" | "Ni" | "map_Kd");
+        let known = matches!(keyword, "Kd" | "Ks" | "Tf" | "Ke" | "d" | "Tr" | "Ni" | "map_Kd");
         let Some(p) = pending.as_mut() else {
             if known {
                 return Err(err(format!("{} before any newmtl", shown(keyword))));
@@ -466,6 +471,7 @@ pub(super) fn parse_mtl_maps(label: &str, text: &str) -> Result<Vec<(Material, O
             },
             "Ks" => p.ks = Some(parse_colour(&args).map_err(|m| err(format!("Ks: {m}")))?),
             "Tf" => p.tf = Some(parse_colour(&args).map_err(|m| err(format!("Tf: {m}")))?),
+            "Ke" => p.ke = Some(parse_colour(&args).map_err(|m| err(format!("Ke: {m}")))?),
             "d" | "Tr" | "Ni" => {
                 let args: Vec<&str> = args.into_iter().filter(|a| *a != "-halo").collect();
                 let [a] = args.as_slice() else {

@@ -95,6 +95,7 @@ struct RawMaterial {
     transmit: Option<SVec>,
     ior: Option<Spanned<f64>>,
     sides: Option<Spanned<i64>>,
+    emit: Option<SVec>,
 }
 
 /// A `[[triangle]]` or `[[quad]]` entry.
@@ -163,9 +164,6 @@ pub fn parse_scene_with_path(
         None => RenderSettings::default(),
     };
     let lights = raw.light.iter().enumerate().map(|(i, l)| cx.light(i, l)).collect::<Result<Vec<_>, _>>()?;
-    if lights.is_empty() {
-        return Err(cx.whole_file("light", "the scene has no [[light]]: nothing would be lit"));
-    }
 
     let mut materials = Vec::with_capacity(raw.material.len());
     let mut by_name: HashMap<String, u32> = HashMap::new();
@@ -205,6 +203,13 @@ pub fn parse_scene_with_path(
         return Err(cx.whole_file("triangle", "the scene has no [[triangle]], [[quad]] or [[mesh]]"));
     }
     let PatchBuilder { materials, patches, .. } = builder;
+    let emitting = patches.iter().any(|p| materials.list.get(p.material as usize).is_some_and(Material::is_emitter));
+    if lights.is_empty() && !emitting {
+        return Err(cx.whole_file(
+            "light",
+            "the scene has no [[light]] and no patch of a material with `emit`: nothing would be lit",
+        ));
+    }
     let textures = materials.textures;
     Ok((Scene { name: file_label.to_string(), camera, settings, lights, materials: materials.list, patches, textures }, path))
 }
@@ -531,7 +536,11 @@ impl<'a> Ctx<'a> {
                 n == 1
             }
         };
-        Ok(Material { name, diffuse, mirror, transmit, ior, one_sided, loc: self.loc(&m.name) })
+        let emit = match &m.emit {
+            Some(v) => self.rgb(v, &f("emit"), MAX_RADIOMETRIC)?,
+            None => Rgb::BLACK,
+        };
+        Ok(Material { name, diffuse, mirror, transmit, ior, one_sided, emit, loc: self.loc(&m.name) })
     }
 }
 

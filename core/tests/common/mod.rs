@@ -28,6 +28,7 @@ pub fn material(name: &str, diffuse: f64, mirror: f64, transmit: f64) -> Materia
         transmit: Rgb::splat(transmit),
         ior: 1.5,
         one_sided: false,
+        emit: Rgb::BLACK,
         loc: loc(),
     }
 }

@@ -14,6 +14,8 @@ pub fn run(args: &InfoArgs, files: &scene_file::SceneFiles) -> anyhow::Result<()
         let v = serde_json::json!({
             "scene": p.name,
             "lights": h.lights.len(),
+            "emitters": h.emitters.len(),
+            "pairs": h.pair_count(),
             "materials": h.materials.len(),
             "counts": c,
             "accel": h.settings.accel.name(),
@@ -28,6 +30,9 @@ pub fn run(args: &InfoArgs, files: &scene_file::SceneFiles) -> anyhow::Result<()
     }
     println!("scene      {}", p.name);
     println!("lights     {}", h.lights.len());
+    if !h.emitters.is_empty() {
+        println!("emitters   {:>9}  emitting elements (area lights), {} pairs", h.emitters.len(), h.pair_count());
+    }
     println!("materials  {}", h.materials.len());
     println!("patches    {:>9}  in {:>6} patch blocks", c.patches, c.patch_blocks);
     if c.shaded_patches > 0 {

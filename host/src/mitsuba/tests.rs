@@ -10,6 +10,7 @@ fn material(name: &str, diffuse: f64, mirror: f64, transmit: f64) -> Material {
         transmit: Rgb::splat(transmit),
         ior: 1.5,
         one_sided: false,
+        emit: Rgb::BLACK,
         loc: SourceLoc::default(),
     }
 }
@@ -48,7 +49,10 @@ fn scene() -> Scene {
 }
 
 fn export(scene: &Scene) -> (String, std::path::PathBuf) {
-    let dir = std::env::temp_dir().join(format!("magg-mitsuba-{}-{}", std::process::id(), scene.patches.len()));
+    // One folder per call: tests run in parallel and export the same scene.
+    static CALLS: std::sync::atomic::AtomicU32 = std::sync::atomic::AtomicU32::new(0);
+    let call = CALLS.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+    let dir = std::env::temp_dir().join(format!("magg-mitsuba-{}-{call}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
     write(scene, &dir).unwrap();
     (std::fs::read_to_string(dir.join("scene.xml")).unwrap(), dir)
@@ -125,4 +129,17 @@ fn textured_and_smooth_patches_get_their_own_plys_with_uv_normals_and_an_exr_bit
     // The bitmap holds Kd times the linear texels: 0.75 and 0.
     let exr = image::open(dir.join("meshes/material-0-texture-0.exr")).unwrap().into_rgb32f();
     assert_eq!((exr.get_pixel(0, 0).0[0], exr.get_pixel(1, 0).0[0]), (0.75, 0.0));
+}
+
+#[test]
+fn an_emitting_material_gets_an_area_emitter() {
+    let mut s = scene();
+    assert!(!export(&s).0.contains("type=\"area\""));
+    s.materials[0].emit = Rgb::new(4.0, 2.0, 1.0);
+    let (xml, _) = export(&s);
+    assert_eq!(
+        xml.matches("<emitter type=\"area\"><rgb name=\"radiance\" value=\"4, 2, 1\"/></emitter>").count(),
+        1,
+        "{xml}"
+    );
 }

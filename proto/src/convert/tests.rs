@@ -254,3 +254,38 @@ fn pixel_rows_are_the_bytes_of_a_packed_repeated_float() {
     let new = v1::Row { y: 7, rgb: pixels_to_wire(px) };
     assert_eq!(new.encode_to_vec(), old);
 }
+
+fn area_header() -> Arc<SceneHeader> {
+    let text = include_str!("../../../scenes/area.toml");
+    let read = |p: &std::path::Path| std::fs::read(p);
+    let scene = magg_core::scene::parse_scene_str("area.toml", text, "scenes".as_ref(), &read).unwrap();
+    magg_core::preprocess::prepare(&scene).unwrap().header
+}
+
+#[test]
+fn emitters_and_emitting_materials_round_trip() {
+    let h = area_header();
+    assert_eq!(h.emitters.len(), 8);
+    assert!(h.plan.area_lights && h.materials.iter().any(|m| m.is_emitter()));
+    let decoded = v1::SceneHeader::decode(v1::SceneHeader::from(&*h).encode_to_vec().as_slice()).unwrap();
+    assert_eq!(SceneHeader::try_from(decoded).unwrap(), as_received(&h));
+    // A material that emits nothing leaves the field out.
+    assert!(v1::SceneHeader::from(&*paper_header()).materials.iter().all(|m| m.emit.is_none()));
+}
+
+#[test]
+fn bad_emitters_are_refused() {
+    let spoil = |f: &dyn Fn(&mut v1::SceneHeader)| {
+        let mut wire = v1::SceneHeader::from(&*area_header());
+        f(&mut wire);
+        SceneHeader::try_from(wire).expect_err("a bad header was accepted")
+    };
+    assert_eq!(field_of(&spoil(&|h| h.emitters[1].element = h.emitters[0].element)), "emitters[1].element");
+    assert_eq!(field_of(&spoil(&|h| h.emitters[0].element = u32::MAX)), "emitters[0].element");
+    assert_eq!(field_of(&spoil(&|h| h.emitters[2].power.as_mut().unwrap().g = -1.0)), "emitters[2].power.g");
+    assert_eq!(field_of(&spoil(&|h| h.emitters[2].power = None)), "emitters[2].power");
+    let lamp = |h: &mut v1::SceneHeader| {
+        h.materials.iter_mut().find(|m| m.emit.is_some()).unwrap().emit.as_mut().unwrap().r = f64::NAN
+    };
+    assert!(field_of(&spoil(&lamp)).ends_with(".emit.r"));
+}

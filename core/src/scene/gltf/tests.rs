@@ -306,3 +306,16 @@ fn a_base_colour_texture_and_its_texcoords_are_read() {
     // glTF's t runs down the image, magg's v up.
     assert_eq!(t.uv, Some([glam::DVec2::new(0.0, 1.0), glam::DVec2::new(1.0, 1.0), glam::DVec2::new(0.0, 0.0)]));
 }
+
+#[test]
+fn the_emissive_factor_times_its_strength_is_the_emitted_radiance() {
+    let plain = document("[{\"mesh\":0}]", Some(&data_uri()));
+    assert!(!load_ok(&plain).materials[0].is_emitter(), "no emissiveFactor: black");
+    let lamp = plain.replace("\"metallicFactor\":0}", "\"metallicFactor\":0},\"emissiveFactor\":[1,0.5,0.25]");
+    assert_eq!(load_ok(&lamp).materials[0].emit, Rgb::new(1.0, 0.5, 0.25));
+    let strong = lamp.replace(
+        "\"emissiveFactor\":[1,0.5,0.25]",
+        "\"emissiveFactor\":[1,0.5,0.25],\"extensions\":{\"KHR_materials_emissive_strength\":{\"emissiveStrength\":8}}",
+    );
+    assert_eq!(load_ok(&strong).materials[0].emit, Rgb::new(8.0, 4.0, 2.0));
+}

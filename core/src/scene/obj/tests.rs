@@ -120,3 +120,13 @@ fn mtl_errors_name_file_and_line() {
     let e = parse_mtl("m.mtl", "newmtl a\nKd spectral file.rfl\n").unwrap_err().to_string();
     assert!(e.contains("not supported"), "{e}");
 }
+
+#[test]
+fn mtl_ke_is_the_emitted_radiance() {
+    let m = mtl("newmtl lamp\nKd 0.1\nKe 5 4 3\n\nnewmtl dull\nKd 0.5\nKe 0 0 0\n\nnewmtl hot\nKe 2e31 -1 1\n");
+    assert_eq!(m[0].emit, Rgb::new(5.0, 4.0, 3.0));
+    assert!(!m[1].is_emitter());
+    assert_eq!(m[2].emit, Rgb::new(MAX_RADIOMETRIC, 0.0, 1.0), "clamped to [0, MAX_RADIOMETRIC]");
+    let e = parse_mtl("m.mtl", "newmtl a\nKe 1 x 1\n").unwrap_err().to_string();
+    assert_eq!(e, "m.mtl:2: mtl: Ke: 'x' is not a number");
+}

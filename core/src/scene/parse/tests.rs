@@ -441,3 +441,27 @@ fn a_non_utf8_obj_names_its_line() {
     let e = parse_with_bytes(&mesh_scene(""), &[("base/m/cube.obj", b"v 0 0 0\nv \xff 0 0\n")]).unwrap_err();
     assert_eq!(e.to_string(), "base/m/cube.obj:2: obj: not UTF-8 text");
 }
+
+#[test]
+fn emit_makes_an_area_light_and_is_checked() {
+    // A scene lit only by an emitting material parses without a [[light]].
+    let lamp = MINI
+        .replace("[[light]]\nposition = [0, 1.9, 0]\nintensity = [1, 1, 1]\n", "")
+        .replace("diffuse = [0.7, 0.7, 0.7]", "diffuse = [0.7, 0.7, 0.7]\nemit = [4, 2, 1]");
+    let s = parse(&lamp).unwrap();
+    assert!(s.lights.is_empty());
+    assert_eq!(s.materials[0].emit, Rgb::new(4.0, 2.0, 1.0));
+    assert!(s.materials[0].is_emitter());
+    assert!(!parse(MINI).unwrap().materials[0].is_emitter(), "black by default");
+    let e = err(&lamp.replace("emit = [4, 2, 1]", "emit = [4, -2, 1]"));
+    assert_eq!(e, "t.toml:10: material[0].emit: green = -2 is out of range [0, 1e30]");
+    let e = err(&lamp.replace("emit = [4, 2, 1]", "emit = [4, 2, nan]"));
+    assert!(e.starts_with("t.toml:10: material[0].emit:"), "{e}");
+    let e = err(&lamp.replace("emit = [4, 2, 1]", "emit = [4, 2, 1e31]"));
+    assert!(e.starts_with("t.toml:10: material[0].emit: blue = "), "{e}");
+    // An emitting material no patch uses lights nothing.
+    let unused = lamp
+        .replace("emit = [4, 2, 1]", "")
+        .replace("[[triangle]]", "[[material]]\nname = \"lamp\"\nemit = [1, 1, 1]\n\n[[triangle]]");
+    assert!(err(&unused).contains("no [[light]] and no patch of a material with `emit`"));
+}

@@ -1,0 +1,177 @@
+//! Area lights in LRT: the pair (emitting element, receiving element).
+//!
+//! An emitting element radiates `emit` (W m^-2 sr^-1) from the front of its patch, the
+//! same in every direction. Its pair with a receiving element casts `n = light_rays`
+//! rays, stratified over both triangles: `a = floor(sqrt(n))` points spread over the
+//! emitter (stratified, each standing for `A_e / a` of its area), and from each point
+//! about `n / a` rays stratified over the receiver's solid angle, as a point light's
+//! rays are. Seen from one point the emitter is a point light of intensity
+//! `emit * A_e / a * cos_e` towards `w`, so a ray carries
+//! `emit * A_e / a * cos_e(w) * Omega / n_i`: the flux that reaches the receiver
+//! (`emit * cos_e * cos_r / d^2 * A_e * A_r` summed over the pair) without the `1 / d^2`
+//! of sampling points on both, which is unbounded where an emitter meets a wall. A
+//! pair's deposits thus stay below `2 pi * emit * A_e` (twice the emitter's power).
+//!
+//! Occluded rays deposit nothing (the occluder's own pair accounts for its light); the
+//! rays that reach the receiver deposit there (whatever `direct` says: the plan computes
+//! only point and spot lights at VRT) and scatter on like point-light rays. Pairs that
+//! cannot exchange light are skipped before any ray: a receiver entirely on or behind
+//! the emitter's plane, or a one-sided receiver whose front faces away from the whole
+//! emitter.
+
+use super::{arrival, follow, merged, scatter, PairResult, Pending, MIN_RELATIVE_FLUX};
+use crate::blocks::BlockError;
+use crate::color::Rgb;
+use crate::geometry::{sample_spherical_triangle, solid_angle, triangle_normal, Ray};
+use crate::header::Emitter;
+use crate::rng::{hammersley, Rng};
+use crate::scatter::offset_scale;
+use crate::subdivision::element_triangle;
+use crate::trace::{occluded, TraceScratch};
+use crate::view::SceneView;
+use glam::DVec3;
+use std::f64::consts::PI;
+
+/// The point of triangle `t` at unit-square coordinates `(u0, u1)`, uniform over its
+/// area (the square-root warp), stratified when the inputs are.
+fn point_on(t: &[DVec3; 3], u0: f64, u1: f64) -> DVec3 {
+    let s = u0.sqrt();
+    t[0] * (1.0 - s) + t[1] * (s * (1.0 - u1)) + t[2] * (s * u1)
+}
+
+/// Emitter points of a pair of `n` rays, and the rays cast from point `i` of them.
+fn split(n: u32) -> (u32, impl Fn(u32) -> u32) {
+    let a = ((n as f64).sqrt().floor() as u32).clamp(1, n.max(1));
+    (a, move |i| n / a + u32::from(i < n % a))
+}
+
+/// Traces the pair of `emitter` (light index `light`) and `element`.
+pub(super) fn trace_emitter_pair(
+    view: &mut SceneView,
+    scratch: &mut TraceScratch,
+    light: u32,
+    emitter: Emitter,
+    element: u32,
+) -> Result<PairResult, BlockError> {
+    let header = view.header.clone();
+    let plan = &header.plan;
+    let mut out = PairResult::default();
+    if !plan.lrt || emitter.element == element || emitter.power.is_black() {
+        return Ok(out);
+    }
+    let src = view.element(emitter.element)?;
+    let sp = view.patch(src.patch)?;
+    let etri = element_triangle(&sp.v, sp.subdivisions, src.local);
+    let en = triangle_normal(&sp.v);
+    let erec = view.element(element)?;
+    let prec = view.patch(erec.patch)?;
+    let material = header.materials.get(prec.material as usize);
+    let tri = element_triangle(&prec.v, prec.subdivisions, erec.local);
+    let normal = triangle_normal(&prec.v);
+    if tri.iter().all(|v| en.dot(*v - etri[0]) <= 0.0) {
+        // On or behind the emitter's plane: its front sends nothing there.
+        return Ok(out);
+    }
+    if material.is_some_and(|m| m.one_sided) && etri.iter().all(|v| normal.dot(*v - tri[0]) <= 0.0) {
+        // Every ray would arrive on the back of a one-sided receiver.
+        return Ok(out);
+    }
+    // emit * A_e, per channel.
+    let radiance_area = emitter.power.scale(1.0 / PI);
+    let n = header.settings.light_rays.max(1);
+    let (points, rays_of) = split(n);
+    let mut rng = Rng::from_words(&[header.settings.seed, 0x4c5254, light as u64, element as u64]);
+    let (sx, sy) = (rng.next_f64(), rng.next_f64());
+    let mut deposits: Vec<(u32, Rgb)> = Vec::new();
+    let mut stack: Vec<Pending> = Vec::new();
+
+    for i in 0..points {
+        let (u0, u1) = hammersley(i, points, sx, sy);
+        let p = point_on(&etri, u0, u1);
+        let omega = solid_angle(p, &tri);
+        let (tx, ty) = (rng.next_f64(), rng.next_f64());
+        if !(omega > 0.0) {
+            continue;
+        }
+        let m = rays_of(i);
+        let per_ray = radiance_area.scale(omega / (points as f64 * m as f64));
+        let eps0 = offset_scale(p);
+        for j in 0..m {
+            let (w0, w1) = hammersley(j, m, tx, ty);
+            let Some(w) = sample_spherical_triangle(p, &tri, w0, w1) else {
+                continue;
+            };
+            let cos_e = en.dot(w);
+            if !(cos_e > 0.0) {
+                continue;
+            }
+            let flux = per_ray.scale(cos_e);
+            view.counters.light_rays += 1;
+            let t_plane = normal.dot(prec.v[0] - p) / normal.dot(w);
+            if !(t_plane > 0.0) || !t_plane.is_finite() {
+                continue;
+            }
+            let ray = Ray::new(p, w);
+            if occluded(view, scratch, &ray, eps0, t_plane * (1.0 - 1e-9), erec.patch)? {
+                out.tally.occluded = out.tally.occluded.add(flux);
+                continue;
+            }
+            out.tally.reached = out.tally.reached.add(flux);
+            if material.is_some_and(|m| m.refuses(w, normal)) {
+                out.tally.absorbed = out.tally.absorbed.add(flux);
+                continue;
+            }
+            if plan.deposits_direct(true) {
+                deposits.push((element, flux));
+            }
+            let floor = flux.max_channel() * MIN_RELATIVE_FLUX;
+            let (at, albedo) = arrival(view, &prec, ray.at(t_plane), w, normal, None)?;
+            scatter(
+                view,
+                &mut rng,
+                &mut stack,
+                &mut out.tally,
+                at,
+                albedo,
+                prec.material,
+                erec.patch,
+                flux,
+                0,
+                0,
+                floor,
+            );
+            follow(view, scratch, &mut rng, &mut stack, &mut out.tally, &mut deposits)?;
+        }
+    }
+    out.deposits = merged(deposits, header.energy_quantum);
+    Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn split_casts_exactly_n_rays_over_sqrt_n_points() {
+        for n in [1, 2, 3, 16, 17, 64, 100, 1000] {
+            let (a, rays) = split(n);
+            assert_eq!(a, (n as f64).sqrt().floor() as u32);
+            assert_eq!((0..a).map(&rays).sum::<u32>(), n, "n = {n}");
+        }
+    }
+
+    #[test]
+    fn points_fall_inside_the_triangle_and_cover_it_evenly() {
+        let t = [DVec3::ZERO, DVec3::X, DVec3::Y];
+        let n = 64;
+        let mut mean = DVec3::ZERO;
+        for i in 0..n {
+            let (u0, u1) = hammersley(i, n, 0.25, 0.5);
+            let p = point_on(&t, u0, u1);
+            assert!(p.x >= 0.0 && p.y >= 0.0 && p.x + p.y <= 1.0 + 1e-12 && p.z == 0.0);
+            mean += p / n as f64;
+        }
+        // The centroid (1/3, 1/3) within stratification error.
+        assert!((mean - DVec3::new(1.0 / 3.0, 1.0 / 3.0, 0.0)).length() < 0.02, "{mean}");
+    }
+}
