@@ -33,11 +33,12 @@ pub const RENDER_OVER: &str = "the render is over: this host takes no more nodes
 pub const NOT_LOADED: &str = "no scene loaded";
 
 /// Version of the protocol; processes with another version are refused at registration.
-/// 7: render settings say where direct light is computed and the effects plan whether
+/// 8: `GetEnergies` may ask for a monitoring snapshot (`monitor`: energies that cost the
+/// modelled machine nothing, for the live view's preview during LRT); 7: render settings say where direct light is computed and the effects plan whether
 /// VRT computes it (`direct`, `direct_vrt`), materials whether they are one-sided; 6: `TakePairs` carries the node's secret, a keyed hash of its id under the render's
 /// node key, which `LoadShard` brings the forks; 5: a node's host requests carry the
 /// secret its registration gave it; 4: `GetEnergies`
 /// replies carry the ledger's digests, checked by the host before it interpolates; 3: a
 /// batch's deposits on a fork are packed arrays and may carry the next `TakePairs`
 /// ([`deposits`]); 2: packed deposits per pair, `Replay` names the lost fork.
-pub const PROTOCOL_VERSION: u32 = 7;
+pub const PROTOCOL_VERSION: u32 = 8;
