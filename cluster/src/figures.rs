@@ -2,6 +2,7 @@
 //! traffic and busy times, and the stage times (modelled seconds on an emulated machine).
 
 use super::emulation::{cpu_share, process_cpu_s};
+use super::forks::EnergyPoll;
 use super::machine::{mark, ClusterMachine};
 use super::service::Phase;
 use magg_core::blocks::{home_fork_of_node, CacheStats};
@@ -47,7 +48,7 @@ impl ClusterMachine {
         let mut traffic = Traffic::default();
         let mut busy = self.busy;
         for i in 0..f {
-            let r = self.forks.poll_until_up(i, true, false).await?;
+            let r = self.forks.poll_until_up(i, EnergyPoll::Summary, false).await?;
             traffic.dma_bytes += r.dma_bytes;
             traffic.gbus_bytes += r.gbus_bytes;
             traffic.rpcs += r.rpcs;

@@ -52,6 +52,25 @@ use tonic::{Code, Status};
 
 type Result<T> = std::result::Result<T, ClusterError>;
 
+/// What a poll of a fork's energies asks for.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum EnergyPoll {
+    /// Pair progress and the counters only (progress polls).
+    Summary,
+    /// The energies deposited so far too, for a watcher (the live view's preview): our
+    /// monitoring, which costs the modelled machine nothing.
+    Snapshot,
+    /// The energies, collected as the paper's host does (over the G-bus, when throttled).
+    Collect,
+}
+
+impl EnergyPoll {
+    /// The request that asks for it.
+    fn request(self) -> GetEnergiesRequest {
+        GetEnergiesRequest { summary_only: self == EnergyPoll::Summary, monitor: self == EnergyPoll::Snapshot }
+    }
+}
+
 /// Whether a fork answered "no scene loaded": it has started or restarted since.
 fn not_loaded(status: &Status) -> bool {
     status.code() == Code::Unavailable && status.message() == magg_proto::NOT_LOADED
@@ -248,11 +267,11 @@ impl ForkSet {
     pub async fn poll(
         &mut self,
         i: usize,
-        summary_only: bool,
+        what: EnergyPoll,
         lrt_pending: bool,
     ) -> Result<Option<v1::GetEnergiesReply>> {
         let mut client = self.clients[i].clone();
-        let call = client.get_energies(GetEnergiesRequest { summary_only });
+        let call = client.get_energies(what.request());
         let status = match tokio::time::timeout(POLL_TIMEOUT, call).await {
             Ok(Ok(r)) => {
                 if self.down_since[i].take().is_some() {
@@ -347,11 +366,11 @@ impl ForkSet {
     pub async fn poll_until_up(
         &mut self,
         i: usize,
-        summary_only: bool,
+        what: EnergyPoll,
         lrt_pending: bool,
     ) -> Result<v1::GetEnergiesReply> {
         loop {
-            if let Some(r) = self.poll(i, summary_only, lrt_pending).await? {
+            if let Some(r) = self.poll(i, what, lrt_pending).await? {
                 return Ok(r);
             }
             tokio::time::sleep(Duration::from_millis(100)).await;

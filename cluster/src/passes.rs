@@ -3,6 +3,7 @@
 //! (subscreens handed to the nodes until every pixel row is in).
 
 use super::events::ClusterEvent;
+use super::forks::EnergyPoll;
 use super::machine::{mark, ClusterMachine};
 use super::schedule::Scheduler;
 use super::service::Phase;
@@ -31,6 +32,18 @@ const FORK_CHECK: Duration = Duration::from_millis(500);
 /// Progress checks of the viewing pass (the end of the pass wakes the driver at once).
 const VRT_POLL: Duration = Duration::from_millis(20);
 
+/// Writes fork `fork`'s element energies in `r` into `flux` (by element id).
+fn fill_flux(flux: &mut [Fixed], fork: usize, r: &v1::GetEnergiesReply) -> Result<(), ClusterError> {
+    let elements = flux.len();
+    for (element, e) in element_energies(r).map_err(|source| ClusterError::Energies { fork, source })? {
+        match flux.get_mut(element as usize) {
+            Some(slot) => *slot = e,
+            None => return Err(ClusterError::NoSuchElement { fork, element, elements }),
+        }
+    }
+    Ok(())
+}
+
 impl ClusterMachine {
     /// LRT: the nodes pull pairs from their home forks; the host waits until every fork
     /// reports all of its pairs done, then collects the energies, all within one replay
@@ -46,19 +59,29 @@ impl ClusterMachine {
         let poll = if self.throttled() { LRT_POLL_THROTTLED } else { LRT_POLL };
         let mut total_pairs = 0;
         for i in 0..f {
-            total_pairs += self.forks.poll_until_up(i, true, true).await?.pairs_total;
+            total_pairs += self.forks.poll_until_up(i, EnergyPoll::Summary, true).await?.pairs_total;
         }
-        progress.begin("light ray tracing", total_pairs);
+        progress.begin(magg_core::progress::LIGHT_PASS, total_pairs);
         let mut last = (0u64, Instant::now());
         let (mut returned_seen, mut epoch_seen) = (0, 0);
         let mut rebuilds = 0;
         let mut element_flux: Vec<Fixed> = vec![[0; 3]; n_el];
         let collect_s = loop {
             let (mut done, mut returned) = (0, 0);
+            // A watcher's snapshot rides on this round's progress polls (no extra RPC).
+            let snapshot = progress.light_snapshot_due();
+            let what = if snapshot { EnergyPoll::Snapshot } else { EnergyPoll::Summary };
+            let mut so_far: Vec<Fixed> = if snapshot { vec![[0; 3]; n_el] } else { Vec::new() };
             for i in 0..f {
-                let r = self.forks.poll_until_up(i, true, true).await?;
+                let r = self.forks.poll_until_up(i, what, true).await?;
                 done += r.pairs_done;
                 returned += r.pairs_returned;
+                if snapshot {
+                    fill_flux(&mut so_far, i, &r)?;
+                }
+            }
+            if snapshot {
+                progress.light_snapshot(so_far);
             }
             if returned > returned_seen || self.forks.epoch > epoch_seen {
                 // Pairs of a lost node are back on a queue, or a replay started: wake the
@@ -86,16 +109,10 @@ impl ClusterMachine {
                 let mut ledgers = Vec::with_capacity(f);
                 let mut complete = true;
                 for i in 0..f {
-                    let r = self.forks.poll_until_up(i, false, true).await?;
+                    let r = self.forks.poll_until_up(i, EnergyPoll::Collect, true).await?;
                     complete &= r.pairs_done >= r.pairs_total;
                     ledgers.push(ledger_digest(&r, f).map_err(|source| ClusterError::Energies { fork: i, source })?);
-                    let energies = element_energies(&r).map_err(|source| ClusterError::Energies { fork: i, source })?;
-                    for (element, e) in energies {
-                        match element_flux.get_mut(element as usize) {
-                            Some(slot) => *slot = e,
-                            None => return Err(ClusterError::NoSuchElement { fork: i, element, elements: n_el }),
-                        }
-                    }
+                    fill_flux(&mut element_flux, i, &r)?;
                 }
                 if self.forks.epoch != epoch_seen || !complete {
                     continue;
@@ -176,14 +193,14 @@ impl ClusterMachine {
             st.phase = Phase::Vrt;
         }
         self.service.bump();
-        progress.begin("viewing ray tracing", magg_core::phases::pixels(&tiles));
+        progress.begin(magg_core::progress::VIEW_PASS, magg_core::phases::pixels(&tiles));
         let mut last_rows = (0u64, Instant::now());
         let mut last_check = Instant::now();
         loop {
             // A fork that died is waited for (and loaded again when it is back) or named.
             if last_check.elapsed() > FORK_CHECK {
                 for i in 0..f {
-                    self.forks.poll(i, true, false).await?;
+                    self.forks.poll(i, EnergyPoll::Summary, false).await?;
                 }
                 last_check = Instant::now();
             }

@@ -1,5 +1,12 @@
 //! Progress reporting hooks, so that front ends can show bars without the core doing I/O.
 
+use crate::energy::Fixed;
+
+/// The light pass's stage name, as [`Progress::begin`] gets it.
+pub const LIGHT_PASS: &str = "light ray tracing";
+/// The viewing pass's stage name, as [`Progress::begin`] gets it.
+pub const VIEW_PASS: &str = "viewing ray tracing";
+
 /// Receives progress of long stages.
 pub trait Progress: Sync {
     /// A stage starts with `total` units of work.
@@ -12,6 +19,16 @@ pub trait Progress: Sync {
     fn frame_begins(&self, _index: usize, _count: usize) {}
     /// Node `node` finished subscreen `t`; `px` holds its pixels row by row (for live views).
     fn subscreen_done(&self, _node: u32, _t: crate::vrt::Subscreen, _px: &[crate::color::Rgb]) {}
+    /// Whether a watcher wants a snapshot of the light pass's element flux now. Asked
+    /// between batches of pairs, so it must be cheap; a true answer is a claim: the asker
+    /// is expected to send [`Progress::light_snapshot`] next. Default: never.
+    fn light_snapshot_due(&self) -> bool {
+        false
+    }
+    /// The flux deposited on each element so far in the light pass (fixed point, by
+    /// element id): a copy, read without stopping the pass, that nothing feeds back into
+    /// the render (a live view draws a preview from it).
+    fn light_snapshot(&self, _element_flux: Vec<Fixed>) {}
 }
 
 /// Reports nothing.

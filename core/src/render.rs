@@ -91,7 +91,7 @@ fn light_pass(
     let total_pairs = if header.plan.lrt { header.pair_count() } else { 0 };
     let next_pair = AtomicU64::new(0);
     const PAIR_BATCH: u64 = 8;
-    progress.begin("light ray tracing", total_pairs);
+    progress.begin(crate::progress::LIGHT_PASS, total_pairs);
     let lrt_results: Vec<Result<(u64, LrtTally), RenderError>> = std::thread::scope(|s| {
         let handles: Vec<_> = views
             .iter_mut()
@@ -123,6 +123,11 @@ fn light_pass(
                             pairs += 1;
                         }
                         progress.advance(end - start);
+                        // A watcher's snapshot: relaxed loads of the sums, which the pass
+                        // neither waits for nor sees.
+                        if progress.light_snapshot_due() {
+                            progress.light_snapshot(load_flux(flux));
+                        }
                     }
                     Ok((pairs, tally))
                 })
@@ -138,11 +143,14 @@ fn light_pass(
         node_pairs.push(p);
         tally = tally.add(t);
     }
-    let flux = flux
-        .iter()
+    Ok(LightPass { flux: load_flux(&flux), node_pairs, tally, pairs: total_pairs })
+}
+
+/// The element sums of the light pass as they stand.
+fn load_flux(flux: &[[AtomicI64; 3]]) -> Vec<Fixed> {
+    flux.iter()
         .map(|a| [a[0].load(Ordering::Relaxed), a[1].load(Ordering::Relaxed), a[2].load(Ordering::Relaxed)])
-        .collect();
-    Ok(LightPass { flux, node_pairs, tally, pairs: total_pairs })
+        .collect()
 }
 
 /// VRT of one frame: nodes pull subscreens from a shared queue. Returns the frame and
@@ -161,7 +169,7 @@ fn view_pass(
     // Each worker copies a finished subscreen into the frame at once: the frame is
     // assembled while the others trace, not after the last of them.
     let frame = Mutex::new(Frame::new(s.width, s.height));
-    progress.begin("viewing ray tracing", crate::phases::pixels(tiles));
+    progress.begin(crate::progress::VIEW_PASS, crate::phases::pixels(tiles));
     let vrt_results: Vec<Result<u64, RenderError>> = std::thread::scope(|sc| {
         let handles: Vec<_> = views
             .iter_mut()

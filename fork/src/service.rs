@@ -333,11 +333,12 @@ impl Fork for ForkService {
         req: Request<v1::GetEnergiesRequest>,
     ) -> Result<Response<v1::GetEnergiesReply>, Status> {
         let shard = self.shard()?;
-        let summary_only = req.into_inner().summary_only;
-        let mut reply = v1::GetEnergiesReply::from(shard.energies(summary_only));
+        let r = req.into_inner();
+        let mut reply = v1::GetEnergiesReply::from(shard.energies(r.summary_only));
         // The energies go back to the host over the G-bus. The host's progress polls
-        // (summaries) are our monitoring, not the paper's protocol: they cost nothing.
-        if !summary_only {
+        // (summaries) and a watcher's snapshots are our monitoring, not the paper's
+        // protocol: they cost nothing.
+        if !r.summary_only && !r.monitor {
             self.hw.serve(0).await;
             self.hw.gbus(shard.placement().index, shard.peers(), prost::Message::encoded_len(&reply)).await;
         }

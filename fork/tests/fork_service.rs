@@ -96,7 +96,7 @@ impl Cluster {
     }
 
     async fn energies(&mut self, i: u32) -> v1::GetEnergiesReply {
-        let req = v1::GetEnergiesRequest { summary_only: false };
+        let req = v1::GetEnergiesRequest { summary_only: false, monitor: false };
         self.clients[i as usize].get_energies(req).await.unwrap().into_inner()
     }
 
@@ -274,7 +274,7 @@ async fn deposits_apply_exactly_once_and_energies_sum() {
     assert_eq!(get(&e1, a), [15, 6, 7]);
     assert_eq!(get(&e1, b), [3, 4, 5]);
     assert_eq!(e1.pairs_done, 1);
-    let req = v1::GetEnergiesRequest { summary_only: true };
+    let req = v1::GetEnergiesRequest { summary_only: true, monitor: false };
     let summary = c.clients[1].get_energies(req).await.unwrap().into_inner();
     assert!(summary.elements.is_empty() && summary.energy.is_empty());
     assert_eq!((summary.pairs_done, summary.pairs_total), (1, e1.pairs_total));
@@ -299,7 +299,7 @@ async fn deposits_apply_exactly_once_and_energies_sum() {
 async fn bad_requests_get_the_right_codes_and_the_server_keeps_serving() {
     let mut c = Cluster::start().await;
     // Before LoadShard.
-    let (k, m) = code(c.clients[0].get_energies(v1::GetEnergiesRequest { summary_only: true }).await);
+    let (k, m) = code(c.clients[0].get_energies(v1::GetEnergiesRequest { summary_only: true, monitor: false }).await);
     assert_eq!((k, m.as_str()), (Code::Unavailable, "no scene loaded"));
     let (k, _) = code(c.clients[0].take_pairs(v1::TakePairsRequest { max: 1, node: 0, ..Default::default() }).await);
     assert_eq!(k, Code::Unavailable, "an empty fork is retried until the host loads it");

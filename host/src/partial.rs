@@ -249,6 +249,12 @@ impl Progress for PartialProgress<'_> {
         }
         self.inner.subscreen_done(node, t, px);
     }
+    fn light_snapshot_due(&self) -> bool {
+        self.inner.light_snapshot_due()
+    }
+    fn light_snapshot(&self, element_flux: Vec<magg_core::energy::Fixed>) {
+        self.inner.light_snapshot(element_flux);
+    }
 }
 
 #[cfg(test)]

@@ -35,8 +35,10 @@ pub const NOT_LOADED: &str = "no scene loaded";
 /// Version of the protocol; processes with another version are refused at registration.
 /// 8: materials carry their emitted radiance (`emit`), the scene header its emitting
 /// elements (`emitters`, LRT's light sources after the point lights) and textures, the
-/// effects plan whether it has area lights (`area_lights`), and the block layout shading
-/// blocks (corner normals and texture coordinates) and texture blocks; 7: render settings say where direct light is computed and the effects plan whether
+/// effects plan whether it has area lights (`area_lights`), the block layout shading
+/// blocks (corner normals and texture coordinates) and texture blocks, and `GetEnergies`
+/// may ask for a monitoring snapshot (`monitor`: energies that cost the modelled machine
+/// nothing, for the live view's preview during LRT); 7: render settings say where direct light is computed and the effects plan whether
 /// VRT computes it (`direct`, `direct_vrt`), materials whether they are one-sided; 6: `TakePairs` carries the node's secret, a keyed hash of its id under the render's
 /// node key, which `LoadShard` brings the forks; 5: a node's host requests carry the
 /// secret its registration gave it; 4: `GetEnergies`

@@ -105,7 +105,7 @@ pub fn run(cfg: RenderConfig, files: &scene_file::SceneFiles, partial: &partial:
     let mut viewer_wait = std::time::Duration::ZERO;
     let live = match &cfg.view {
         Some((addr, wait, _)) => {
-            let live = LiveView::start(addr)?;
+            let mut live = LiveView::start(addr)?;
             eprintln!("live view: {}", live.url());
             let mode = if cfg.mode == Mode::Embedded { "embedded" } else { "cluster" };
             let s = &scene.settings;
@@ -115,6 +115,11 @@ pub fn run(cfg: RenderConfig, files: &scene_file::SceneFiles, partial: &partial:
                 tracing::warn!("no page opened the live view in 10 minutes: rendering anyway");
             }
             viewer_wait = t_wait.elapsed();
+            if sequence.energies.is_none() && prepared.header.plan.lrt {
+                let camera = sequence.cameras.first().unwrap_or(&prepared.header.camera);
+                live.preview_light_pass(prepared.clone(), camera)?;
+            }
+            live.rendering(prepared.header.plan.pixel_samples);
             Some(live)
         }
         None => None,

@@ -3,9 +3,12 @@
 //! start, and the latest stage, progress and per-node table.
 //!
 //! Messages are JSON objects with a type `t`: `hello`, `frame`, `tile`, `rows`, `split`,
-//! `stage`, `nodes`, `done` (see `page.html`, which draws them). Pixel rows travel as
-//! base64 of little-endian f32 linear RGB; the page tone-maps them itself.
+//! `stage`, `nodes`, `preview`, `done` (see `page.html`, which draws them). Pixel rows and
+//! previews travel as base64 of little-endian f32 linear RGB; the page tone-maps them
+//! itself. The latest preview of the light pass is kept apart from the log (each replaces
+//! the one before) and dropped when the viewing pass starts.
 
+use super::preview::PreviewImage;
 use super::NodeRow;
 use base64::Engine;
 use magg_cluster::events::ClusterEvent;
@@ -14,6 +17,7 @@ use magg_core::vrt::Subscreen;
 use serde_json::{json, Value};
 use std::collections::{BTreeMap, HashMap};
 use std::sync::{Arc, Mutex, MutexGuard};
+use std::time::Instant;
 
 /// The shared state, behind a lock, plus a version that wakes the pages' streams.
 pub struct Board {
@@ -22,6 +26,8 @@ pub struct Board {
     pub version: tokio::sync::watch::Sender<u64>,
     /// Event streams opened so far (pages that connected).
     pub viewers: std::sync::atomic::AtomicU32,
+    /// Event streams open now (pages watching).
+    pub watching: std::sync::atomic::AtomicU32,
 }
 
 /// The finished images.
@@ -46,6 +52,18 @@ pub struct Inner {
     rects: HashMap<u64, Subscreen>,
     /// Stage name, total and units done.
     pub stage: (String, u64, u64),
+    /// When the stage began.
+    pub stage_began: Option<Instant>,
+    /// When the render began (after any wait for a page).
+    pub started: Option<Instant>,
+    /// Primary viewing rays per pixel of the viewing pass.
+    pub pixel_samples: u64,
+    /// The latest `preview` message of the light pass.
+    pub preview: Option<Arc<str>>,
+    /// Bumped when `preview` changes.
+    pub preview_version: u64,
+    /// A viewing pass began: the light pass is over, previews are dropped.
+    pub viewing: bool,
     /// Per-node figures.
     pub nodes: BTreeMap<u32, NodeRow>,
     /// Bumped when `stage` or `nodes` change.
@@ -70,8 +88,32 @@ impl Inner {
         self.log.push(v.to_string().into());
     }
 
-    /// Restarts the log for frame `index` of `count`.
+    /// Frame `index` of `count` starts its viewing pass: the light pass's preview goes.
     pub fn frame(&mut self, index: usize, count: usize) {
+        self.viewing = true;
+        self.preview = None;
+        self.restart(index, count);
+    }
+
+    /// Whether previews of the light pass are still wanted (no viewing pass began).
+    pub fn previewing(&self) -> bool {
+        !self.viewing
+    }
+
+    /// A preview of the light pass, shown until the viewing pass starts.
+    pub fn preview(&mut self, img: &PreviewImage) {
+        if self.viewing {
+            return; // traced from a snapshot taken just before the light pass ended
+        }
+        let (_, total, done) = &self.stage;
+        let m = json!({"t": "preview", "w": img.width, "h": img.height, "pairs_done": done, "pairs_total": total,
+                       "px": b64(img.rgb.iter().copied())});
+        self.preview = Some(m.to_string().into());
+        self.preview_version += 1;
+    }
+
+    /// Restarts the log for frame `index` of `count`.
+    fn restart(&mut self, index: usize, count: usize) {
         self.epoch += 1;
         self.log.clear();
         self.rects.clear();
@@ -138,10 +180,24 @@ impl Inner {
         }
     }
 
-    /// The `stage` message.
+    /// The `stage` message: the stage's progress, the seconds since the render and the
+    /// stage began, the stage's unit of work and, where a unit's ray count is exact (a
+    /// pixel casts `pixel_samples` primary viewing rays), its primary rays per unit; the
+    /// page derives elapsed time, ETA and rates from them. A light pass pair has no such
+    /// count (pairs the plan skips, or whose element the light cannot see, cast none):
+    /// the page shows pairs per second there.
     pub fn stage_message(&self) -> String {
         let (name, total, done) = &self.stage;
-        json!({"t": "stage", "name": name, "total": total, "done": done, "finished": self.finished}).to_string()
+        let secs = |t: Option<Instant>| t.map_or(0.0, |t| t.elapsed().as_secs_f64());
+        let (unit, rays_per_unit) = match name.as_str() {
+            magg_core::progress::LIGHT_PASS => ("pairs", 0),
+            magg_core::progress::VIEW_PASS => ("pixels", self.pixel_samples),
+            _ => ("units", 0),
+        };
+        json!({"t": "stage", "name": name, "total": total, "done": done, "finished": self.finished,
+               "elapsed_s": secs(self.started), "stage_s": secs(self.stage_began), "unit": unit,
+               "rays_per_unit": rays_per_unit})
+        .to_string()
     }
 
     /// The `nodes` message.
@@ -157,6 +213,7 @@ impl Board {
             inner: Mutex::new(Inner::default()),
             version: tokio::sync::watch::channel(0).0,
             viewers: std::sync::atomic::AtomicU32::new(0),
+            watching: std::sync::atomic::AtomicU32::new(0),
         }
     }
 
@@ -175,7 +232,7 @@ impl Board {
     pub fn hello(&self, hello: Value, frames: usize) {
         self.update(|s| {
             s.hello = hello;
-            s.frame(0, frames);
+            s.restart(0, frames);
         });
     }
 }

@@ -7,6 +7,10 @@
 //! the render's. The page gets server-sent events; the cluster's host service feeds the
 //! board through [`magg_cluster::events`], the embedded renderer through the
 //! [`Progress`] hooks (there, per-node figures other than subscreens arrive at the end).
+//! During the light pass, both machines hand the [`Progress`] hooks snapshots of the
+//! element flux while a page is open, and the page shows a small preview traced from
+//! them ([`preview`]); the stage message carries the times and units the page derives
+//! elapsed time, ETA and rates (pairs, pixels and primary viewing rays per second) from.
 //!
 //! ```text
 //! magg-host render scenes/cornell.toml --out c.png --view 127.0.0.1:8080 --view-linger 600
@@ -14,6 +18,7 @@
 //! ```
 
 mod board;
+pub mod preview;
 mod server;
 
 use crate::frames::RunStats;
@@ -21,10 +26,13 @@ use anyhow::Context;
 use board::Board;
 use magg_cluster::events::EventSender;
 use magg_core::color::Rgb;
+use magg_core::energy::Fixed;
 use magg_core::frame::Frame;
+use magg_core::preprocess::PreparedScene;
 use magg_core::progress::Progress;
-use magg_core::scene::Exposure;
+use magg_core::scene::{Camera, Exposure};
 use magg_core::vrt::Subscreen;
+use preview::{Preview, Previewer};
 use serde::Serialize;
 use serde_json::json;
 use std::sync::atomic::Ordering;
@@ -59,6 +67,9 @@ pub struct NodeRow {
 /// A running live view.
 pub struct LiveView {
     board: Arc<Board>,
+    /// The light pass's preview thread, once [`LiveView::preview_light_pass`] started it.
+    /// Declared before `rt`: stopped first.
+    preview: Option<Preview>,
     rt: tokio::runtime::Runtime,
     addr: std::net::SocketAddr,
 }
@@ -83,7 +94,7 @@ impl LiveView {
                 tracing::warn!("live view server stopped: {e}");
             }
         });
-        Ok(LiveView { board, rt, addr })
+        Ok(LiveView { board, preview: None, rt, addr })
     }
 
     /// The page's address.
@@ -101,6 +112,24 @@ impl LiveView {
         let hello = json!({"t": "hello", "scene": scene, "width": width, "height": height,
                            "exposure": exposure, "mode": mode, "frames": frames});
         self.board.hello(hello, frames);
+    }
+
+    /// Previews the light pass of `scene` as seen by `camera` (the first frame's) while a
+    /// page is open (see [`preview`]).
+    pub fn preview_light_pass(&mut self, scene: Arc<PreparedScene>, camera: &Camera) -> anyhow::Result<()> {
+        let previewer = Previewer::new(scene, camera);
+        self.preview =
+            Some(Preview::start(self.board.clone(), previewer).context("starting the live view's preview thread")?);
+        Ok(())
+    }
+
+    /// The render begins now (after any wait for a page): the page's clock starts. A
+    /// pixel casts `pixel_samples` primary viewing rays.
+    pub fn rendering(&self, pixel_samples: u32) {
+        self.board.update(|s| {
+            s.started = Some(Instant::now());
+            s.pixel_samples = pixel_samples as u64;
+        });
     }
 
     /// A channel for the cluster's host service; its events are applied in order.
@@ -170,7 +199,7 @@ impl LiveView {
     /// A [`Progress`] that feeds the board and forwards to `inner` (the terminal bars).
     /// With `cluster`, frames start through the cluster's events instead.
     pub fn progress<'a>(&'a self, inner: &'a dyn Progress, cluster: bool) -> LiveProgress<'a> {
-        LiveProgress { inner, board: &self.board, cluster }
+        LiveProgress { inner, board: &self.board, preview: self.preview.as_ref(), cluster }
     }
 }
 
@@ -178,6 +207,7 @@ impl LiveView {
 pub struct LiveProgress<'a> {
     inner: &'a dyn Progress,
     board: &'a Board,
+    preview: Option<&'a Preview>,
     cluster: bool,
 }
 
@@ -186,6 +216,7 @@ impl Progress for LiveProgress<'_> {
         self.inner.begin(stage, total);
         self.board.update(|s| {
             s.stage = (stage.to_string(), total, 0);
+            s.stage_began = Some(Instant::now());
             s.stage_version += 1;
         });
     }
@@ -214,5 +245,14 @@ impl Progress for LiveProgress<'_> {
             }
             s.subscreen_done(node, t, px)
         });
+    }
+    // The snapshots end here: the terminal's bars have no use for them.
+    fn light_snapshot_due(&self) -> bool {
+        self.preview.is_some_and(Preview::due)
+    }
+    fn light_snapshot(&self, element_flux: Vec<Fixed>) {
+        if let Some(p) = self.preview {
+            p.snapshot(element_flux);
+        }
     }
 }

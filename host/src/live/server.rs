@@ -34,6 +34,22 @@ pub fn router(board: Arc<Board>) -> Router {
         .with_state(board)
 }
 
+/// Counts a page in [`Board::watching`] while its stream's task runs.
+struct Watching(Arc<Board>);
+
+impl Watching {
+    fn new(board: Arc<Board>) -> Watching {
+        board.watching.fetch_add(1, std::sync::atomic::Ordering::SeqCst);
+        Watching(board)
+    }
+}
+
+impl Drop for Watching {
+    fn drop(&mut self) {
+        self.0.watching.fetch_sub(1, std::sync::atomic::Ordering::SeqCst);
+    }
+}
+
 fn image(board: &Board, kind: &str) -> Response {
     let finals = board.lock().finals.clone();
     let (bytes, mime) = match kind {
@@ -55,14 +71,15 @@ fn image(board: &Board, kind: &str) -> Response {
 }
 
 /// One page's stream: everything of the current frame so far, then what follows, with
-/// the latest stage and node table whenever they change.
+/// the latest stage, node table and light pass preview whenever they change.
 async fn events(State(board): State<Arc<Board>>) -> Sse<impl tokio_stream::Stream<Item = Result<Event, Infallible>>> {
     let (tx, rx) = tokio::sync::mpsc::channel::<String>(256);
     let mut version = board.version.subscribe();
     board.viewers.fetch_add(1, std::sync::atomic::Ordering::SeqCst);
     tokio::spawn(async move {
+        let _watching = Watching::new(board.clone());
         let (mut epoch, mut sent) = (u64::MAX, 0usize);
-        let (mut stage_v, mut nodes_v, mut done_sent) = (u64::MAX, u64::MAX, false);
+        let (mut stage_v, mut nodes_v, mut preview_v, mut done_sent) = (u64::MAX, u64::MAX, u64::MAX, false);
         loop {
             version.borrow_and_update();
             let batch = {
@@ -79,6 +96,10 @@ async fn events(State(board): State<Arc<Board>>) -> Sse<impl tokio_stream::Strea
                 if s.nodes_version != nodes_v {
                     nodes_v = s.nodes_version;
                     batch.push(s.nodes_message());
+                }
+                if s.preview_version != preview_v {
+                    preview_v = s.preview_version;
+                    batch.extend(s.preview.as_ref().map(|m| m.to_string()));
                 }
                 if let (Some(done), false) = (&s.done, done_sent) {
                     batch.push(done.clone());
