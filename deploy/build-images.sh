@@ -1,16 +1,18 @@
 #!/usr/bin/env bash
 # Builds the container images magg-fork, magg-node and magg-host FROM scratch: each holds
-# one binary of the dist profile (release, symbols stripped, thin LTO), the shared
-# libraries `ldd` lists for it and the dynamic loader, and the host also the scenes (with
+# one binary of the dist profile (release, symbols stripped, fat LTO, one codegen unit),
+# linked statically (glibc's crt-static: no shared library, no loader; a binary given by
+# --bin-dir brings the shared libraries `ldd` lists for it and the dynamic loader), and the
+# host also the scenes (with
 # their meshes) at /scenes; nothing else: no base image, no registry, no network needed (a
 # Docker engine that has no images and can pull none builds them). Each runs as uid:gid
 # 65532:65532, not root; /out (owned by that user) and /tmp are the writable folders.
 #
-#   deploy/build-images.sh                       # cargo build --profile dist, then the images
+#   deploy/build-images.sh                       # the static dist build, then the images
 #   deploy/build-images.sh --bin-dir target/release --tag test
 #
 # Options:
-#   --bin-dir DIR   take the binaries from DIR instead of running cargo build --profile dist
+#   --bin-dir DIR   take the binaries from DIR instead of running the static dist build
 #                   (they are stripped on the way in)
 #   --scenes DIR    the scenes the host image carries at /scenes (default: scenes/)
 #   --tag TAG       image tag (default: latest, or $MAGG_TAG)
@@ -48,8 +50,11 @@ if ! docker info >/dev/null 2>&1; then
 fi
 [ -d "$scenes" ] || { echo "build-images.sh: --scenes $scenes is not a folder" >&2; exit 1; }
 if [ -z "$bin_dir" ]; then
-    cargo build --profile dist -p magg-fork -p magg-node -p magg-host
-    bin_dir="${CARGO_TARGET_DIR:-target}/dist"
+    # With --target, RUSTFLAGS reach only the binaries, not build scripts or proc macros.
+    triple="$(rustc -vV | sed -n 's/^host: //p')"
+    RUSTFLAGS="${RUSTFLAGS:-} -C target-feature=+crt-static" \
+        cargo build --profile dist --target "$triple" -p magg-fork -p magg-node -p magg-host
+    bin_dir="${CARGO_TARGET_DIR:-target}/$triple/dist"
 fi
 
 work="$(mktemp -d)"
@@ -67,9 +72,9 @@ image() {
     cp "$bin" "$ctx/rootfs/$name"
     if command -v strip >/dev/null; then strip "$ctx/rootfs/$name"; fi
     # Every library the loader resolves, and the loader itself, at the path ldd names
-    # (symbolic links followed: the image has only the files).
+    # (symbolic links followed: the image has only the files); none for a static binary.
     local lib
-    for lib in $(ldd "$bin" | grep -o '/[^ ]*'); do
+    for lib in $(ldd "$bin" 2>/dev/null | grep -o '/[^ ]*' || true); do
         mkdir -p "$ctx/rootfs$(dirname "$lib")"
         cp -L "$lib" "$ctx/rootfs$lib"
     done
