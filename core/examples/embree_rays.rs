@@ -73,8 +73,16 @@ fn random_scene(n: usize) -> Scene {
     let loc = SourceLoc { file: "<random>".into(), line: 0 };
     let mut rng = Rng::from_words(&[n as u64, 0xe5b]);
     let mut u = move || rng.next_f64() * 2.0 - 1.0;
-    let tri =
-        |v: [DVec3; 3]| PatchDef { vertices: v, material: 0, subdivisions: Some(1), size_hint: None, normals: None, uv: None, texture: None, loc: loc.clone() };
+    let tri = |v: [DVec3; 3]| PatchDef {
+        vertices: v,
+        material: 0,
+        subdivisions: Some(1),
+        size_hint: None,
+        normals: None,
+        uv: None,
+        texture: None,
+        loc: loc.clone(),
+    };
     let mut patches = Vec::new();
     let (lo, hi) = (-4.0, 4.0);
     let c = |x: f64, y: f64, z: f64| DVec3::new(x, y, z);

@@ -238,20 +238,7 @@ fn follow(
         let (local, _) = locate(hp.subdivisions, hit.bary);
         deposits.push((hp.first_element + local, s.flux));
         let (at, albedo) = arrival(view, &hp, s.ray.at(hit.t), s.ray.direction, hn, Some(hit.bary))?;
-        scatter(
-            view,
-            rng,
-            stack,
-            tally,
-            at,
-            albedo,
-            hp.material,
-            hit.patch,
-            s.flux,
-            s.specular,
-            s.diffuse,
-            s.floor,
-        );
+        scatter(view, rng, stack, tally, at, albedo, hp.material, hit.patch, s.flux, s.specular, s.diffuse, s.floor);
     }
     Ok(())
 }

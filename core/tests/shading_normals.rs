@@ -23,7 +23,9 @@ fn parse(toml: &str, files: &[(&str, &str)]) -> Scene {
         files.iter().map(|(p, t)| (Path::new("mem").join(p), t.as_bytes().to_vec())).collect();
     let read = move |p: &Path| match files.get(p) {
         Some(b) => Ok(b.clone()),
-        None => std::fs::read(Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes").join(p.strip_prefix("mem").unwrap_or(p))),
+        None => std::fs::read(
+            Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes").join(p.strip_prefix("mem").unwrap_or(p)),
+        ),
     };
     parse_scene_str("s.toml", toml, Path::new("mem"), &read).unwrap_or_else(|e| panic!("{e}"))
 }
@@ -72,7 +74,8 @@ fn bad_normals_are_scene_errors_with_file_and_line() {
             _ => Ok(b"v 0 0 0\nv 1 0 0\nv 0 1 0\nvn 0 0 1\nf 1//1 2//2 3//1\n".to_vec()),
         }
     };
-    for (file, line, says) in [("two.obj", 4, "vn needs 3 numbers"), ("range.obj", 5, "normal index 2 is out of range")] {
+    for (file, line, says) in [("two.obj", 4, "vn needs 3 numbers"), ("range.obj", 5, "normal index 2 is out of range")]
+    {
         let toml = format!("{HEAD}{}", mesh_entry(file, ""));
         let e = parse_scene_str("s.toml", &toml, Path::new("mem"), &read).unwrap_err().to_string();
         assert!(e.contains(&format!("{file}:{line}")) && e.contains(says), "{e}");

@@ -73,7 +73,10 @@ fn a_textured_floor_shows_its_texels_with_the_closed_form_radiance() {
             let got = out.frame.get(x, y);
             for c in 0..3 {
                 let want = 0.8 * srgb_to_linear(texel[c]) * e / PI;
-                assert!((got[c] as f64 - want).abs() <= 1e-5 * want.max(1e-3), "pixel ({x}, {y}) channel {c}: {got:?} vs {want}");
+                assert!(
+                    (got[c] as f64 - want).abs() <= 1e-5 * want.max(1e-3),
+                    "pixel ({x}, {y}) channel {c}: {got:?} vs {want}"
+                );
             }
             checked[(texel == a) as usize] += 1;
         }

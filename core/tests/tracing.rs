@@ -103,14 +103,20 @@ fn a_hit_beyond_its_subspace_does_not_hide_a_nearer_one() {
         vertices: [v(-4.0, 0.975, -2.0), v(4.0, -0.025, -2.0), v(4.0, -0.025, 2.0)],
         material: 0,
         subdivisions: Some(1),
-        size_hint: None, normals: None, uv: None, texture: None,
+        size_hint: None,
+        normals: None,
+        uv: None,
+        texture: None,
         loc: loc(),
     };
     let small = magg_core::scene::PatchDef {
         vertices: [v(1.0, -0.5, -0.5), v(1.0, 0.5, -0.5), v(1.0, 0.0, 0.7)],
         material: 0,
         subdivisions: Some(1),
-        size_hint: None, normals: None, uv: None, texture: None,
+        size_hint: None,
+        normals: None,
+        uv: None,
+        texture: None,
         loc: loc(),
     };
     let mut s = scene(vec![long, small], vec![material("white", 0.5, 0.0, 0.0)], vec![light(v(0.0, 3.0, 0.0), 1.0)]);

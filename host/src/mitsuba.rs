@@ -156,7 +156,9 @@ pub fn write(scene: &Scene, dir: &Path) -> anyhow::Result<Notes> {
             let _ = writeln!(xml, "    <string name=\"filename\" value=\"meshes/{file}\"/>");
             let _ = writeln!(xml, "    <boolean name=\"face_normals\" value=\"{}\"/>", !smooth);
             let texture = match texture.and_then(|t| scene.textures.get(t as usize).map(|x| (t, x))) {
-                Some((t, tex)) => Some(Bitmap { texture: tex, file: format!("meshes/material-{id}-texture-{t}.exr"), dir }),
+                Some((t, tex)) => {
+                    Some(Bitmap { texture: tex, file: format!("meshes/material-{id}-texture-{t}.exr"), dir })
+                }
                 None => None,
             };
             bsdf(&mut xml, m, texture.as_ref(), "    ")?;
@@ -257,7 +259,14 @@ enum Part {
 
 impl Part {
     /// Writes the part, its colour divided by `weight` (the share a blend gives it).
-    fn write(self, xml: &mut String, m: &Material, texture: Option<&Bitmap<'_>>, weight: f64, indent: &str) -> anyhow::Result<()> {
+    fn write(
+        self,
+        xml: &mut String,
+        m: &Material,
+        texture: Option<&Bitmap<'_>>,
+        weight: f64,
+        indent: &str,
+    ) -> anyhow::Result<()> {
         let scaled = |c: Rgb| rgb(c.scale(1.0 / weight));
         // A one-sided material is Mitsuba's plain (one-sided) BSDF.
         let (open, close) = if m.one_sided { ("", "") } else { ("<bsdf type=\"twosided\">", "</bsdf>") };

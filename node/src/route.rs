@@ -86,7 +86,15 @@ mod tests {
     /// Element blocks (64 elements each) from block 10: the owner of an element is not
     /// simply `e % F`.
     fn layout() -> BlockLayout {
-        BlockLayout { bvh_base: 3, patch_base: 3, shading_base: 10, texture_base: 10, element_base: 10, vertex_base: 60, total: 70 }
+        BlockLayout {
+            bvh_base: 3,
+            patch_base: 3,
+            shading_base: 10,
+            texture_base: 10,
+            element_base: 10,
+            vertex_base: 60,
+            total: 70,
+        }
     }
 
     /// A seeded batch: 40 pairs over 160 elements, up to 6 deposits each, some on one

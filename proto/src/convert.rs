@@ -22,7 +22,8 @@ use crate::v1;
 use glam::DVec3;
 use magg_core::blocks::{
     bvh::{BVH_NODES_PER_BLOCK, BVH_TRIANGLES_PER_BLOCK},
-    Block, BlockLayout, CacheSize, BLOCK_SIZE, ELEMENTS_PER_BLOCK, NO_BLOCK, PATCHES_PER_BLOCK, SHADINGS_PER_BLOCK, VERTICES_PER_BLOCK,
+    Block, BlockLayout, CacheSize, BLOCK_SIZE, ELEMENTS_PER_BLOCK, NO_BLOCK, PATCHES_PER_BLOCK, SHADINGS_PER_BLOCK,
+    VERTICES_PER_BLOCK,
 };
 use magg_core::color::Rgb;
 use magg_core::header::{BvhHeader, Counts, Emitter, GridHeader, SceneHeader, TextureHeader};

@@ -93,7 +93,11 @@ pub(super) fn pack(mesh: &Mesh, grid: &Grid, bvh: Option<Bvh>, textures: &[Textu
     let texture_base = blocks.len() as u32;
     let mut texture_headers = Vec::with_capacity(textures.len());
     for t in textures {
-        texture_headers.push(TextureHeader { width: t.width, height: t.height, first_block: blocks.len() as u32 - texture_base });
+        texture_headers.push(TextureHeader {
+            width: t.width,
+            height: t.height,
+            first_block: blocks.len() as u32 - texture_base,
+        });
         for chunk in t.texels.chunks(TEXELS_PER_BLOCK) {
             let mut b = zero_block();
             for (k, texel) in chunk.iter().enumerate() {

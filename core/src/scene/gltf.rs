@@ -216,7 +216,9 @@ fn base_colour_texture(
         ::gltf::image::Source::View { view, .. } => {
             let buf = buffers.get(view.buffer().index()).ok_or_else(|| format!("{at}: no such buffer"))?;
             let end = view.offset().checked_add(view.length());
-            let bytes = end.and_then(|e| buf.get(view.offset()..e)).ok_or_else(|| format!("{at}: its buffer view lies past the end of its buffer"))?;
+            let bytes = end
+                .and_then(|e| buf.get(view.offset()..e))
+                .ok_or_else(|| format!("{at}: its buffer view lies past the end of its buffer"))?;
             (gltf_path.join(&at), bytes.to_vec())
         }
     };
@@ -429,7 +431,8 @@ pub(super) fn load(
             };
             // Normals go through the inverse transpose of the node's matrix.
             let normal_matrix = DMat3::from_mat4(world).inverse().transpose();
-            let tris = primitive_triangles(&prim, &buffers, texture.map(|t| t.1)).map_err(|m| err(format!("{at}: {m}")))?;
+            let tris =
+                primitive_triangles(&prim, &buffers, texture.map(|t| t.1)).map_err(|m| err(format!("{at}: {m}")))?;
             for (corners, normals, uv) in tris {
                 let mut v = corners.map(|p| world.transform_point3(p));
                 let mut normals = normals.map(|n| n.map(|n| normal_matrix * n));
@@ -493,7 +496,11 @@ fn primitive_triangles(
             }
             let flat = read_accessor(&acc, buffers)?;
             if flat.len() != 3 * positions.len() {
-                return Err(format!("attributes[\"NORMAL\"] has {} normals for {} positions", flat.len() / 3, positions.len()));
+                return Err(format!(
+                    "attributes[\"NORMAL\"] has {} normals for {} positions",
+                    flat.len() / 3,
+                    positions.len()
+                ));
             }
             Some(flat.chunks_exact(3).map(|c| DVec3::new(c[0], c[1], c[2])).collect())
         }
@@ -545,9 +552,7 @@ fn primitive_triangles(
             (0..n / 3).map(|t| triangle(3 * t, 3 * t + 1, 3 * t + 2)).collect()
         }
         // The spec's orders: strip i = (i, i + 1 + i % 2, i + 2 - i % 2); fan i = (i + 1, i + 2, 0).
-        Mode::TriangleStrip => {
-            (0..n.saturating_sub(2)).map(|i| triangle(i, i + 1 + i % 2, i + 2 - i % 2)).collect()
-        }
+        Mode::TriangleStrip => (0..n.saturating_sub(2)).map(|i| triangle(i, i + 1 + i % 2, i + 2 - i % 2)).collect(),
         _ => (0..n.saturating_sub(2)).map(|i| triangle(i + 1, i + 2, 0)).collect(),
     };
     Ok(tris)

@@ -240,7 +240,8 @@ fn place(entry: &MeshEntry<'_>, label: &str, triangles: Vec<ModelTriangle>) -> R
     let mut out = Vec::with_capacity(triangles.len());
     for t in triangles {
         let mut v = t.v.map(|p| entry.transform.apply(p));
-        let mut normals = t.normals.filter(|_| entry.shading.file_normals).map(|n| n.map(|n| entry.transform.normal(n)));
+        let mut normals =
+            t.normals.filter(|_| entry.shading.file_normals).map(|n| n.map(|n| entry.transform.normal(n)));
         let mut uv = t.uv;
         if flip {
             v.swap(1, 2);

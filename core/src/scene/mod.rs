@@ -27,5 +27,5 @@ pub use error::SceneError;
 pub use gltf::{gltf_stage, GltfStage};
 pub use mesh::{MeshFormat, ReadFile};
 pub use model::*;
-pub use texture::{bilinear_taps as texture_taps, srgb_to_linear, Texture, MAX_TEXTURE_SIDE};
 pub use parse::{parse_scene_str, parse_scene_with_path};
+pub use texture::{bilinear_taps as texture_taps, srgb_to_linear, Texture, MAX_TEXTURE_SIDE};

@@ -123,7 +123,8 @@ fn load_mtllibs(
                 return Err(SceneError::new(mm.loc.clone(), "newmtl", msg));
             }
             // A texture is named relative to its MTL file.
-            let map_kd = map.map(|m| (path.parent().map_or_else(PathBuf::new, Path::to_path_buf).join(&m.file), m.line));
+            let map_kd =
+                map.map(|m| (path.parent().map_or_else(PathBuf::new, Path::to_path_buf).join(&m.file), m.line));
             out.push(MtlMaterial { material: mm, map_kd, label: label.clone() });
         }
     }
@@ -315,7 +316,9 @@ fn resolve_corner(tok: &str, counts: [usize; 3]) -> Result<[Option<usize>; 3], S
     }
     let i: i64 = parts[0].parse().map_err(|_| format!("{} is not a vertex index", shown(tok)))?;
     let mut out = [Some(resolve_index(i, counts[0], "vertex", "vertices")?), None, None];
-    for (k, (what, plural)) in [(1, ("texture coordinate", "texture coordinates (vt)")), (2, ("normal", "normals (vn)"))] {
+    for (k, (what, plural)) in
+        [(1, ("texture coordinate", "texture coordinates (vt)")), (2, ("normal", "normals (vn)"))]
+    {
         if let Some(p) = parts.get(k).filter(|p| !p.is_empty()) {
             let j: i64 = p.parse().map_err(|_| bad())?;
             out[k] = Some(resolve_index(j, counts[k], what, plural)?);

@@ -211,7 +211,10 @@ pub fn parse_scene_with_path(
         ));
     }
     let textures = materials.textures;
-    Ok((Scene { name: file_label.to_string(), camera, settings, lights, materials: materials.list, patches, textures }, path))
+    Ok((
+        Scene { name: file_label.to_string(), camera, settings, lights, materials: materials.list, patches, textures },
+        path,
+    ))
 }
 
 enum Entry<'a> {
@@ -604,7 +607,9 @@ impl PatchBuilder<'_, '_> {
             material,
             subdivisions,
             size_hint: None,
-            normals: None, uv: None, texture: None,
+            normals: None,
+            uv: None,
+            texture: None,
             loc: self.cx.loc(&t.vertices),
         });
         Ok(())
@@ -626,7 +631,16 @@ impl PatchBuilder<'_, '_> {
         let size_hint = Some(longest);
         let loc = self.cx.loc(&q.vertices);
         for tri in [[v[0], v[1], v[2]], [v[0], v[2], v[3]]] {
-            self.patches.push(PatchDef { vertices: tri, material, subdivisions, size_hint, normals: None, uv: None, texture: None, loc: loc.clone() });
+            self.patches.push(PatchDef {
+                vertices: tri,
+                material,
+                subdivisions,
+                size_hint,
+                normals: None,
+                uv: None,
+                texture: None,
+                loc: loc.clone(),
+            });
         }
         Ok(())
     }
@@ -657,7 +671,8 @@ impl PatchBuilder<'_, '_> {
         };
         let subdivisions = self.subdivisions(&m.subdivisions, &f("subdivisions"))?;
         let material = m.material.as_ref().map(|s| self.material_ref(s, &f("material"))).transpose()?;
-        let crease = m.crease_angle.as_ref().map(|a| cx.float_in(a, &f("crease_angle"), 0.0, false, 180.0)).transpose()?;
+        let crease =
+            m.crease_angle.as_ref().map(|a| cx.float_in(a, &f("crease_angle"), 0.0, false, 180.0)).transpose()?;
         let shading = MeshShading {
             file_normals: m.normals.as_ref().is_none_or(|b| *b.get_ref()),
             crease_cos: crease.map(|deg| deg.to_radians().cos()),

@@ -33,7 +33,11 @@ pub(super) fn load(entry: &MeshEntry<'_>, label: &str, bytes: &[u8]) -> Result<V
     let Some(material) = entry.material else {
         return Err(entry.no_material(&format!("{label} (a PLY file has no materials)")));
     };
-    Ok(mesh.triangles.into_iter().map(|(v, normals)| ModelTriangle { v, material, normals, uv: None, texture: None }).collect())
+    Ok(mesh
+        .triangles
+        .into_iter()
+        .map(|(v, normals)| ModelTriangle { v, material, normals, uv: None, texture: None })
+        .collect())
 }
 
 /// A PLY file's triangles, in file order, oriented by the vertex normals if any.

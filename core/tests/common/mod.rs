@@ -40,8 +40,26 @@ pub fn light(p: DVec3, i: f64) -> Light {
 /// A quad (a, b, c, d), counter-clockwise from the front, as two triangles sharing n.
 pub fn quad(a: DVec3, b: DVec3, c: DVec3, d: DVec3, material: u32, n: u32) -> Vec<PatchDef> {
     vec![
-        PatchDef { vertices: [a, b, c], material, subdivisions: Some(n), size_hint: None, normals: None, uv: None, texture: None, loc: loc() },
-        PatchDef { vertices: [a, c, d], material, subdivisions: Some(n), size_hint: None, normals: None, uv: None, texture: None, loc: loc() },
+        PatchDef {
+            vertices: [a, b, c],
+            material,
+            subdivisions: Some(n),
+            size_hint: None,
+            normals: None,
+            uv: None,
+            texture: None,
+            loc: loc(),
+        },
+        PatchDef {
+            vertices: [a, c, d],
+            material,
+            subdivisions: Some(n),
+            size_hint: None,
+            normals: None,
+            uv: None,
+            texture: None,
+            loc: loc(),
+        },
     ]
 }
 
@@ -123,7 +141,16 @@ pub fn view_of(p: &PreparedScene) -> SceneView {
 
 /// A single triangle patch with a fixed subdivision count.
 pub fn tri(a: DVec3, b: DVec3, c: DVec3, material: u32, n: u32) -> PatchDef {
-    PatchDef { vertices: [a, b, c], material, subdivisions: Some(n), size_hint: None, normals: None, uv: None, texture: None, loc: loc() }
+    PatchDef {
+        vertices: [a, b, c],
+        material,
+        subdivisions: Some(n),
+        size_hint: None,
+        normals: None,
+        uv: None,
+        texture: None,
+        loc: loc(),
+    }
 }
 
 /// A closed octahedron of 8 patches (vertices at +-1 on each axis, outward winding),

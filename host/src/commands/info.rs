@@ -36,7 +36,10 @@ pub fn run(args: &InfoArgs, files: &scene_file::SceneFiles) -> anyhow::Result<()
     println!("materials  {}", h.materials.len());
     println!("patches    {:>9}  in {:>6} patch blocks", c.patches, c.patch_blocks);
     if c.shaded_patches > 0 {
-        println!("smooth     {:>9}  in {:>6} shading blocks (patches with vertex normals or a texture)", c.shaded_patches, c.shading_blocks);
+        println!(
+            "smooth     {:>9}  in {:>6} shading blocks (patches with vertex normals or a texture)",
+            c.shaded_patches, c.shading_blocks
+        );
     }
     println!("elements   {:>9}  in {:>6} element blocks", c.elements, c.element_blocks);
     println!("vertices   {:>9}  in {:>6} vertex-energy blocks", c.vertices, c.vertex_blocks);

@@ -20,7 +20,10 @@ fn scene() -> Scene {
         vertices: [DVec3::new(0.0, 0.0, z), DVec3::new(1.0, 0.0, z), DVec3::new(0.0, 1.0, z)],
         material,
         subdivisions: None,
-        size_hint: None, normals: None, uv: None, texture: None,
+        size_hint: None,
+        normals: None,
+        uv: None,
+        texture: None,
         loc: SourceLoc::default(),
     };
     Scene {

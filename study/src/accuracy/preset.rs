@@ -101,7 +101,10 @@ mod tests {
             vertices: [DVec3::ZERO, DVec3::new(1.0, 0.0, 0.0), DVec3::new(0.0, 1.0, 0.0)],
             material: 0,
             subdivisions,
-            size_hint: None, normals: None, uv: None, texture: None,
+            size_hint: None,
+            normals: None,
+            uv: None,
+            texture: None,
             loc: SourceLoc::default(),
         };
         Scene {
