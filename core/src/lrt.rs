@@ -21,12 +21,12 @@
 //! Every random choice is seeded from (scene seed, light, element), so a pair re-run on
 //! another node deposits exactly the same values.
 
-use crate::blocks::{BlockError, NO_SHADING};
+use crate::blocks::BlockError;
 use crate::color::Rgb;
 use crate::energy::{to_fixed, Fixed};
 use crate::geometry::{cosine_hemisphere, sample_spherical_triangle, solid_angle, triangle_normal, Ray};
 use crate::rng::{hammersley, Rng};
-use crate::scatter::{arrive, barycentric, offset_scale, Arrival, Dielectric};
+use crate::scatter::{arrive, offset_scale, Arrival, Dielectric};
 use crate::scene::Light;
 use crate::subdivision::{element_triangle, locate};
 use crate::trace::{cast, occluded, TraceScratch};
@@ -204,7 +204,9 @@ pub fn trace_pair(
             deposits.push((element, flux));
         }
         let floor = flux.max_channel() * MIN_RELATIVE_FLUX;
-        let (at, albedo) = arrival(view, &prec, p, w, normal, None)?;
+        // Shading normals bend specular directions and a texture colours what bounces
+        // diffusely (deposits are flux, taken on the geometric surface).
+        let (at, albedo) = arrive(view, &prec, p, w, normal, None)?;
         scatter(view, &mut rng, &mut stack, &mut out.tally, at, albedo, prec.material, erec.patch, flux, 0, 0, floor);
         follow(view, scratch, &mut rng, &mut stack, &mut out.tally, &mut deposits)?;
     }
@@ -237,28 +239,10 @@ fn follow(
         }
         let (local, _) = locate(hp.subdivisions, hit.bary);
         deposits.push((hp.first_element + local, s.flux));
-        let (at, albedo) = arrival(view, &hp, s.ray.at(hit.t), s.ray.direction, hn, Some(hit.bary))?;
+        let (at, albedo) = arrive(view, &hp, s.ray.at(hit.t), s.ray.direction, hn, Some(hit.bary))?;
         scatter(view, rng, stack, tally, at, albedo, hp.material, hit.patch, s.flux, s.specular, s.diffuse, s.floor);
     }
     Ok(())
-}
-
-/// The arrival of a light ray along `d` at point `p` of patch `patch` (geometric normal
-/// `normal`, barycentric weights `bary` when known): shading normals bend specular
-/// directions and a texture colours what bounces diffusely (deposits are flux, taken on
-/// the geometric surface). A patch without a shading record reads nothing more.
-fn arrival(
-    view: &mut SceneView,
-    patch: &crate::blocks::PatchRecord,
-    p: DVec3,
-    d: DVec3,
-    normal: DVec3,
-    bary: Option<[f64; 3]>,
-) -> Result<(Arrival, Option<Rgb>), BlockError> {
-    if patch.shading == NO_SHADING {
-        return Ok((Arrival::new(p, d, normal), None));
-    }
-    arrive(view, patch, p, d, normal, bary.unwrap_or_else(|| barycentric(&patch.v, p)))
 }
 
 /// One entry per element, sorted by element, each summed in generation order

@@ -19,7 +19,7 @@
 //! assert!(at.spawn(refracted).origin.y < 0.0);
 //! ```
 
-use crate::blocks::{BlockError, PatchRecord, NO_SHADING, NO_TEXTURE};
+use crate::blocks::{BlockError, PatchRecord, NO_TEXTURE};
 use crate::geometry::Ray;
 use crate::math::Normalized;
 use crate::view::SceneView;
@@ -81,22 +81,21 @@ pub fn interpolate_normal(n: &[DVec3; 3], bary: [f64; 3]) -> Option<DVec3> {
 }
 
 /// The arrival of direction `d` at point `p` of patch `patch` (unit geometric normal
-/// `normal`, barycentric weights `bary`), shaded with the patch's normals when it has
-/// them, and the linear albedo of the patch's texture at the point (`None`: the patch has
-/// no texture); both read through the view's cache.
+/// `normal`, barycentric weights `bary`, worked out from `p` when not given), shaded with
+/// the patch's normals when it has them, and the linear albedo of the patch's texture at
+/// the point (`None`: the patch has no texture); both read through the view's cache. A
+/// flat, untextured patch reads nothing more.
 pub fn arrive(
     view: &mut SceneView,
     patch: &PatchRecord,
     p: DVec3,
     d: DVec3,
     normal: DVec3,
-    bary: [f64; 3],
+    bary: Option<[f64; 3]>,
 ) -> Result<(Arrival, Option<crate::color::Rgb>), BlockError> {
     let at = Arrival::new(p, d, normal);
-    if patch.shading == NO_SHADING {
-        return Ok((at, None));
-    }
     let Some(rec) = view.shading(patch)? else { return Ok((at, None)) };
+    let bary = bary.unwrap_or_else(|| barycentric(&patch.v, p));
     let at = at.with_shading(interpolate_normal(&rec.normals, bary));
     if rec.texture == NO_TEXTURE {
         return Ok((at, None));

@@ -88,7 +88,7 @@ fn radiance(
         // The back of a one-sided patch takes no light and reflects none.
         return Ok(Rgb::BLACK);
     }
-    let (at, albedo) = arrive(view, &prec, ray.at(hit.t), ray.direction, normal, hit.bary)?;
+    let (at, albedo) = arrive(view, &prec, ray.at(hit.t), ray.direction, normal, Some(hit.bary))?;
     // A texture multiplies the diffuse reflectance.
     let diffuse = albedo.map_or(m.diffuse, |a| m.diffuse.mul(a));
     let mut l = Rgb::BLACK;

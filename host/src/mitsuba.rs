@@ -122,25 +122,12 @@ pub fn write(scene: &Scene, dir: &Path) -> anyhow::Result<Notes> {
         ));
     }
     for (id, m) in scene.materials.iter().enumerate() {
-        // One PLY per material, shading (flat or smooth) and texture.
-        let mut groups: Vec<(bool, Option<u32>)> = scene
-            .patches
-            .iter()
-            .filter(|p| p.material as usize == id)
-            .map(|p| (p.normals.is_some(), p.texture.filter(|_| p.uv.is_some())))
-            .collect();
-        groups.sort();
-        groups.dedup();
-        for (smooth, texture) in groups {
-            let patches: Vec<&PatchDef> = scene
-                .patches
-                .iter()
-                .filter(|p| {
-                    p.material as usize == id
-                        && p.normals.is_some() == smooth
-                        && p.texture.filter(|_| p.uv.is_some()) == texture
-                })
-                .collect();
+        // One PLY per material, shading (flat or smooth) and texture, in that order.
+        let mut groups: std::collections::BTreeMap<(bool, Option<u32>), Vec<&PatchDef>> = Default::default();
+        for p in scene.patches.iter().filter(|p| p.material as usize == id) {
+            groups.entry((p.normals.is_some(), p.texture.filter(|_| p.uv.is_some()))).or_default().push(p);
+        }
+        for ((smooth, texture), patches) in groups {
             let tag = match (smooth, texture) {
                 (false, None) => String::new(),
                 (true, None) => "-smooth".into(),

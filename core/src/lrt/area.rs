@@ -19,13 +19,13 @@
 //! the emitter's plane, or a one-sided receiver whose front faces away from the whole
 //! emitter.
 
-use super::{arrival, follow, merged, scatter, PairResult, Pending, MIN_RELATIVE_FLUX};
+use super::{follow, merged, scatter, PairResult, Pending, MIN_RELATIVE_FLUX};
 use crate::blocks::BlockError;
 use crate::color::Rgb;
 use crate::geometry::{sample_spherical_triangle, solid_angle, triangle_normal, Ray};
 use crate::header::Emitter;
 use crate::rng::{hammersley, Rng};
-use crate::scatter::offset_scale;
+use crate::scatter::{arrive, offset_scale};
 use crate::subdivision::element_triangle;
 use crate::trace::{occluded, TraceScratch};
 use crate::view::SceneView;
@@ -125,7 +125,7 @@ pub(super) fn trace_emitter_pair(
                 deposits.push((element, flux));
             }
             let floor = flux.max_channel() * MIN_RELATIVE_FLUX;
-            let (at, albedo) = arrival(view, &prec, ray.at(t_plane), w, normal, None)?;
+            let (at, albedo) = arrive(view, &prec, ray.at(t_plane), w, normal, None)?;
             scatter(
                 view,
                 &mut rng,

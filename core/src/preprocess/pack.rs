@@ -21,8 +21,8 @@ fn zero_block() -> Box<Block> {
 }
 
 /// Packs the subspace lists of `grid` (none for a scene traced through the BVH), the
-/// BVH's blocks if any, then the patches, the shading normals of the smooth ones, the
-/// elements and vertex energies.
+/// BVH's blocks if any, then the patches, the shading records of the smooth or textured
+/// ones, the texels of `textures`, the elements and vertex energies.
 pub(super) fn pack(mesh: &Mesh, grid: &Grid, bvh: Option<Bvh>, textures: &[Texture]) -> Packed {
     let mut blocks: Vec<Box<Block>> = Vec::new();
     // Subspace blocks: one chain per non-empty cell.

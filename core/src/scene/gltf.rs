@@ -203,12 +203,8 @@ fn base_colour_texture(
     let (key, bytes) = match image.source() {
         ::gltf::image::Source::Uri { uri, .. } if !uri.starts_with("data:") => {
             let name = percent_decode(uri).ok_or_else(|| format!("{at}: a URI that is not a relative file name"))?;
-            let path = dir.join(name);
-            if let Some(&id) = materials.texture_ids.get(&path) {
-                return Ok(Some((id, info.tex_coord())));
-            }
-            let bytes = read(&path).map_err(|e| format!("{at}: cannot read image file '{}': {e}", path.display()))?;
-            (path, bytes)
+            let id = materials.texture(&dir.join(name), read).map_err(|m| format!("{at}: {m}"))?;
+            return Ok(Some((id, info.tex_coord())));
         }
         ::gltf::image::Source::Uri { uri, .. } => {
             (gltf_path.join(&at), uri_bytes(uri, &dir, read, "image").map_err(|m| format!("{at}: {m}"))?)
