@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Builds the container images magg-fork, magg-node and magg-host FROM scratch: each holds
-# one binary of the dist profile (release, symbols stripped, fat LTO, one codegen unit),
-# linked statically (glibc's crt-static: no shared library, no loader; a binary given by
+# one binary of the dist profile (release, symbols stripped, fat LTO, one codegen unit;
+# the host's of the dist-host profile, which sizes all but the rendering core), linked
+# statically (glibc's crt-static: no shared library, no loader; a binary given by
 # --bin-dir brings the shared libraries `ldd` lists for it and the dynamic loader), and the
 # host also the scenes (with
 # their meshes) at /scenes; nothing else: no base image, no registry, no network needed (a
@@ -49,12 +50,19 @@ if ! docker info >/dev/null 2>&1; then
     exit 1
 fi
 [ -d "$scenes" ] || { echo "build-images.sh: --scenes $scenes is not a folder" >&2; exit 1; }
+host_bin_dir="$bin_dir"
 if [ -z "$bin_dir" ]; then
     # With --target, RUSTFLAGS reach only the binaries, not build scripts or proc macros.
     triple="$(rustc -vV | sed -n 's/^host: //p')"
     RUSTFLAGS="${RUSTFLAGS:-} -C target-feature=+crt-static" \
-        cargo build --profile dist --target "$triple" -p magg-fork -p magg-node -p magg-host
+        cargo build --profile dist --target "$triple" -p magg-fork -p magg-node
+    # The host: the dist-host profile (sized, its rendering core still fast), linked at
+    # fixed addresses (a static executable, not a static PIE: no run-time relocation
+    # table, 0.36 MB). Sizes and times: docs/DEPLOY.md.
+    RUSTFLAGS="${RUSTFLAGS:-} -C target-feature=+crt-static -C relocation-model=static" \
+        cargo build --profile dist-host --target "$triple" -p magg-host
     bin_dir="${CARGO_TARGET_DIR:-target}/$triple/dist"
+    host_bin_dir="${CARGO_TARGET_DIR:-target}/$triple/dist-host"
 fi
 
 work="$(mktemp -d)"
@@ -67,6 +75,7 @@ user="65532:65532"
 image() {
     local name="magg-$1" env="$2" probe="$3" with_scenes="${4:-}"
     local ctx="$work/$name" bin="$bin_dir/magg-$1"
+    [ "$1" != host ] || bin="$host_bin_dir/magg-host"
     [ -x "$bin" ] || { echo "build-images.sh: $bin is missing (build it, or pass --bin-dir)" >&2; exit 1; }
     mkdir -p "$ctx/rootfs" "$ctx/writable/out" "$ctx/writable/tmp"
     cp "$bin" "$ctx/rootfs/$name"
