@@ -185,3 +185,38 @@ fn small_sweep_writes_csv_and_figures_and_the_hit_ratio_rises_with_the_cache() {
     let table = String::from_utf8_lossy(&out.stdout);
     assert!(table.contains("| scheme | forks | cache | nodes |"), "{table}");
 }
+
+#[test]
+fn a_sweep_over_both_structures_names_each_and_the_bvh_moves_fewer_bytes_per_ray() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = magg_host()
+        .args(["sweep", "--out-dir"])
+        .arg(dir.path())
+        .arg(scene("magg-paper.toml"))
+        .args(["--nodes", "2", "--cache-blocks", "3", "--schemes", "magg", "--accel", "grid,bvh"])
+        .args(["--dilation", "0.1", "--max-cpu-share", "1"])
+        .args(["--", "--width", "40", "--height", "40"])
+        .output()
+        .unwrap();
+    assert_success(&out, "magg-host sweep --accel grid,bvh");
+    let csv = std::fs::read_to_string(dir.path().join("sweep.csv")).unwrap();
+    let mut lines = csv.lines();
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let rows: Vec<Vec<&str>> = lines.map(|l| l.split(',').collect()).collect();
+    let col = |name: &str| header.iter().position(|h| *h == name).unwrap_or_else(|| panic!("no column {name}"));
+    assert_eq!(rows.iter().map(|r| r[col("accel")]).collect::<Vec<_>>(), ["grid", "bvh"], "{csv}");
+    let per_ray = |r: &Vec<&str>| {
+        let n = |c: &str| r[col(c)].parse::<f64>().unwrap();
+        n("dma_bytes") / (n("light_rays") + n("view_rays"))
+    };
+    assert!(per_ray(&rows[1]) < per_ray(&rows[0]), "DMA bytes per ray, grid then BVH: {csv}");
+    // The same image whichever structure traced it, and figures of each.
+    let runs = dir.path().join("runs");
+    let grid = std::fs::read(runs.join("magg-f5-c3-n2.png")).unwrap();
+    assert!(grid == std::fs::read(runs.join("magg-bvh-f5-c3-n2.png")).unwrap(), "the BVH run's image differs");
+    for fig in ["time-cache3-magg.png", "time-cache3-magg-bvh.png"] {
+        assert!(dir.path().join(fig).is_file(), "{fig} missing");
+    }
+    let table = String::from_utf8_lossy(&out.stdout);
+    assert!(table.contains("| accel | DMA bytes per ray |") && table.contains("| bvh |"), "{table}");
+}

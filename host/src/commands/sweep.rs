@@ -35,6 +35,10 @@ pub struct SweepArgs {
     /// Schedules: "paper" (the paper's choices) and/or "magg" (ours).
     #[arg(long, value_delimiter = ',', default_value = "paper,magg")]
     pub schemes: Vec<String>,
+    /// Acceleration structures: "grid" (the paper's uniform grid of subspaces) and/or
+    /// "bvh" (rows and figures of the BVH are named `<scheme>-bvh`).
+    #[arg(long, value_delimiter = ',', default_value = "grid")]
+    pub accel: Vec<String>,
     /// Hardware profile (a built-in name or a file).
     #[arg(long, default_value = "magg1993")]
     pub profile: String,
@@ -61,6 +65,11 @@ pub fn run(args: &SweepArgs, allow_path: &[std::path::PathBuf]) -> anyhow::Resul
             bail!("--schemes: {s:?} is not \"paper\" or \"magg\"");
         }
     }
+    for a in &args.accel {
+        if a != "grid" && a != "bvh" {
+            bail!("--accel: {a:?} is not \"grid\" or \"bvh\"");
+        }
+    }
     if args.nodes.iter().chain(&args.cache_blocks).chain(&args.forks).any(|&n| n == 0) {
         bail!("--nodes, --cache-blocks and --forks take positive numbers");
     }
@@ -85,6 +94,7 @@ pub fn run(args: &SweepArgs, allow_path: &[std::path::PathBuf]) -> anyhow::Resul
         cache_blocks: args.cache_blocks.clone(),
         forks: args.forks.clone(),
         schemes: args.schemes.clone(),
+        accels: args.accel.clone(),
         profile: args.profile.clone(),
         dilation: Some(base),
         max_cpu_share: args.max_cpu_share,

@@ -17,11 +17,12 @@ fn color(i: usize) -> [u8; 3] {
     PALETTE[i % PALETTE.len()]
 }
 
-/// The rows of one (scheme, forks, cache) line, ascending in nodes.
+/// The rows of one (schedule, forks, cache) line, ascending in nodes; a schedule is a
+/// scheme, with its acceleration structure when that is not the grid (`Shape::schedule`).
 fn line<'a>(rows: &'a [Row], scheme: &str, forks: u32, cache: u32) -> Vec<&'a Row> {
     let mut v: Vec<&Row> = rows
         .iter()
-        .filter(|r| r.shape.scheme == scheme && r.shape.forks == forks && r.shape.cache_blocks == cache)
+        .filter(|r| r.shape.schedule() == scheme && r.shape.forks == forks && r.shape.cache_blocks == cache)
         .collect();
     v.sort_by_key(|r| r.shape.nodes);
     v
@@ -30,8 +31,7 @@ fn line<'a>(rows: &'a [Row], scheme: &str, forks: u32, cache: u32) -> Vec<&'a Ro
 /// Writes every figure into `dir`; returns the files written.
 pub fn write_all(rows: &[Row], dir: &Path) -> Result<Vec<PathBuf>> {
     let mut written = Vec::new();
-    let schemes: Vec<String> =
-        rows.iter().map(|r| r.shape.scheme.clone()).collect::<BTreeSet<_>>().into_iter().collect();
+    let schemes: Vec<String> = rows.iter().map(|r| r.shape.schedule()).collect::<BTreeSet<_>>().into_iter().collect();
     let caches = distinct(rows, |r| r.shape.cache_blocks);
     let forks_all = distinct(rows, |r| r.shape.forks);
     let Some(&forks) = forks_all.iter().max() else { return Ok(written) };
@@ -96,7 +96,7 @@ pub fn write_all(rows: &[Row], dir: &Path) -> Result<Vec<PathBuf>> {
         for (i, scheme) in schemes.iter().enumerate() {
             let mut pts: Vec<(f64, f64)> = rows
                 .iter()
-                .filter(|r| &r.shape.scheme == scheme && r.shape.nodes == nmax && r.shape.forks == forks)
+                .filter(|r| &r.shape.schedule() == scheme && r.shape.nodes == nmax && r.shape.forks == forks)
                 .map(|r| (r.shape.cache_blocks as f64, 1.0 - r.num("hit_ratio")))
                 .collect();
             pts.sort_by(|a, b| a.0.total_cmp(&b.0));

@@ -38,6 +38,20 @@ pub struct Shape {
     pub cache_blocks: u32,
     /// Dilation used.
     pub dilation: f64,
+    /// Acceleration structure (`grid`, the paper's, or `bvh`).
+    pub accel: String,
+}
+
+impl Shape {
+    /// The run's schedule as the figures name it: the scheme, with the acceleration
+    /// structure after it when that is not the paper's grid (`magg-bvh`).
+    pub fn schedule(&self) -> String {
+        if self.accel == "grid" {
+            self.scheme.clone()
+        } else {
+            format!("{}-{}", self.scheme, self.accel)
+        }
+    }
 }
 
 /// The CSV columns, in order.
@@ -70,6 +84,9 @@ pub const COLUMNS: &[&str] = &[
     "dma_busy_s",
     "gbus_busy_s",
     "fork_busy_s",
+    "accel",
+    "light_rays",
+    "view_rays",
 ];
 
 /// One measured run: its shape and the values of [`COLUMNS`].
@@ -85,6 +102,11 @@ impl Row {
     /// A numeric column.
     pub fn num(&self, column: &str) -> f64 {
         self.values.iter().find(|(k, _)| k == column).and_then(|(_, v)| v.parse().ok()).unwrap_or(f64::NAN)
+    }
+
+    /// Bytes the forks sent the nodes (DMA) per ray traced, light and viewing rays.
+    pub fn dma_bytes_per_ray(&self) -> f64 {
+        self.num("dma_bytes") / (self.num("light_rays") + self.num("view_rays"))
     }
 
     /// Reads a row from a stats JSON file.
@@ -113,7 +135,8 @@ impl Row {
                     "preprocess_s" | "lrt_s" | "interp_s" | "vrt_s" | "total_s" => get(&["stages", c]),
                     "hits" | "misses" | "hit_ratio" => get(&["cache", c]),
                     "link_bytes" | "dma_bytes" | "gbus_bytes" | "rpcs" => get(&["traffic", c]),
-                    "pairs" | "tiles" | "redivisions" => get(&["work", c]),
+                    "pairs" | "tiles" | "redivisions" | "light_rays" | "view_rays" => get(&["work", c]),
+                    "accel" => shape.accel.clone(),
                     "node_cpu_s" => get(&["emulation", "busy", "node_cpu_s"]),
                     "link_busy_s" => get(&["emulation", "busy", "link_s"]),
                     "dma_busy_s" => get(&["emulation", "busy", "dma_s"]),
@@ -164,9 +187,10 @@ pub fn run_one(
         shape.dilation.to_string(),
         "--scheme".into(),
         shape.scheme.clone(),
-        // The paper's experiments trace through the paper's grid, whatever the scheme.
+        // The paper's experiments trace through the paper's grid unless the sweep asks
+        // for the BVH too.
         "--accel".into(),
-        "grid".into(),
+        shape.accel.clone(),
         "-q".into(),
     ]
     .into_iter()

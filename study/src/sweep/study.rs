@@ -29,6 +29,8 @@ pub struct Config {
     pub forks: Vec<u32>,
     /// Schedules: "paper" and/or "magg".
     pub schemes: Vec<String>,
+    /// Acceleration structures: "grid" (the paper's) and/or "bvh".
+    pub accels: Vec<String>,
     /// Hardware profile (a built-in name or a file).
     pub profile: String,
     /// Real seconds per modelled second at 10 nodes or fewer; it grows in proportion to
@@ -70,7 +72,7 @@ pub enum Event<'a> {
 /// A finished sweep: its rows, `sweep.csv` and the figures written.
 #[derive(Clone, Debug)]
 pub struct Sweep {
-    /// One row per run, in grid order (scheme, forks, cache, nodes).
+    /// One row per run, in grid order (structure, scheme, forks, cache, nodes).
     pub rows: Vec<Row>,
     /// `sweep.csv`.
     pub csv: PathBuf,
@@ -84,10 +86,14 @@ pub fn run(config: &Config, events: &mut dyn FnMut(Event<'_>)) -> Result<Sweep> 
     let base = config.dilation.unwrap_or(profile.dilation);
     let runs_dir = config.out_dir.join("runs");
     std::fs::create_dir_all(&runs_dir).map_err(StudyError::io("create", &runs_dir))?;
-    let total = config.schemes.len() * config.forks.len() * config.cache_blocks.len() * config.nodes.len();
+    let total = config.accels.len()
+        * config.schemes.len()
+        * config.forks.len()
+        * config.cache_blocks.len()
+        * config.nodes.len();
     let mut rows = Vec::with_capacity(total);
     let mut k = 0;
-    for scheme in &config.schemes {
+    for (accel, scheme) in config.accels.iter().flat_map(|a| config.schemes.iter().map(move |s| (a, s))) {
         for &forks in &config.forks {
             for &cache in &config.cache_blocks {
                 for &nodes in &config.nodes {
@@ -98,8 +104,9 @@ pub fn run(config: &Config, events: &mut dyn FnMut(Event<'_>)) -> Result<Sweep> 
                         nodes,
                         cache_blocks: cache,
                         dilation: base * (nodes as f64 / 10.0).max(1.0),
+                        accel: accel.clone(),
                     };
-                    let name = format!("{scheme}-f{forks}-c{cache}-n{nodes}");
+                    let name = format!("{}-f{forks}-c{cache}-n{nodes}", shape.schedule());
                     let (image, stats) = (runs_dir.join(format!("{name}.png")), runs_dir.join(format!("{name}.json")));
                     let one = |shape: &Shape| {
                         run_one(
@@ -140,14 +147,15 @@ pub fn run(config: &Config, events: &mut dyn FnMut(Event<'_>)) -> Result<Sweep> 
 /// schedule, forks and cache.
 pub fn table(rows: &[Row]) -> String {
     let mut s = String::from(
-        "| scheme | forks | cache | nodes | preprocess s | LRT s | VRT s | total s | speed-up total | LRT | VRT | hit ratio | dilation | real CPU |\n\
-         | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |\n",
+        "| scheme | forks | cache | nodes | preprocess s | LRT s | VRT s | total s | speed-up total | LRT | VRT | hit ratio | accel | DMA bytes per ray | dilation | real CPU |\n\
+         | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | --- | ---: | ---: | ---: |\n",
     );
     for r in rows {
         let base = rows
             .iter()
             .filter(|b| {
                 b.shape.scheme == r.shape.scheme
+                    && b.shape.accel == r.shape.accel
                     && b.shape.forks == r.shape.forks
                     && b.shape.cache_blocks == r.shape.cache_blocks
             })
@@ -156,7 +164,7 @@ pub fn table(rows: &[Row]) -> String {
         let sp = |c: &str| base.num(c) / r.num(c);
         let _ = writeln!(
             s,
-            "| {} | {} | {} | {} | {:.3} | {:.3} | {:.3} | {:.3} | {:.2} | {:.2} | {:.2} | {:.4} | {:.1} | {:.2} |",
+            "| {} | {} | {} | {} | {:.3} | {:.3} | {:.3} | {:.3} | {:.2} | {:.2} | {:.2} | {:.4} | {} | {:.1} | {:.1} | {:.2} |",
             r.shape.scheme,
             r.shape.forks,
             r.shape.cache_blocks,
@@ -169,6 +177,8 @@ pub fn table(rows: &[Row]) -> String {
             sp("lrt_s"),
             sp("vrt_s"),
             r.num("hit_ratio"),
+            r.shape.accel,
+            r.dma_bytes_per_ray(),
             r.shape.dilation,
             r.num("real_cpu_share"),
         );
