@@ -11,6 +11,7 @@
 #   deploy/sweep.sh sweep                                   # the full grid, in-process
 #   deploy/sweep.sh sweep-mp -- --multi-process deploy/local-cluster.sh   # separate processes
 #   deploy/sweep.sh quick -- --nodes 5,20,80 --cache-blocks 20,40 -- --width 200 --height 200
+#   deploy/sweep.sh both -- --schemes magg --accel grid,bvh          # the grid and the BVH
 #
 # The full grid takes about 6-10 minutes on a 2-core machine: every run lasts its modelled
 # time times the dilation (grown with the node count so that the emulating machine stays
