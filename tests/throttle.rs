@@ -1,8 +1,9 @@
 //! The throttling layer end to end (docs/ARCHITECTURE.md, the throttling layer): a throttled cluster gives the
 //! embedded renderer's image bit for bit, its cost model gives the same modelled compute
 //! whatever the cluster's shape, the native profile takes the layer out, a fork started
-//! with another profile refuses the render, and the small sweep writes its CSV and figures
-//! with a hit ratio that rises with the cache size.
+//! with another profile refuses the render, the small sweep writes its CSV and figures
+//! with a hit ratio that rises with the cache size, and a sweep through both acceleration
+//! structures gives one image and fewer DMA bytes per ray through the BVH.
 
 use magg_tests::*;
 use std::process::{Command, Stdio};
@@ -148,31 +149,53 @@ fn a_fork_started_with_another_profile_refuses_the_render() {
     assert!(line.contains("magg1993") && line.contains("native"), "{line}");
 }
 
-#[test]
-fn small_sweep_writes_csv_and_figures_and_the_hit_ratio_rises_with_the_cache() {
+/// A sweep's CSV: its header and rows.
+struct Csv {
+    header: Vec<String>,
+    rows: Vec<Vec<String>>,
+}
+
+impl Csv {
+    /// Column `name` of `row`.
+    fn get<'a>(&self, row: &'a [String], name: &str) -> &'a str {
+        let at = self.header.iter().position(|h| h == name).unwrap_or_else(|| panic!("no column {name}"));
+        &row[at]
+    }
+}
+
+/// Runs `magg-host sweep` on magg-paper.toml over `grid` at 40 x 40 (timing shapes are
+/// not judged here, so no re-runs for a busy machine); returns its folder, its table
+/// (stdout) and its CSV.
+fn small_sweep(grid: &[&str]) -> (tempfile::TempDir, String, Csv) {
     let dir = tempfile::tempdir().unwrap();
     let out = magg_host()
         .args(["sweep", "--out-dir"])
         .arg(dir.path())
         .arg(scene("magg-paper.toml"))
-        // Timing shapes are not judged here, so no re-runs for a busy machine.
-        .args(["--nodes", "2,4", "--cache-blocks", "3,60", "--schemes", "magg,paper", "--dilation", "0.1"])
-        .args(["--max-cpu-share", "1"])
+        .args(grid)
+        .args(["--dilation", "0.1", "--max-cpu-share", "1"])
         .args(["--", "--width", "40", "--height", "40"])
         .output()
         .unwrap();
-    assert_success(&out, "magg-host sweep");
-    let csv = std::fs::read_to_string(dir.path().join("sweep.csv")).unwrap();
-    let mut lines = csv.lines();
-    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
-    let rows: Vec<Vec<&str>> = lines.map(|l| l.split(',').collect()).collect();
-    assert_eq!(rows.len(), 8, "{csv}");
-    let col = |name: &str| header.iter().position(|h| *h == name).unwrap_or_else(|| panic!("no column {name}"));
+    assert_success(&out, &format!("magg-host sweep {grid:?}"));
+    let text = std::fs::read_to_string(dir.path().join("sweep.csv")).unwrap();
+    let split = |l: &str| l.split(',').map(String::from).collect::<Vec<_>>();
+    let mut lines = text.lines();
+    let header = split(lines.next().unwrap());
+    let csv = Csv { header, rows: lines.map(split).collect() };
+    (dir, String::from_utf8_lossy(&out.stdout).into_owned(), csv)
+}
+
+#[test]
+fn small_sweep_writes_csv_and_figures_and_the_hit_ratio_rises_with_the_cache() {
+    let (dir, table, csv) = small_sweep(&["--nodes", "2,4", "--cache-blocks", "3,60", "--schemes", "magg,paper"]);
+    assert_eq!(csv.rows.len(), 8, "{:?}", csv.rows);
     for scheme in ["magg", "paper"] {
-        let mut hits: Vec<(u32, f64)> = rows
+        let mut hits: Vec<(u32, f64)> = csv
+            .rows
             .iter()
-            .filter(|r| r[col("scheme")] == scheme && r[col("nodes")] == "4")
-            .map(|r| (r[col("cache_blocks")].parse().unwrap(), r[col("hit_ratio")].parse().unwrap()))
+            .filter(|r| csv.get(r, "scheme") == scheme && csv.get(r, "nodes") == "4")
+            .map(|r| (csv.get(r, "cache_blocks").parse().unwrap(), csv.get(r, "hit_ratio").parse().unwrap()))
             .collect();
         hits.sort_by_key(|h| h.0);
         assert_eq!(hits.len(), 2);
@@ -182,34 +205,20 @@ fn small_sweep_writes_csv_and_figures_and_the_hit_ratio_rises_with_the_cache() {
         let bytes = std::fs::read(dir.path().join(fig)).unwrap_or_else(|e| panic!("{fig}: {e}"));
         assert_eq!(&bytes[..8], b"\x89PNG\r\n\x1a\n", "{fig} is not a PNG");
     }
-    let table = String::from_utf8_lossy(&out.stdout);
     assert!(table.contains("| scheme | forks | cache | nodes |"), "{table}");
 }
 
 #[test]
 fn a_sweep_over_both_structures_names_each_and_the_bvh_moves_fewer_bytes_per_ray() {
-    let dir = tempfile::tempdir().unwrap();
-    let out = magg_host()
-        .args(["sweep", "--out-dir"])
-        .arg(dir.path())
-        .arg(scene("magg-paper.toml"))
-        .args(["--nodes", "2", "--cache-blocks", "3", "--schemes", "magg", "--accel", "grid,bvh"])
-        .args(["--dilation", "0.1", "--max-cpu-share", "1"])
-        .args(["--", "--width", "40", "--height", "40"])
-        .output()
-        .unwrap();
-    assert_success(&out, "magg-host sweep --accel grid,bvh");
-    let csv = std::fs::read_to_string(dir.path().join("sweep.csv")).unwrap();
-    let mut lines = csv.lines();
-    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
-    let rows: Vec<Vec<&str>> = lines.map(|l| l.split(',').collect()).collect();
-    let col = |name: &str| header.iter().position(|h| *h == name).unwrap_or_else(|| panic!("no column {name}"));
-    assert_eq!(rows.iter().map(|r| r[col("accel")]).collect::<Vec<_>>(), ["grid", "bvh"], "{csv}");
-    let per_ray = |r: &Vec<&str>| {
-        let n = |c: &str| r[col(c)].parse::<f64>().unwrap();
+    let (dir, table, csv) =
+        small_sweep(&["--nodes", "2", "--cache-blocks", "3", "--schemes", "magg", "--accel", "grid,bvh"]);
+    let accels: Vec<&str> = csv.rows.iter().map(|r| csv.get(r, "accel")).collect();
+    assert_eq!(accels, ["grid", "bvh"], "{:?}", csv.rows);
+    let per_ray = |r: &[String]| {
+        let n = |c: &str| csv.get(r, c).parse::<f64>().unwrap();
         n("dma_bytes") / (n("light_rays") + n("view_rays"))
     };
-    assert!(per_ray(&rows[1]) < per_ray(&rows[0]), "DMA bytes per ray, grid then BVH: {csv}");
+    assert!(per_ray(&csv.rows[1]) < per_ray(&csv.rows[0]), "DMA bytes per ray, grid then BVH: {:?}", csv.rows);
     // The same image whichever structure traced it, and figures of each.
     let runs = dir.path().join("runs");
     let grid = std::fs::read(runs.join("magg-f5-c3-n2.png")).unwrap();
@@ -217,6 +226,5 @@ fn a_sweep_over_both_structures_names_each_and_the_bvh_moves_fewer_bytes_per_ray
     for fig in ["time-cache3-magg.png", "time-cache3-magg-bvh.png"] {
         assert!(dir.path().join(fig).is_file(), "{fig} missing");
     }
-    let table = String::from_utf8_lossy(&out.stdout);
     assert!(table.contains("| accel | DMA bytes per ray |") && table.contains("| bvh |"), "{table}");
 }
