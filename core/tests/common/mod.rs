@@ -39,28 +39,7 @@ pub fn light(p: DVec3, i: f64) -> Light {
 
 /// A quad (a, b, c, d), counter-clockwise from the front, as two triangles sharing n.
 pub fn quad(a: DVec3, b: DVec3, c: DVec3, d: DVec3, material: u32, n: u32) -> Vec<PatchDef> {
-    vec![
-        PatchDef {
-            vertices: [a, b, c],
-            material,
-            subdivisions: Some(n),
-            size_hint: None,
-            normals: None,
-            uv: None,
-            texture: None,
-            loc: loc(),
-        },
-        PatchDef {
-            vertices: [a, c, d],
-            material,
-            subdivisions: Some(n),
-            size_hint: None,
-            normals: None,
-            uv: None,
-            texture: None,
-            loc: loc(),
-        },
-    ]
+    vec![tri(a, b, c, material, n), tri(a, c, d, material, n)]
 }
 
 /// An axis-aligned box from `lo` to `hi` with faces facing inward (a room) or outward.
