@@ -66,7 +66,7 @@ pub fn run(args: &SweepArgs, allow_path: &[std::path::PathBuf]) -> anyhow::Resul
         }
     }
     for a in &args.accel {
-        if a != "grid" && a != "bvh" {
+        if magg_core::scene::Accel::parse(a).is_none() {
             bail!("--accel: {a:?} is not \"grid\" or \"bvh\"");
         }
     }
