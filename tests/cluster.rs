@@ -65,6 +65,29 @@ fn in_process_cluster_matches_the_embedded_core_bit_for_bit() {
 }
 
 #[test]
+fn back_elements_give_the_same_bits_in_every_shape() {
+    // panel.toml: light arrives on both faces of a thin panel, directly, via a mirror and
+    // bounced, so back elements hold energy of their own.
+    let dir = tempfile::tempdir().unwrap();
+    let s = scene("panel.toml");
+    let base = render(&s, dir.path(), "embedded", &with(&["--embedded"]));
+    let rows = read_energy(&base.energy);
+    // The panel (patches 0 and 1): its front elements, then (after every front element of
+    // the scene) its back ones. The front holds the red light, the back the blue.
+    let panel: Vec<_> = rows.iter().filter(|r| r.kind == "element" && r.values[1].is_some_and(|p| p < 2.0)).collect();
+    let (front, back) = panel.split_at(panel.len() / 2);
+    assert!(front.iter().all(|r| r.values[6].is_some_and(|red| red > 0.0)), "a front element without red light");
+    assert!(back.iter().all(|r| r.values[8].is_some_and(|blue| blue > 0.0)), "a back element without blue light");
+    for (i, shape) in [&["--nodes", "1", "--forks", "1"][..], &["--nodes", "3", "--forks", "5", "--cache-blocks", "30"]]
+        .iter()
+        .enumerate()
+    {
+        let r = render(&s, dir.path(), &format!("cluster{i}"), &with(shape));
+        same_files(&base, &r, &format!("panel.toml {}", shape.join(" ")));
+    }
+}
+
+#[test]
 fn eighty_nodes_on_five_forks_give_the_same_bits() {
     let dir = tempfile::tempdir().unwrap();
     let s = scene("magg-paper.toml");

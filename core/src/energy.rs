@@ -116,7 +116,13 @@ mod tests {
 
     #[test]
     fn interpolation_is_area_weighted() {
-        let e = |v: [u32; 3], area: f64| ElementInfo { patch: 0, vertices: v, area, centroid: DVec3::ZERO };
+        let e = |v: [u32; 3], area: f64| ElementInfo {
+            patch: 0,
+            vertices: v,
+            area,
+            centroid: DVec3::ZERO,
+            face: crate::preprocess::Face::Both,
+        };
         let elements = [e([0, 1, 2], 1.0), e([1, 2, 3], 3.0)];
         let flux = [[10, 10, 10], [60, 60, 60]]; // irradiance 10 and 20
         let v = interpolate(&elements, &flux, 4, 1.0);

@@ -153,7 +153,12 @@ pub fn trace_pair(
         // Its direct light is computed at VRT and nothing bounces on from it.
         return Ok(out);
     }
-    let tri = element_triangle(&prec.v, prec.subdivisions, erec.local);
+    if !prec.receives_on(&erec, prec.v[0] - l.position) {
+        // Every ray from the point light arrives on the other face of the patch, whose
+        // element (front or back) has a pair of its own.
+        return Ok(out);
+    }
+    let tri = element_triangle(&prec.v, prec.subdivisions, erec.lattice_local(prec.subdivisions));
     let omega = solid_angle(l.position, &tri);
     if !(omega > 0.0) || outside_cone(l, &tri) {
         return Ok(out);
@@ -238,7 +243,7 @@ fn follow(
             continue;
         }
         let (local, _) = locate(hp.subdivisions, hit.bary);
-        deposits.push((hp.first_element + local, s.flux));
+        deposits.push((hp.element_on_face(local, s.ray.direction), s.flux));
         let (at, albedo) = arrive(view, &hp, s.ray.at(hit.t), s.ray.direction, hn, Some(hit.bary))?;
         scatter(view, rng, stack, tally, at, albedo, hp.material, hit.patch, s.flux, s.specular, s.diffuse, s.floor);
     }

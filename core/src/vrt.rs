@@ -99,7 +99,8 @@ fn radiance(
     if !m.diffuse.is_black() {
         view.counters.shades += 1;
         let (local, w) = locate(prec.subdivisions, hit.bary);
-        let e = view.element(prec.first_element + local)?;
+        // The element of the face the viewing ray arrived on.
+        let e = view.element(prec.element_on_face(local, ray.direction))?;
         let mut irr = Rgb::BLACK;
         for k in 0..3 {
             irr = irr.add(view.vertex_energy(e.vertices[k])?.scale(w[k]));

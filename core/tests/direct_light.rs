@@ -135,7 +135,10 @@ fn light_via_a_mirror_still_comes_from_the_light_pass() {
     let q = p.header.energy_quantum;
     let (mut got, mut want) = (0.0, 0.0);
     for (e, info) in p.elements.iter().enumerate() {
-        if info.patch >= 2 || !(info.centroid.x > 0.4 && info.centroid.x < 2.6 && info.centroid.z.abs() < 1.6) {
+        if info.patch >= 2
+            || !faces_towards(&s, &p, e, lp)
+            || !(info.centroid.x > 0.4 && info.centroid.x < 2.6 && info.centroid.z.abs() < 1.6)
+        {
             continue;
         }
         got += from_fixed(out.element_flux[e], q).0[0];

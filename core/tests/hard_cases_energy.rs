@@ -12,7 +12,6 @@ use hard::*;
 use magg_core::geometry::solid_angle;
 use magg_core::lrt::MIN_RELATIVE_FLUX;
 use magg_core::scene::Scene;
-use magg_core::subdivision::element_triangle;
 use std::f64::consts::PI;
 
 /// A closed box of walls with `diffuse` and `mirror` reflectance (the rest absorbed),
@@ -82,11 +81,8 @@ fn two_facing_mirrors_balance_at_depth_limits_1_to_4() {
         // Nothing stands between the light and either mirror: reached = I * sum Omega.
         let lp = s.lights[0].position;
         let exact: f64 = (0..p.elements.len())
-            .map(|e| {
-                let info = p.elements[e];
-                let local = e as u32 - info.patch * 36;
-                solid_angle(lp, &element_triangle(&s.patches[info.patch as usize].vertices, 6, local))
-            })
+            .filter(|&e| faces_towards(&s, &p, e, lp))
+            .map(|e| solid_angle(lp, &element_tri(&s, &p, e)))
             .sum();
         assert!(rel(reached, exact) < 1e-12, "depth {depth}: reached {reached} vs I Omega {exact}");
         assert!(rel(accounted(&t), reached) < 1e-12, "depth {depth}: {t:?}");

@@ -1,11 +1,14 @@
-//! One-sided materials (`sides = 1`): only the front, the side the winding's normal points
-//! to, takes light. Light arriving on the back is absorbed in both passes, so a light inside
-//! a closed box of one-sided walls (normals in) lights the inside and leaves the outside
-//! black, where two-sided walls glow outside with the light deposited inside.
+//! Sidedness: light arriving on a patch's back is kept apart from the light on its
+//! front. One-sided materials (`sides = 1`) refuse it: only the front, the side the
+//! winding's normal points to, takes light, in both passes. Two-sided materials with a
+//! diffuse part keep it in back elements of their own, seen only from the back. Either
+//! way a light inside a closed box lights the inside and leaves the outside black, and a
+//! thin panel between two lights shows each face its own light.
 
 mod common;
 use common::*;
 use magg_core::energy::from_fixed;
+use magg_core::preprocess::Face;
 use magg_core::scene::{DirectLight, Scene};
 use std::f64::consts::PI;
 
@@ -42,11 +45,77 @@ fn one_sided_walls_keep_a_boxed_light_inside() {
 }
 
 #[test]
-fn two_sided_walls_show_light_deposited_inside_from_outside() {
-    // The paper's receiving: an element's energy is seen from both sides.
-    let s = boxed_scene(false, DirectLight::Lrt);
-    let (_, out) = prepare_and_run(&s);
-    assert!(brightest(&s, &out) > 0.0);
+fn two_sided_walls_keep_a_boxed_light_inside_on_their_fronts() {
+    // The walls' back elements hold what arrives on their backs: nothing, here. With a
+    // diffuse bounce the light deposited by secondary rays stays inside as well.
+    for (direct, bounces) in [(DirectLight::Lrt, 0), (DirectLight::Lrt, 1), (DirectLight::Vrt, 1)] {
+        let mut s = boxed_scene(false, direct);
+        s.settings.diffuse_bounces = bounces;
+        let (p, out) = prepare_and_run(&s);
+        assert_eq!(brightest(&s, &out), 0.0, "{direct:?}, {bounces} bounces: the outside of the box is black");
+        let backs = p.elements.iter().filter(|e| e.face == Face::Back).count();
+        assert_eq!(backs * 2, p.elements.len(), "every element has a back element");
+        let q = p.header.energy_quantum;
+        let (mut front, mut back) = (0.0, 0.0);
+        for (info, f) in p.elements.iter().zip(&out.element_flux) {
+            match info.face {
+                Face::Back => back += from_fixed(*f, q).0[0],
+                _ => front += from_fixed(*f, q).0[0],
+            }
+        }
+        assert_eq!(back, 0.0, "{direct:?}: nothing arrives on the walls' backs");
+        if direct == DirectLight::Lrt && bounces == 0 {
+            let emitted = 4.0 * PI * 5.0;
+            assert!((front - emitted).abs() < 1e-6 * emitted, "inside {front} vs {emitted}");
+        }
+    }
+}
+
+/// A horizontal two-sided panel (front up) at y = 0 between a red light above and a
+/// blue light below, seen from `eye`.
+fn panel_between_two_lights(eye: glam::DVec3, direct: DirectLight) -> Scene {
+    let patches = quad(v(-1.0, 0.0, -1.0), v(-1.0, 0.0, 1.0), v(1.0, 0.0, 1.0), v(1.0, 0.0, -1.0), 0, 6);
+    let mut red = light(v(0.2, 1.0, 0.1), 3.0);
+    red.intensity = magg_core::color::Rgb::new(3.0, 0.0, 0.0);
+    let mut blue = light(v(-0.1, -0.8, 0.3), 2.0);
+    blue.intensity = magg_core::color::Rgb::new(0.0, 0.0, 2.0);
+    let mut s = scene(patches, vec![material("panel", 0.7, 0.0, 0.0)], vec![red, blue]);
+    s.camera.eye = eye;
+    s.camera.look_at = v(0.0, 0.0, 0.0);
+    s.camera.up = v(0.0, 0.0, -1.0);
+    s.settings.direct = direct;
+    s.settings.ambient = magg_core::color::Rgb::BLACK;
+    s
+}
+
+#[test]
+fn a_thin_two_sided_panel_shows_each_face_its_own_light() {
+    for direct in [DirectLight::Lrt, DirectLight::Vrt] {
+        for (eye, lit, dark, side) in [(v(0.0, 3.0, 0.0), 0, 2, "above"), (v(0.0, -3.0, 0.0), 2, 0, "below")] {
+            let s = panel_between_two_lights(eye, direct);
+            let (p, out) = prepare_and_run(&s);
+            let (w, h) = (s.settings.width, s.settings.height);
+            let mut seen = 0;
+            for y in 0..h {
+                for x in 0..w {
+                    let px = out.frame.get(x, y);
+                    assert_eq!(px[dark], 0.0, "{direct:?}, from {side}: pixel ({x}, {y}) shows the other face's light");
+                    seen += (px[lit] > 0.0) as u32;
+                }
+            }
+            assert!(seen > 100, "{direct:?}, from {side}: {seen} lit pixels");
+            if direct == DirectLight::Lrt {
+                // Front elements hold exactly the red light's I x Omega, back ones the blue.
+                let q = p.header.energy_quantum;
+                for (e, (info, f)) in p.elements.iter().zip(&out.element_flux).enumerate() {
+                    let f = from_fixed(*f, q);
+                    let (on, off) = if info.face == Face::Back { (2, 0) } else { (0, 2) };
+                    assert_eq!(f.0[off], 0.0, "element {e} ({:?}) holds the other face's light", info.face);
+                    assert!(f.0[on] > 0.0, "element {e} ({:?}) is dark", info.face);
+                }
+            }
+        }
+    }
 }
 
 #[test]

@@ -467,7 +467,7 @@ impl Knobs {
 
     /// [`Knobs::apply`] for a render under `scheme`: the paper's scheme traces through the
     /// paper's grid and deposits direct light with light rays, unless `--accel` or
-    /// `--direct` says otherwise.
+    /// `--direct` says otherwise, and keeps one element for both faces of a patch.
     pub fn apply_for(
         &self,
         scheme: magg_throttle::Scheme,
@@ -478,6 +478,10 @@ impl Knobs {
         }
         if scheme == magg_throttle::Scheme::Paper && self.direct.is_none() {
             s.direct = magg_core::scene::DirectLight::Lrt;
+        }
+        if scheme == magg_throttle::Scheme::Paper {
+            // The paper's receiving: one element for both faces of a patch.
+            s.shared_faces = true;
         }
         self.apply(s)
     }
@@ -543,5 +547,16 @@ mod tests {
         vrt.apply_for(Scheme::Paper, &mut s).unwrap();
         assert_eq!(s.direct, DirectLight::Vrt);
         assert!(Knobs { direct: Some("both".into()), ..Default::default() }.apply(&mut s).is_err());
+    }
+
+    #[test]
+    fn the_paper_scheme_shares_one_element_between_both_faces() {
+        use magg_core::scene::RenderSettings;
+        use magg_throttle::Scheme;
+        let mut s = RenderSettings::default();
+        Knobs::default().apply_for(Scheme::Magg, &mut s).unwrap();
+        assert!(!s.shared_faces);
+        Knobs::default().apply_for(Scheme::Paper, &mut s).unwrap();
+        assert!(s.shared_faces);
     }
 }

@@ -27,7 +27,16 @@ pub const DEFAULT_MAX_MEMORY_MB: u64 = 4096;
 pub fn estimate(scene: &Scene, forks: u32) -> (f64, f64, f64) {
     let s = &scene.settings;
     let elements_of = |p: &PatchDef| subdivisions_of(&p.vertices, p.subdivisions, p.size_hint, s.element_size).powi(2);
-    let elements: f64 = scene.patches.iter().map(elements_of).sum();
+    // A patch that keeps its back face apart has as many back elements as front ones.
+    let faces = |p: &PatchDef| {
+        let back = !s.shared_faces && scene.materials.get(p.material as usize).is_some_and(|m| m.has_back_face());
+        if back {
+            2.0
+        } else {
+            1.0
+        }
+    };
+    let elements: f64 = scene.patches.iter().map(|p| elements_of(p) * faces(p)).sum();
     // Emitting elements are light sources too.
     let emitting = |p: &&PatchDef| scene.materials.get(p.material as usize).is_some_and(|m| m.is_emitter());
     let emitters: f64 = scene.patches.iter().filter(emitting).map(elements_of).sum();

@@ -323,6 +323,7 @@ fn settings_to_wire(s: &RenderSettings) -> v1::RenderSettings {
             DirectLight::Vrt => v1::DirectLight::Vrt,
             DirectLight::Lrt => v1::DirectLight::Lrt,
         } as i32,
+        shared_faces: s.shared_faces,
     }
 }
 
@@ -395,6 +396,7 @@ fn settings_from_wire(s: v1::RenderSettings) -> Result<RenderSettings, ConvertEr
         exposure,
         background,
         max_elements: s.max_elements,
+        shared_faces: s.shared_faces,
     })
 }
 

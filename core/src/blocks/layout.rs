@@ -141,6 +141,36 @@ pub struct PatchRecord {
     pub first_element: u32,
     /// Its shading record ([`ShadingRecord`]), or [`NO_SHADING`] when shaded flat.
     pub shading: u32,
+    /// Id of the first of its back elements (consecutive, after every front element of
+    /// the scene), or [`NO_BACK`] when its material keeps no back face
+    /// ([`crate::scene::Material::has_back_face`]).
+    pub back_element: u32,
+}
+
+/// Marks a patch without back elements.
+pub const NO_BACK: u32 = u32::MAX;
+
+impl PatchRecord {
+    /// The element holding local element `local` (from [`crate::subdivision::locate`])
+    /// on the face that light or a viewing ray travelling along `d` arrives on: a back
+    /// element when it arrives on the back of a patch that keeps its back face apart, the
+    /// front element otherwise.
+    #[inline]
+    pub fn element_on_face(&self, local: u32, d: DVec3) -> u32 {
+        if self.back_element != NO_BACK && d.dot(crate::geometry::triangle_normal(&self.v)) > 0.0 {
+            self.back_element + local
+        } else {
+            self.first_element + local
+        }
+    }
+    /// True when light travelling along `d` arrives on the face of which element
+    /// record `e` (of this patch) is part: always, unless the patch keeps a back face
+    /// and `d` arrives on the other one.
+    #[inline]
+    pub fn receives_on(&self, e: &ElementRecord, d: DVec3) -> bool {
+        self.back_element == NO_BACK
+            || (d.dot(crate::geometry::triangle_normal(&self.v)) > 0.0) == e.is_back(self.subdivisions)
+    }
 }
 
 /// How a patch is shaded, as stored in a shading block: one unit normal per corner, on
@@ -162,7 +192,7 @@ pub struct ShadingRecord {
 pub struct ElementRecord {
     /// Owning patch.
     pub patch: u32,
-    /// Index within the patch's regular subdivision.
+    /// Index within the patch's regular subdivision, plus n*n for a back element.
     pub local: u32,
     /// Global (welded) vertex ids.
     pub vertices: [u32; 3],
@@ -214,6 +244,7 @@ impl PatchRecord {
         put_u32(b, at + 76, self.subdivisions);
         put_u32(b, at + 80, self.first_element);
         put_u32(b, at + 84, self.shading);
+        put_u32(b, at + 88, self.back_element);
     }
     /// Reads the record at byte offset `at`.
     pub fn decode(b: &Block, at: usize) -> PatchRecord {
@@ -223,6 +254,7 @@ impl PatchRecord {
             subdivisions: get_u32(b, at + 76),
             first_element: get_u32(b, at + 80),
             shading: get_u32(b, at + 84),
+            back_element: get_u32(b, at + 88),
         }
     }
 }
@@ -247,6 +279,22 @@ impl ShadingRecord {
 }
 
 impl ElementRecord {
+    /// True for a back element of a patch subdivided `n` times.
+    #[inline]
+    pub fn is_back(&self, n: u32) -> bool {
+        self.local as u64 >= crate::subdivision::element_count(n)
+    }
+    /// Its index in the patch's regular subdivision (the same for a front element and
+    /// the back element behind it), for a patch subdivided `n` times.
+    #[inline]
+    pub fn lattice_local(&self, n: u32) -> u32 {
+        let count = crate::subdivision::element_count(n);
+        if self.local as u64 >= count {
+            (self.local as u64 - count) as u32
+        } else {
+            self.local
+        }
+    }
     /// Writes the record at byte offset `at`.
     pub fn encode(&self, b: &mut Block, at: usize) {
         put_u32(b, at, self.patch);
@@ -311,6 +359,7 @@ mod tests {
             subdivisions: 20,
             first_element: 12345,
             shading: 6,
+            back_element: 99999,
         };
         p.encode(&mut b, PATCH_RECORD * (PATCHES_PER_BLOCK - 1));
         assert_eq!(PatchRecord::decode(&b, PATCH_RECORD * (PATCHES_PER_BLOCK - 1)), p);

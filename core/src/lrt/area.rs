@@ -20,7 +20,7 @@
 //! emitter.
 
 use super::{follow, merged, scatter, PairResult, Pending, MIN_RELATIVE_FLUX};
-use crate::blocks::BlockError;
+use crate::blocks::{BlockError, NO_BACK};
 use crate::color::Rgb;
 use crate::geometry::{sample_spherical_triangle, solid_angle, triangle_normal, Ray};
 use crate::header::Emitter;
@@ -66,7 +66,7 @@ pub(super) fn trace_emitter_pair(
     let erec = view.element(element)?;
     let prec = view.patch(erec.patch)?;
     let material = header.materials.get(prec.material as usize);
-    let tri = element_triangle(&prec.v, prec.subdivisions, erec.local);
+    let tri = element_triangle(&prec.v, prec.subdivisions, erec.lattice_local(prec.subdivisions));
     let normal = triangle_normal(&prec.v);
     if tri.iter().all(|v| en.dot(*v - etri[0]) <= 0.0) {
         // On or behind the emitter's plane: its front sends nothing there.
@@ -75,6 +75,15 @@ pub(super) fn trace_emitter_pair(
     if material.is_some_and(|m| m.one_sided) && etri.iter().all(|v| normal.dot(*v - tri[0]) <= 0.0) {
         // Every ray would arrive on the back of a one-sided receiver.
         return Ok(out);
+    }
+    if prec.back_element != NO_BACK {
+        // An emitter wholly on one side of the receiver's plane sends every ray to one
+        // face: the other face's element has nothing to trace.
+        let side = |v: &DVec3| normal.dot(*v - tri[0]);
+        let behind = etri.iter().all(|v| side(v) <= 0.0);
+        if (behind || etri.iter().all(|v| side(v) >= 0.0)) && behind != erec.is_back(prec.subdivisions) {
+            return Ok(out);
+        }
     }
     // emit * A_e, per channel.
     let radiance_area = emitter.power.scale(1.0 / PI);
@@ -103,6 +112,10 @@ pub(super) fn trace_emitter_pair(
             };
             let cos_e = en.dot(w);
             if !(cos_e > 0.0) {
+                continue;
+            }
+            if !prec.receives_on(&erec, w) {
+                // It arrives on the other face of the receiver, whose pair traces it.
                 continue;
             }
             let flux = per_ray.scale(cos_e);

@@ -295,6 +295,7 @@ mod tests {
             textured: Vec::new(),
             subdivisions: Vec::new(),
             first_element: Vec::new(),
+            back_element: Vec::new(),
             elements: Vec::new(),
             vertex_positions: Vec::new(),
         }

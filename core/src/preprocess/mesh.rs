@@ -1,7 +1,8 @@
 //! Subdivision of patches into elements, with welded vertices.
 
 use super::weld::weld;
-use super::{ElementInfo, PrepareError};
+use super::{ElementInfo, Face, PrepareError};
+use crate::blocks::NO_BACK;
 use crate::geometry::triangle_area;
 use crate::scene::Scene;
 use crate::subdivision::{element_corners, element_count, lattice_count, lattice_index, lattice_point};
@@ -22,6 +23,8 @@ pub(super) struct Mesh {
     pub subdivisions: Vec<u32>,
     /// First element id of each patch.
     pub first_element: Vec<u32>,
+    /// First back element id of each patch, or [`NO_BACK`].
+    pub back_element: Vec<u32>,
     /// Elements by id.
     pub elements: Vec<ElementInfo>,
     /// Welded vertex positions.
@@ -63,28 +66,48 @@ pub(super) fn build(scene: &Scene) -> Result<Mesh, PrepareError> {
         });
     }
     let subdivisions: Vec<u32> = counts.iter().map(|&n| n as u32).collect();
-    let estimate = estimate as u64;
+    // Patches whose material keeps the light on their backs apart get a second set of
+    // elements (and vertices) for the back face.
+    let has_back: Vec<bool> = scene
+        .patches
+        .iter()
+        .map(|p| !s.shared_faces && scene.materials.get(p.material as usize).is_some_and(|m| m.has_back_face()))
+        .collect();
+    let one_sided: Vec<bool> =
+        scene.patches.iter().map(|p| scene.materials.get(p.material as usize).is_some_and(|m| m.one_sided)).collect();
+    let back_estimate: u64 =
+        subdivisions.iter().zip(&has_back).filter(|(_, &b)| b).map(|(&n, _)| element_count(n)).sum();
+    let estimate = estimate as u64 + back_estimate;
     let lattice_total: u64 = subdivisions.iter().map(|&n| lattice_count(n)).sum();
     if estimate >= u32::MAX as u64 / 2 || lattice_total >= u32::MAX as u64 / 2 || patches.len() >= u32::MAX as usize / 2
     {
         return Err(PrepareError::TooLarge { file: scene.name.clone(), what: format!("{estimate} elements") });
     }
+    // Front elements patch by patch, then the back elements of the patches that have
+    // them, in the same order: front ids (and with them each pair's random stream) do
+    // not depend on which patches keep a back face.
     let mut first_element = Vec::with_capacity(patches.len());
     let mut acc = 0u32;
     for &n in &subdivisions {
         first_element.push(acc);
         acc += element_count(n) as u32;
     }
+    let mut back_element = Vec::with_capacity(patches.len());
+    for (&n, &b) in subdivisions.iter().zip(&has_back) {
+        back_element.push(if b { acc } else { NO_BACK });
+        acc += if b { element_count(n) as u32 } else { 0 };
+    }
 
     let welded = weld(&patches, &subdivisions);
 
-    let elements: Vec<ElementInfo> = (0..patches.len())
+    let front: Vec<ElementInfo> = (0..patches.len())
         .into_par_iter()
         .flat_map_iter(|p| {
             let n = subdivisions[p];
             let v = patches[p];
             let base = welded.lattice_offset[p];
             let ids = &welded.ids;
+            let face = if one_sided[p] || has_back[p] { Face::Front } else { Face::Both };
             (0..n * n).map(move |local| {
                 let c = element_corners(n, local);
                 let corner = |k: usize| lattice_point(&v, n, c[k].0, c[k].1);
@@ -95,10 +118,12 @@ pub(super) fn build(scene: &Scene) -> Result<Mesh, PrepareError> {
                     vertices: [vid(0), vid(1), vid(2)],
                     area: triangle_area(&tri),
                     centroid: (tri[0] + tri[1] + tri[2]) / 3.0,
+                    face,
                 }
             })
         })
         .collect();
+    let (elements, vertex_positions) = with_back_faces(front, welded.positions, &first_element, &back_element);
 
     Ok(Mesh {
         materials: scene.patches.iter().map(|p| p.material).collect(),
@@ -107,9 +132,48 @@ pub(super) fn build(scene: &Scene) -> Result<Mesh, PrepareError> {
         patches,
         subdivisions,
         first_element,
+        back_element,
         elements,
-        vertex_positions: welded.positions,
+        vertex_positions,
     })
+}
+
+/// Appends the back elements of the patches that have them (`back_element[p]` not
+/// [`NO_BACK`]) to the `front` elements, each a copy of the front element in front of
+/// it on a vertex of the back face's own: the back copy of a front vertex, numbered after
+/// every front vertex in order of first use. Front vertices are welded only between
+/// coplanar patches facing the same way, so two such patches' backs share their back
+/// vertices as their fronts share the front ones.
+fn with_back_faces(
+    front: Vec<ElementInfo>,
+    mut positions: Vec<DVec3>,
+    first_element: &[u32],
+    back_element: &[u32],
+) -> (Vec<ElementInfo>, Vec<DVec3>) {
+    let mut elements = front;
+    let fronts = elements.len();
+    let mut back_of = vec![u32::MAX; positions.len()];
+    for (p, &b) in back_element.iter().enumerate() {
+        if b == NO_BACK {
+            continue;
+        }
+        let first = first_element[p] as usize;
+        let end = first_element.get(p + 1).map_or(fronts, |&e| e as usize);
+        for e in first..end {
+            let mut info = elements[e];
+            for v in &mut info.vertices {
+                let i = *v as usize;
+                if back_of[i] == u32::MAX {
+                    back_of[i] = positions.len() as u32;
+                    positions.push(positions[i]);
+                }
+                *v = back_of[i];
+            }
+            info.face = Face::Back;
+            elements.push(info);
+        }
+    }
+    (elements, positions)
 }
 
 #[cfg(test)]

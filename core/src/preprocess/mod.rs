@@ -64,6 +64,33 @@ pub struct ElementInfo {
     pub area: f64,
     /// Centroid.
     pub centroid: DVec3,
+    /// Which light it holds: the light arriving on either face of its patch, on the
+    /// front only, or on the back only.
+    pub face: Face,
+}
+
+/// The faces of a patch whose light an element holds.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Face {
+    /// Both: a two-sided patch that keeps no back face (no diffuse part, or emitting).
+    Both,
+    /// The front: a one-sided patch's element, or the front element of a patch that
+    /// keeps its back face apart.
+    Front,
+    /// The back: a back element ([`crate::scene::Material::has_back_face`]).
+    Back,
+}
+
+impl Face {
+    /// Whether light arriving from direction `towards_light` (from the element to the
+    /// light) onto a surface of geometric normal `normal` lands on this face.
+    pub fn takes(self, towards_light: DVec3, normal: DVec3) -> bool {
+        match self {
+            Face::Both => true,
+            Face::Front => towards_light.dot(normal) > 0.0,
+            Face::Back => towards_light.dot(normal) < 0.0,
+        }
+    }
 }
 
 /// A scene ready to render: the resident header, every block, and the host-side tables.

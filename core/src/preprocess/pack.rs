@@ -77,6 +77,7 @@ pub(super) fn pack(mesh: &Mesh, grid: &Grid, bvh: Option<Bvh>, textures: &[Textu
                 subdivisions: mesh.subdivisions[p],
                 first_element: mesh.first_element[p],
                 shading: shading_of[p],
+                back_element: mesh.back_element[p],
             }
             .encode(&mut b, k * PATCH_RECORD);
         }
@@ -111,7 +112,13 @@ pub(super) fn pack(mesh: &Mesh, grid: &Grid, bvh: Option<Bvh>, textures: &[Textu
         let mut b = zero_block();
         for (k, e) in chunk.iter().enumerate() {
             let id = (chunk_idx * ELEMENTS_PER_BLOCK + k) as u32;
-            let local = id - mesh.first_element[e.patch as usize];
+            // A back element's local index counts on from its patch's n * n front ones.
+            let p = e.patch as usize;
+            let local = if e.face == crate::preprocess::Face::Back {
+                id - mesh.back_element[p] + (mesh.subdivisions[p] * mesh.subdivisions[p])
+            } else {
+                id - mesh.first_element[p]
+            };
             ElementRecord { patch: e.patch, local, vertices: e.vertices, area: e.area }
                 .encode(&mut b, k * ELEMENT_RECORD);
         }

@@ -204,6 +204,11 @@ pub struct RenderSettings {
     pub accel: Accel,
     /// Where direct light is computed (LRT onto elements, or VRT with shadow rays).
     pub direct: DirectLight,
+    /// The paper's receiving (`faces = "shared"`): one element holds the light arriving
+    /// on either face of its patch and shows it on both. By default (`"apart"`) patches
+    /// of two-sided diffuse materials get back elements
+    /// ([`Material::has_back_face`]).
+    pub shared_faces: bool,
     /// Subspace grid resolution (with [`Accel::Grid`]).
     pub grid: GridSpec,
     /// Seed of every random choice (rays are seeded from it, the pair and the pixel).
@@ -230,6 +235,7 @@ impl Default for RenderSettings {
             ambient: Rgb::splat(0.0),
             accel: Accel::Bvh,
             direct: DirectLight::Auto,
+            shared_faces: false,
             grid: GridSpec::Auto,
             seed: 1,
             exposure: Exposure::Auto,
@@ -319,6 +325,14 @@ impl Material {
     /// True when the material has a specular part of either kind.
     pub fn is_specular(&self) -> bool {
         self.is_mirror() || self.is_transmissive()
+    }
+    /// True when its patches keep the light arriving on their backs apart from the light
+    /// on their fronts, in back elements of their own: a two-sided material that shows
+    /// received light (a diffuse part) and emits none. Light on a thin wall's far side
+    /// then stays there; a one-sided material refuses it instead, and a material without
+    /// a diffuse part shows no received light at all.
+    pub fn has_back_face(&self) -> bool {
+        !self.one_sided && !self.diffuse.is_black() && !self.is_emitter()
     }
     /// True when light travelling along `d` onto a surface with geometric normal `n` of
     /// this material arrives on a side that takes no light (the back of a one-sided one).

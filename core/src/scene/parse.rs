@@ -69,6 +69,7 @@ struct RawRender {
     ambient: Option<SVec>,
     accel: Option<Spanned<String>>,
     direct: Option<Spanned<String>>,
+    faces: Option<Spanned<String>>,
     grid: Option<Spanned<toml::Value>>,
     seed: Option<Spanned<i64>>,
     exposure: Option<Spanned<toml::Value>>,
@@ -400,6 +401,19 @@ impl<'a> Ctx<'a> {
             s.direct = DirectLight::parse(v.get_ref()).ok_or_else(|| {
                 self.err(v, "render.direct", format!("expected \"auto\", \"vrt\" or \"lrt\", found {:?}", v.get_ref()))
             })?;
+        }
+        if let Some(v) = &r.faces {
+            s.shared_faces = match v.get_ref().as_str() {
+                "apart" => false,
+                "shared" => true,
+                other => {
+                    return Err(self.err(
+                        v,
+                        "render.faces",
+                        format!("expected \"apart\" or \"shared\", found {other:?}"),
+                    ))
+                }
+            };
         }
         if let Some(v) = &r.grid {
             s.grid = self.grid(v)?;

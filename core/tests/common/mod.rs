@@ -72,8 +72,17 @@ pub fn boxed(lo: DVec3, hi: DVec3, material: u32, n: u32, inward: bool) -> Vec<P
 pub fn element_tri(s: &Scene, p: &PreparedScene, e: usize) -> [DVec3; 3] {
     let info = p.elements[e];
     let patch = &s.patches[info.patch as usize];
-    let first = p.elements.iter().position(|x| x.patch == info.patch).unwrap();
+    // The first element of the same patch and face (back elements follow all the fronts).
+    let first = p.elements.iter().position(|x| x.patch == info.patch && x.face == info.face).unwrap();
     magg_core::subdivision::element_triangle(&patch.vertices, patch.subdivisions.unwrap(), (e - first) as u32)
+}
+
+/// Whether light from point `from` arrives on the face of its patch that element `e`
+/// holds (always for an element of both faces).
+pub fn faces_towards(s: &Scene, p: &PreparedScene, e: usize, from: DVec3) -> bool {
+    let info = p.elements[e];
+    let normal = magg_core::geometry::triangle_normal(&s.patches[info.patch as usize].vertices);
+    info.face.takes(from - info.centroid, normal)
 }
 
 pub fn scene(patches: Vec<PatchDef>, materials: Vec<Material>, lights: Vec<Light>) -> Scene {

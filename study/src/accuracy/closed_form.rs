@@ -1,7 +1,8 @@
 //! The closed-form reference of the accuracy study: where the only light is direct and
 //! unoccluded (no mirror or glass, no diffuse bounce, no spot cone, no flux occluded in
 //! the light pass), the irradiance at every point of a surface is E = I |cos(theta)| / r^2
-//! per light. The vertex irradiance that energy interpolation makes from the elements'
+//! per light, counting on each face of a patch only the lights on that face's side where
+//! the patch keeps its faces apart (one-sided materials, back elements). The vertex irradiance that energy interpolation makes from the elements'
 //! flux is measured against it: the bias that the element size leaves, which more light
 //! rays cannot remove (each element's flux is exactly I x Omega whatever the ray count).
 
@@ -9,7 +10,7 @@ use glam::DVec3;
 use magg_core::color::Rgb;
 use magg_core::lrt::LrtTally;
 use magg_core::math::Normalized;
-use magg_core::preprocess::PreparedScene;
+use magg_core::preprocess::{Face, PreparedScene};
 
 /// True when the closed form holds for a render of `prepared` whose light pass reported
 /// `tally`. Not when direct light is computed at VRT: the elements then hold none of it.
@@ -22,12 +23,13 @@ pub fn applies(prepared: &PreparedScene, tally: &LrtTally) -> bool {
         && tally.occluded.0.iter().all(|&o| o == 0.0)
 }
 
-/// Closed-form irradiance at `p` on a surface with unit normal `n`.
-pub fn irradiance_at(prepared: &PreparedScene, p: DVec3, n: DVec3) -> Rgb {
+/// Closed-form irradiance at `p` on the face `face` of a surface with unit (front)
+/// normal `n`.
+pub fn irradiance_at(prepared: &PreparedScene, p: DVec3, n: DVec3, face: Face) -> Rgb {
     prepared.header.lights.iter().fold(Rgb::BLACK, |acc, l| {
         let d = l.position - p;
         let r2 = d.dot(d);
-        if r2 <= 0.0 {
+        if r2 <= 0.0 || !face.takes(d, n) {
             return acc;
         }
         let cos = (n.dot(d) / r2.sqrt()).abs();
@@ -35,10 +37,11 @@ pub fn irradiance_at(prepared: &PreparedScene, p: DVec3, n: DVec3) -> Rgb {
     })
 }
 
-/// Unit normal of every vertex: the area-weighted mean of its elements' normals.
-fn vertex_normals(prepared: &PreparedScene) -> Vec<DVec3> {
+/// Unit (front) normal and face of every vertex: the area-weighted mean of its elements'
+/// normals, and the face its elements hold (welding joins only elements of one face).
+fn vertex_normals(prepared: &PreparedScene) -> Vec<(DVec3, Face)> {
     let p = &prepared.vertex_positions;
-    let mut n = vec![DVec3::ZERO; p.len()];
+    let mut n = vec![(DVec3::ZERO, Face::Both); p.len()];
     for e in &prepared.elements {
         let [a, b, c] = e.vertices.map(|v| v as usize);
         if a >= p.len() || b >= p.len() || c >= p.len() {
@@ -46,10 +49,10 @@ fn vertex_normals(prepared: &PreparedScene) -> Vec<DVec3> {
         }
         let w = (p[b] - p[a]).cross(p[c] - p[a]);
         for v in [a, b, c] {
-            n[v] = n[v] + w;
+            n[v] = (n[v].0 + w, e.face);
         }
     }
-    n.into_iter().map(|v| if v == DVec3::ZERO { v } else { v.normalized() }).collect()
+    n.into_iter().map(|(v, f)| (if v == DVec3::ZERO { v } else { v.normalized() }, f)).collect()
 }
 
 /// Relative RMSE of `vertex_irradiance` against the closed form: the RMSE over vertices
@@ -61,8 +64,8 @@ pub fn vertex_rel_rmse(prepared: &PreparedScene, tally: &LrtTally, vertex_irradi
     }
     let normals = vertex_normals(prepared);
     let (mut se, mut sum, mut n) = (0.0, 0.0, 0usize);
-    for ((&p, &nv), got) in prepared.vertex_positions.iter().zip(&normals).zip(vertex_irradiance) {
-        let want = irradiance_at(prepared, p, nv);
+    for ((&p, &(nv, face)), got) in prepared.vertex_positions.iter().zip(&normals).zip(vertex_irradiance) {
+        let want = irradiance_at(prepared, p, nv, face);
         for c in 0..3 {
             se += (got.0[c] - want.0[c]).powi(2);
             sum += want.0[c];

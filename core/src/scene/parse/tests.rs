@@ -118,6 +118,15 @@ fn unknown_key_names_file_line_and_key() {
 }
 
 #[test]
+fn faces_are_apart_unless_the_scene_shares_them() {
+    assert!(!parse(MINI).unwrap().settings.shared_faces);
+    assert!(parse(&format!("{MINI}[render]\nfaces = \"shared\"\n")).unwrap().settings.shared_faces);
+    assert!(!parse(&format!("{MINI}[render]\nfaces = \"apart\"\n")).unwrap().settings.shared_faces);
+    let e = err(&format!("{MINI}[render]\nfaces = \"both\"\n"));
+    assert_eq!(e, "t.toml:18: render.faces: expected \"apart\" or \"shared\", found \"both\"");
+}
+
+#[test]
 fn accel_is_bvh_unless_the_scene_asks_for_the_grid() {
     assert_eq!(parse(MINI).unwrap().settings.accel, Accel::Bvh);
     let grid = parse(&format!("{MINI}[render]\naccel = \"grid\"\n")).unwrap().settings;
