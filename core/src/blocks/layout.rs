@@ -157,7 +157,7 @@ impl PatchRecord {
     /// front element otherwise.
     #[inline]
     pub fn element_on_face(&self, local: u32, d: DVec3) -> u32 {
-        if self.back_element != NO_BACK && d.dot(crate::geometry::triangle_normal(&self.v)) > 0.0 {
+        if self.back_element != NO_BACK && self.arrives_on_back(d) {
             self.back_element + local
         } else {
             self.first_element + local
@@ -168,8 +168,13 @@ impl PatchRecord {
     /// and `d` arrives on the other one.
     #[inline]
     pub fn receives_on(&self, e: &ElementRecord, d: DVec3) -> bool {
-        self.back_element == NO_BACK
-            || (d.dot(crate::geometry::triangle_normal(&self.v)) > 0.0) == e.is_back(self.subdivisions)
+        self.back_element == NO_BACK || self.arrives_on_back(d) == e.is_back(self.subdivisions)
+    }
+    /// True when light travelling along `d` arrives on the back of the patch (the side
+    /// its winding's normal points away from).
+    #[inline]
+    fn arrives_on_back(&self, d: DVec3) -> bool {
+        d.dot(crate::geometry::triangle_normal(&self.v)) > 0.0
     }
 }
 
