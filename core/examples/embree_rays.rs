@@ -215,8 +215,22 @@ fn main() -> ExitCode {
         let (to, hits_o) = time(a.repeats, || {
             shadow.iter().filter(|(r, t)| occluded(&mut v, &mut scratch, r, 0.0, *t, NO_PATCH).unwrap_or(false)).count()
         });
+        // Node visits and patch tests per ray, from one more pass of each kind.
+        let mut per_ray = |rays: usize, pass: &mut dyn FnMut(&mut SceneView, &mut TraceScratch)| {
+            let (n0, t0) = (v.counters.grid_steps, v.counters.patch_tests);
+            pass(&mut v, &mut scratch);
+            let n = rays.max(1) as f64;
+            ((v.counters.grid_steps - n0) as f64 / n, (v.counters.patch_tests - t0) as f64 / n)
+        };
+        let (np, tsp) = per_ray(primary.len(), &mut |v, s| {
+            primary.iter().for_each(|r| drop(cast(v, s, r, 0.0, f64::INFINITY, NO_PATCH, false)))
+        });
+        let (no, tso) = per_ray(shadow.len(), &mut |v, s| {
+            shadow.iter().for_each(|(r, t)| drop(occluded(v, s, r, 0.0, *t, NO_PATCH)))
+        });
         println!(
-            "magg triangles {triangles} primary {:.3} occlusion {:.3} hits {hits_p} {hits_o}",
+            "magg triangles {triangles} primary {:.3} occlusion {:.3} hits {hits_p} {hits_o} \
+             nodes/ray {np:.1} {no:.1} tests/ray {tsp:.1} {tso:.1}",
             primary.len() as f64 / tp / 1e6,
             shadow.len() as f64 / to / 1e6
         );

@@ -3,7 +3,8 @@
 //! hit ratio is the real one.
 
 use crate::blocks::bvh::{
-    BvhNode, BVH_NODE_RECORD, BVH_NODE_SHIFT, BVH_TRIANGLES_PER_BLOCK, BVH_TRIANGLE_RECORD, BVH_TRIANGLE_SHIFT,
+    node_record, BvhNodeLanes, BVH_NODE_RECORD, BVH_NODE_SHIFT, BVH_TRIANGLES_PER_BLOCK, BVH_TRIANGLE_RECORD,
+    BVH_TRIANGLE_SHIFT,
 };
 use crate::blocks::*;
 use crate::color::Rgb;
@@ -147,14 +148,14 @@ impl SceneView {
 
     /// BVH node `n` (node 0 is the root), read in place from its node block.
     #[inline]
-    pub fn bvh_node(&mut self, n: u32) -> Result<BvhNode, BlockError> {
+    pub fn bvh_node(&mut self, n: u32) -> Result<BvhNodeLanes, BlockError> {
         let bvh = self.header.bvh;
         if n >= bvh.nodes {
             return Err(BlockError::BadId { kind: "BVH node", id: n as u64, count: bvh.nodes as u64 });
         }
         let b = self.header.layout.bvh_base + (n >> BVH_NODE_SHIFT);
         let at = (n & ((1 << BVH_NODE_SHIFT) - 1)) as usize * BVH_NODE_RECORD;
-        Ok(BvhNode::decode(self.cache.get(b)?, at))
+        Ok(BvhNodeLanes::read(node_record(self.cache.get(b)?, at)))
     }
 
     /// The bytes of the `count` leaf-triangle records from address `first` (all in one

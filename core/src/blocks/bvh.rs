@@ -1,22 +1,26 @@
 //! Byte layout of the BVH blocks: node blocks, then leaf-triangle blocks.
 //!
-//! A node record holds the bounds of its two children (f32, rounded outward) and a
-//! reference to each: an inner node (by node index), a leaf (a run of triangle records
-//! in one block) or nothing. Node `n` is record `n & 31` of node block `n >> 5`; leaf
-//! triangle address `a` is record `a & 31` of triangle block `a >> 5` (a block holds
-//! [`BVH_TRIANGLES_PER_BLOCK`] of them, so some addresses are unused): shifts and masks,
-//! no division on the traversal path. A triangle record carries the patch's corners in
-//! f64, exactly as the patch block does, so the watertight test gives the same bits.
+//! A node record holds up to [`BVH_WIDTH`] children, their bounds side by side (f32,
+//! rounded outward; all children's `lo.x`, then all `lo.y`, ...) so that a ray tests the
+//! four boxes of a node together, and a reference to each: an inner node (by node index),
+//! a leaf (a run of triangle records in one block) or nothing. Node `n` is record
+//! `n & 15` of node block `n >> 4`; leaf triangle address `a` is record `a & 31` of
+//! triangle block `a >> 5` (a block holds [`BVH_TRIANGLES_PER_BLOCK`] of them, so some
+//! addresses are unused): shifts and masks, no division on the traversal path. A triangle
+//! record carries the patch's corners in f64, exactly as the patch block does, so the
+//! watertight test gives the same bits.
 
-use super::layout::{get_corners, get_f32, get_u32, put_corners, put_u32, Block};
+use super::layout::{get_corners, get_u32, put_corners, put_u32, Block};
 use glam::DVec3;
 
-/// Bytes of one node record: 2 x (6 x f32 bounds) + 2 x (index, count).
-pub const BVH_NODE_RECORD: usize = 64;
+/// Children of a node record.
+pub const BVH_WIDTH: usize = 4;
+/// Bytes of one node record: 6 x 4 f32 bounds, 4 indices, 4 counts.
+pub const BVH_NODE_RECORD: usize = 128;
 /// Node records per block.
-pub const BVH_NODES_PER_BLOCK: usize = 32;
+pub const BVH_NODES_PER_BLOCK: usize = 16;
 /// `log2(BVH_NODES_PER_BLOCK)`: node `n` lives in node block `n >> BVH_NODE_SHIFT`.
-pub const BVH_NODE_SHIFT: u32 = 5;
+pub const BVH_NODE_SHIFT: u32 = 4;
 /// Bytes of one leaf-triangle record: 3 corners (9 x f64), patch id, padding.
 pub const BVH_TRIANGLE_RECORD: usize = 80;
 /// Leaf-triangle records per block.
@@ -44,53 +48,85 @@ pub struct BvhChild {
 }
 
 impl BvhChild {
-    /// No child.
+    /// No child: an empty box (lo above hi), so that no ray enters it.
     pub const NONE: BvhChild =
         BvhChild { lo: [f32::INFINITY; 3], hi: [f32::NEG_INFINITY; 3], index: BVH_NO_CHILD, count: 0 };
-
-    /// Writes the child as child `k` (0 or 1) of the record at byte offset `at`.
-    fn encode(&self, b: &mut Block, at: usize, k: usize) {
-        let bounds = at + 24 * k;
-        for a in 0..3 {
-            b[bounds + 4 * a..bounds + 4 * a + 4].copy_from_slice(&self.lo[a].to_le_bytes());
-            b[bounds + 12 + 4 * a..bounds + 16 + 4 * a].copy_from_slice(&self.hi[a].to_le_bytes());
-        }
-        put_u32(b, at + 48 + 8 * k, self.index);
-        put_u32(b, at + 52 + 8 * k, self.count);
-    }
-
-    #[inline]
-    fn decode(b: &Block, at: usize, k: usize) -> BvhChild {
-        let bounds = at + 24 * k;
-        let f = |i: usize| get_f32(b, bounds + 4 * i);
-        BvhChild {
-            lo: [f(0), f(1), f(2)],
-            hi: [f(3), f(4), f(5)],
-            index: get_u32(b, at + 48 + 8 * k),
-            count: get_u32(b, at + 52 + 8 * k),
-        }
-    }
 }
 
-/// A node record: two children.
+/// A node record: up to [`BVH_WIDTH`] children, absent ones [`BvhChild::NONE`].
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct BvhNode {
-    /// The children, in build order (the lower side of the split first).
-    pub children: [BvhChild; 2],
+    /// The children, in build order.
+    pub children: [BvhChild; BVH_WIDTH],
+}
+
+/// A node record as the traversal reads it: the children's bounds side by side.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct BvhNodeLanes {
+    /// `lo[axis][child]`.
+    pub lo: [[f32; BVH_WIDTH]; 3],
+    /// `hi[axis][child]`.
+    pub hi: [[f32; BVH_WIDTH]; 3],
+    /// Children's index (see [`BvhChild::index`]).
+    pub index: [u32; BVH_WIDTH],
+    /// Children's triangle count (see [`BvhChild::count`]).
+    pub count: [u32; BVH_WIDTH],
+}
+
+impl BvhNodeLanes {
+    /// Reads the record `r` (one node record's bytes).
+    #[inline]
+    pub fn read(r: &[u8; BVH_NODE_RECORD]) -> BvhNodeLanes {
+        let f = |i: usize| f32::from_le_bytes([r[4 * i], r[4 * i + 1], r[4 * i + 2], r[4 * i + 3]]);
+        let u = |i: usize| u32::from_le_bytes([r[4 * i], r[4 * i + 1], r[4 * i + 2], r[4 * i + 3]]);
+        let row = |base: usize| [f(base), f(base + 1), f(base + 2), f(base + 3)];
+        BvhNodeLanes {
+            lo: [row(0), row(4), row(8)],
+            hi: [row(12), row(16), row(20)],
+            index: [u(24), u(25), u(26), u(27)],
+            count: [u(28), u(29), u(30), u(31)],
+        }
+    }
+
+    /// Child `k`.
+    pub fn child(&self, k: usize) -> BvhChild {
+        BvhChild {
+            lo: [self.lo[0][k], self.lo[1][k], self.lo[2][k]],
+            hi: [self.hi[0][k], self.hi[1][k], self.hi[2][k]],
+            index: self.index[k],
+            count: self.count[k],
+        }
+    }
 }
 
 impl BvhNode {
     /// Writes the record at byte offset `at`.
     pub fn encode(&self, b: &mut Block, at: usize) {
-        self.children[0].encode(b, at, 0);
-        self.children[1].encode(b, at, 1);
+        let mut put_f32 = |i: usize, v: f32| b[at + 4 * i..at + 4 * i + 4].copy_from_slice(&v.to_le_bytes());
+        for (k, c) in self.children.iter().enumerate() {
+            for a in 0..3 {
+                put_f32(4 * a + k, c.lo[a]);
+                put_f32(12 + 4 * a + k, c.hi[a]);
+            }
+        }
+        for (k, c) in self.children.iter().enumerate() {
+            put_u32(b, at + 4 * (24 + k), c.index);
+            put_u32(b, at + 4 * (28 + k), c.count);
+        }
     }
 
     /// Reads the record at byte offset `at`.
-    #[inline]
     pub fn decode(b: &Block, at: usize) -> BvhNode {
-        BvhNode { children: [BvhChild::decode(b, at, 0), BvhChild::decode(b, at, 1)] }
+        let lanes = BvhNodeLanes::read(node_record(b, at));
+        BvhNode { children: std::array::from_fn(|k| lanes.child(k)) }
     }
+}
+
+/// The bytes of the node record at byte offset `at` of `b`.
+#[inline]
+pub fn node_record(b: &Block, at: usize) -> &[u8; BVH_NODE_RECORD] {
+    let at = at.min(b.len() - BVH_NODE_RECORD);
+    b[at..at + BVH_NODE_RECORD].try_into().unwrap_or(&[0; BVH_NODE_RECORD])
 }
 
 /// A leaf triangle: the patch's corners and id.
@@ -165,9 +201,9 @@ mod tests {
     #[test]
     fn records_round_trip() {
         let mut b = [0u8; BLOCK_SIZE];
-        let n = BvhNode {
-            children: [BvhChild { lo: [-1.0, 0.0, 2.5], hi: [1.0, 3.0, 4.0], index: 7, count: 0 }, BvhChild::NONE],
-        };
+        let mut n = BvhNode { children: [BvhChild::NONE; BVH_WIDTH] };
+        n.children[0] = BvhChild { lo: [-1.0, 0.0, 2.5], hi: [1.0, 3.0, 4.0], index: 7, count: 0 };
+        n.children[2] = BvhChild { lo: [-2.0, 0.5, 1.5], hi: [0.0, 3.5, 2.0], index: 96, count: 3 };
         n.encode(&mut b, BVH_NODE_RECORD * (BVH_NODES_PER_BLOCK - 1));
         assert_eq!(BvhNode::decode(&b, BVH_NODE_RECORD * (BVH_NODES_PER_BLOCK - 1)), n);
         let t = BvhTriangle { v: [DVec3::new(1.0, 2.0, 3.0), DVec3::new(-0.1, 1e300, 0.0), DVec3::ZERO], patch: 99 };

@@ -3,9 +3,11 @@
 //!
 //! The build splits the two halves of a large node on two threads (rayon), but every
 //! split depends only on the primitives of its node, in the order the partition left
-//! them, so the tree and its blocks are the same whatever the number of threads. Nodes
-//! are written in depth-first order (a node's first child follows it) and leaves in the
-//! same order, a leaf never straddling two triangle blocks.
+//! them, so the tree and its blocks are the same whatever the number of threads. The
+//! binary tree is then widened to nodes of four children (the two levels below a node
+//! opened by surface area), written in depth-first order (a node's first inner child
+//! follows it) with the leaves in the same order, a leaf never straddling two triangle
+//! blocks.
 
 use super::mesh::Mesh;
 use crate::blocks::bvh::*;
@@ -200,13 +202,31 @@ impl Packer<'_> {
         }
     }
 
-    /// Writes an inner node and its subtree; returns its index.
+    /// Writes an inner node and its subtree; returns its index. The binary tree's node
+    /// is widened to [`BVH_WIDTH`] children by opening, while there is room, the inner
+    /// child of largest surface area into its two children (in place, so that the
+    /// children keep the build's order).
     fn inner(&mut self, children: &[(Aabb, Tree); 2]) -> u32 {
+        let mut open: Vec<(&Aabb, &Tree)> = children.iter().map(|(b, t)| (b, t)).collect();
+        while open.len() < BVH_WIDTH {
+            let widest = open.iter().enumerate().filter(|(_, (_, t))| matches!(t, Tree::Inner(_))).fold(
+                None::<(usize, f64)>,
+                |best, (k, (b, _))| match best {
+                    Some((_, a)) if a >= area(b) => best,
+                    _ => Some((k, area(b))),
+                },
+            );
+            let Some((k, _)) = widest else { break };
+            let Tree::Inner(grand) = open[k].1 else { break };
+            open.splice(k..=k, grand.iter().map(|(b, t)| (b, t)));
+        }
         let at = self.nodes.len();
-        self.nodes.push(BvhNode { children: [BvhChild::NONE; 2] });
-        let first = self.child(&children[0].0, &children[0].1);
-        let second = self.child(&children[1].0, &children[1].1);
-        self.nodes[at] = BvhNode { children: [first, second] };
+        self.nodes.push(BvhNode { children: [BvhChild::NONE; BVH_WIDTH] });
+        let mut node = BvhNode { children: [BvhChild::NONE; BVH_WIDTH] };
+        for (slot, (b, t)) in node.children.iter_mut().zip(open) {
+            *slot = self.child(b, t);
+        }
+        self.nodes[at] = node;
         at as u32
     }
 }
@@ -235,15 +255,15 @@ pub(super) fn build_and_pack(mesh: &Mesh) -> Bvh {
         used: 0,
         triangles: 0,
     };
-    // The root record holds the whole tree's two children; a tree that is one leaf has
+    // The root record holds the whole tree's top children; a tree that is one leaf has
     // it as the first child, and no patch at all leaves both empty.
     match &tree {
         Tree::Inner(children) => {
             p.inner(children);
         }
-        Tree::Leaf(ids) if ids.is_empty() => p.nodes.push(BvhNode { children: [BvhChild::NONE; 2] }),
+        Tree::Leaf(ids) if ids.is_empty() => p.nodes.push(BvhNode { children: [BvhChild::NONE; BVH_WIDTH] }),
         Tree::Leaf(_) => {
-            p.nodes.push(BvhNode { children: [BvhChild::NONE; 2] });
+            p.nodes.push(BvhNode { children: [BvhChild::NONE; BVH_WIDTH] });
             let only = p.child(&all, &tree);
             p.nodes[0].children[0] = only;
         }
@@ -311,7 +331,7 @@ mod tests {
         let h = bvh.header;
         let node = |n: u32| {
             let b = &bvh.blocks[(n >> BVH_NODE_SHIFT) as usize];
-            BvhNode::decode(b, (n & 31) as usize * BVH_NODE_RECORD)
+            BvhNode::decode(b, (n as usize & (BVH_NODES_PER_BLOCK - 1)) * BVH_NODE_RECORD)
         };
         let (mut ids, mut visited) = (Vec::new(), 0);
         let mut stack = vec![(0u32, None::<BvhChild>)];

@@ -1,5 +1,5 @@
-//! Ray casting through the BVH: a depth-first walk, the nearer child first, that skips
-//! every node entered beyond the best hit so far.
+//! Ray casting through the BVH: a depth-first walk over nodes of four children, the
+//! nearest child first, that skips every node entered beyond the best hit so far.
 //!
 //! Node bounds are f32 rounded outward and padded at build time, and the slab test's far
 //! distance is widened by `1 + 2 gamma(3)` (Ize 2013), so a box holding a hit is never
@@ -8,7 +8,7 @@
 //! same corners as the patch records: the grid's answer, bit for bit.
 
 use super::{Hit, Query, TraceScratch};
-use crate::blocks::bvh::{BvhChild, BvhTriangle, BVH_NO_CHILD, BVH_TRIANGLE_RECORD};
+use crate::blocks::bvh::{BvhNodeLanes, BvhTriangle, BVH_NO_CHILD, BVH_TRIANGLE_RECORD, BVH_WIDTH};
 use crate::blocks::BlockError;
 use crate::view::SceneView;
 
@@ -22,24 +22,32 @@ struct SlabRay {
 }
 
 impl SlabRay {
-    /// Distance at which the ray enters `c`'s box within `[t0, t1]`, if it does.
+    /// Distance at which the ray enters each of `node`'s child boxes within `[t0, t1]`
+    /// (infinity for a box it misses and for an absent child): the four boxes side by
+    /// side, in f64 from the f32 bounds.
     #[inline]
-    fn enter(&self, c: &BvhChild, t0: f64, t1: f64) -> Option<f64> {
-        if c.index == BVH_NO_CHILD {
-            return None;
-        }
-        let (mut near, mut far) = (t0, f64::INFINITY);
+    fn enter(&self, node: &BvhNodeLanes, t0: f64, t1: f64) -> [f64; BVH_WIDTH] {
+        let mut near = [t0; BVH_WIDTH];
+        let mut far = [f64::INFINITY; BVH_WIDTH];
         for a in 0..3 {
-            let ta = (c.lo[a] as f64 - self.origin[a]) * self.inv[a];
-            let tb = (c.hi[a] as f64 - self.origin[a]) * self.inv[a];
-            // A NaN (0 x inf: a ray in the plane of a padded face, which holds no
-            // patch) fails these comparisons and skips the box.
-            let (n, f) = if ta <= tb { (ta, tb) } else { (tb, ta) };
-            near = if n > near { n } else { near };
-            far = if f < far { f } else { far };
+            for k in 0..BVH_WIDTH {
+                let ta = (node.lo[a][k] as f64 - self.origin[a]) * self.inv[a];
+                let tb = (node.hi[a][k] as f64 - self.origin[a]) * self.inv[a];
+                // A NaN (0 x inf: a ray in the plane of a padded face, which holds no
+                // patch) fails these comparisons.
+                let (n, f) = if ta <= tb { (ta, tb) } else { (tb, ta) };
+                near[k] = if n > near[k] { n } else { near[k] };
+                far[k] = if f < far[k] { f } else { far[k] };
+            }
         }
-        let far = (far * FAR_SLACK).min(t1);
-        (near <= far).then_some(near)
+        std::array::from_fn(|k| {
+            let f = (far[k] * FAR_SLACK).min(t1);
+            if near[k] <= f && node.index[k] != BVH_NO_CHILD {
+                near[k]
+            } else {
+                f64::INFINITY
+            }
+        })
     }
 }
 
@@ -85,28 +93,37 @@ pub(super) fn cast(view: &mut SceneView, scratch: &mut TraceScratch, q: &Query) 
             Ok(n) => n,
             Err(e) => break Err(e),
         };
-        let [a, b] = &node.children;
         // Nodes are written depth first: a child's index is above its parent's, so a
         // ray visits each node at most once. Blocks that say otherwise are corrupt (and
         // would loop).
-        let inner_below = |c: &BvhChild| c.count > 0 || c.index == BVH_NO_CHILD || c.index > index;
-        if !inner_below(a) || !inner_below(b) || steps > view.header.bvh.nodes as u64 {
+        let inner_below =
+            (0..BVH_WIDTH).all(|k| node.count[k] > 0 || node.index[k] == BVH_NO_CHILD || node.index[k] > index);
+        if !inner_below || steps > view.header.bvh.nodes as u64 {
             let id = view.header.layout.bvh_base + (index >> crate::blocks::bvh::BVH_NODE_SHIFT);
             break Err(BlockError::Unavailable { id, reason: "corrupt BVH node block".into() });
         }
-        let entry = |c: &BvhChild, t: f64| (c.index, c.count, t);
-        match (slab.enter(a, t0, bound), slab.enter(b, t0, bound)) {
-            (Some(ta), Some(tb)) if ta <= tb => {
-                stack.push(entry(b, tb));
-                next = Some(entry(a, ta));
+        // The children entered, nearest first (ties in the node's order): the nearest
+        // is visited next, the others stacked farthest first.
+        let t = slab.enter(&node, t0, bound);
+        let mut entered = [(0.0f64, 0u32, 0u32); BVH_WIDTH];
+        let mut n = 0;
+        for k in 0..BVH_WIDTH {
+            if t[k] == f64::INFINITY {
+                continue;
             }
-            (Some(ta), Some(tb)) => {
-                stack.push(entry(a, ta));
-                next = Some(entry(b, tb));
+            let mut i = n;
+            while i > 0 && entered[i - 1].0 > t[k] {
+                entered[i] = entered[i - 1];
+                i -= 1;
             }
-            (Some(ta), None) => next = Some(entry(a, ta)),
-            (None, Some(tb)) => next = Some(entry(b, tb)),
-            (None, None) => {}
+            entered[i] = (t[k], node.index[k], node.count[k]);
+            n += 1;
+        }
+        if n > 0 {
+            for &(t, index, count) in entered[1..n].iter().rev() {
+                stack.push((index, count, t));
+            }
+            next = Some((entered[0].1, entered[0].2, entered[0].0));
         }
     };
     scratch.stack = stack;
