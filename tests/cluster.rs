@@ -88,6 +88,33 @@ fn back_elements_give_the_same_bits_in_every_shape() {
 }
 
 #[test]
+fn refined_elements_give_the_same_bits_in_every_shape() {
+    // cornell.toml with two levels of refinement: the caustic's and the mirror light's
+    // edges split into elements made after the lattice's, on every shape of the cluster.
+    let dir = tempfile::tempdir().unwrap();
+    let s = scene("cornell.toml");
+    let refined: &[&str] = &["--element-size", "0.25", "--set", "render.refine=2"];
+    let base = render(&s, dir.path(), "embedded", &with(&[&["--embedded"][..], refined].concat()));
+    let unrefined = [&["--embedded"][..], refined, &["--set", "render.refine=0"]].concat();
+    let plain = render(&s, dir.path(), "plain", &with(&unrefined));
+    let elements = |r: &Rendered| read_energy(&r.energy).iter().filter(|row| row.kind == "element").count();
+    assert!(
+        elements(&base) > elements(&plain),
+        "refinement made no element: {} against {}",
+        elements(&base),
+        elements(&plain)
+    );
+    for (i, shape) in
+        [&["--nodes", "1", "--forks", "1"][..], &["--nodes", "3", "--forks", "5", "--cache-blocks", "400"]]
+            .iter()
+            .enumerate()
+    {
+        let r = render(&s, dir.path(), &format!("cluster{i}"), &with(&[*shape, refined].concat()));
+        same_files(&base, &r, &format!("refined cornell.toml {}", shape.join(" ")));
+    }
+}
+
+#[test]
 fn eighty_nodes_on_five_forks_give_the_same_bits() {
     let dir = tempfile::tempdir().unwrap();
     let s = scene("magg-paper.toml");

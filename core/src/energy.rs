@@ -49,12 +49,21 @@ pub fn from_fixed(f: Fixed, quantum: f64) -> Rgb {
 }
 
 /// Vertex irradiance: the area-weighted mean of the irradiance (flux / area) of the
-/// elements sharing the vertex, i.e. `sum(flux) / sum(area)`. Deterministic: integer
-/// flux sums, area sums in element order.
-pub fn interpolate(elements: &[ElementInfo], flux: &[Fixed], vertices: usize, quantum: f64) -> Vec<Rgb> {
+/// leaf elements sharing the vertex, i.e. `sum(flux) / sum(area)`; then each T-junction
+/// `[a, b, m]` (a refinement midpoint `m` on the edge `a b` of an element that does not
+/// use it, in the order they were made) takes the mean of `a` and `b`, so that the
+/// irradiance is continuous across the edge. Deterministic: integer flux sums, area
+/// sums in element order.
+pub fn interpolate(
+    elements: &[ElementInfo],
+    t_junctions: &[[u32; 3]],
+    flux: &[Fixed],
+    vertices: usize,
+    quantum: f64,
+) -> Vec<Rgb> {
     let mut sum = vec![[0i128; 3]; vertices];
     let mut area = vec![0.0f64; vertices];
-    for (e, f) in elements.iter().zip(flux) {
+    for (e, f) in elements.iter().zip(flux).filter(|(e, _)| e.is_leaf()) {
         for &v in &e.vertices {
             if let Some(s) = sum.get_mut(v as usize) {
                 for c in 0..3 {
@@ -64,7 +73,8 @@ pub fn interpolate(elements: &[ElementInfo], flux: &[Fixed], vertices: usize, qu
             }
         }
     }
-    sum.iter()
+    let mut irradiance: Vec<Rgb> = sum
+        .iter()
         .zip(&area)
         .map(|(s, &a)| {
             if a > 0.0 {
@@ -73,7 +83,15 @@ pub fn interpolate(elements: &[ElementInfo], flux: &[Fixed], vertices: usize, qu
                 Rgb::BLACK
             }
         })
-        .collect()
+        .collect();
+    for &[a, b, m] in t_junctions {
+        if let (Some(&ea), Some(&eb)) = (irradiance.get(a as usize), irradiance.get(b as usize)) {
+            if let Some(em) = irradiance.get_mut(m as usize) {
+                *em = ea.add(eb).scale(0.5);
+            }
+        }
+    }
+    irradiance
 }
 
 /// Irradiance of every element (flux / area).
@@ -122,10 +140,12 @@ mod tests {
             area,
             centroid: DVec3::ZERO,
             face: crate::preprocess::Face::Both,
+            parent: crate::preprocess::NO_PARENT,
+            child: 0,
         };
         let elements = [e([0, 1, 2], 1.0), e([1, 2, 3], 3.0)];
         let flux = [[10, 10, 10], [60, 60, 60]]; // irradiance 10 and 20
-        let v = interpolate(&elements, &flux, 4, 1.0);
+        let v = interpolate(&elements, &[], &flux, 4, 1.0);
         assert_eq!(v[0].0[0], 10.0);
         assert_eq!(v[3].0[0], 20.0);
         assert_eq!(v[1].0[0], 70.0 / 4.0);

@@ -41,6 +41,7 @@ pub mod placement;
 pub mod plan;
 pub mod preprocess;
 pub mod progress;
+pub mod refine;
 pub mod render;
 pub mod rng;
 pub mod scatter;

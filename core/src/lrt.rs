@@ -28,7 +28,7 @@ use crate::geometry::{cosine_hemisphere, sample_spherical_triangle, solid_angle,
 use crate::rng::{hammersley, Rng};
 use crate::scatter::{arrive, offset_scale, Arrival, Dielectric};
 use crate::scene::Light;
-use crate::subdivision::{element_triangle, locate};
+use crate::subdivision::locate;
 use crate::trace::{cast, occluded, TraceScratch};
 use crate::view::SceneView;
 use glam::DVec3;
@@ -146,8 +146,12 @@ pub fn trace_pair(
     if !plan.lrt {
         return Ok(out);
     }
-    let erec = view.element(element)?;
-    let prec = view.patch(erec.patch)?;
+    if view.element(element)?.child != 0 {
+        // Refinement split it: its four children have pairs of their own.
+        return Ok(out);
+    }
+    // The lattice element it lies in says its face; its own corners are its target.
+    let (erec, prec, tri) = view.element_geometry(element)?;
     let material = header.materials.get(prec.material as usize);
     if plan.skips_diffuse_pairs() && material.is_none_or(|m| !m.is_specular()) {
         // Its direct light is computed at VRT and nothing bounces on from it.
@@ -158,7 +162,6 @@ pub fn trace_pair(
         // element (front or back) has a pair of its own.
         return Ok(out);
     }
-    let tri = element_triangle(&prec.v, prec.subdivisions, erec.lattice_local(prec.subdivisions));
     let omega = solid_angle(l.position, &tri);
     if !(omega > 0.0) || outside_cone(l, &tri) {
         return Ok(out);
@@ -242,8 +245,14 @@ fn follow(
             tally.absorbed = tally.absorbed.add(s.flux);
             continue;
         }
-        let (local, _) = locate(hp.subdivisions, hit.bary);
-        deposits.push((hp.element_on_face(local, s.ray.direction), s.flux));
+        let (local, w) = locate(hp.subdivisions, hit.bary);
+        let mut target = hp.element_on_face(local, s.ray.direction);
+        if view.header.settings.refine > 0 {
+            // Refinement may have split it: the deposit goes to the leaf under the hit.
+            let rec = view.element(target)?;
+            target = view.leaf_element(target, rec, w)?.0;
+        }
+        deposits.push((target, s.flux));
         let (at, albedo) = arrive(view, &hp, s.ray.at(hit.t), s.ray.direction, hn, Some(hit.bary))?;
         scatter(view, rng, stack, tally, at, albedo, hp.material, hit.patch, s.flux, s.specular, s.diffuse, s.floor);
     }

@@ -33,6 +33,9 @@ pub enum RenderError {
     /// A block could not be read.
     #[error(transparent)]
     Block(#[from] BlockError),
+    /// The scene could not be prepared (refinement prepares it again).
+    #[error(transparent)]
+    Prepare(#[from] crate::preprocess::PrepareError),
     /// A worker thread died.
     #[error("a node worker panicked: {0}")]
     Worker(String),

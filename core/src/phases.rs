@@ -82,6 +82,7 @@ pub fn run(
             let t_interp = Instant::now();
             let vertex = interpolate(
                 &prepared.elements,
+                &prepared.t_junctions,
                 &light.element_flux,
                 header.counts.vertices as usize,
                 header.energy_quantum,

@@ -106,6 +106,41 @@ pub fn element_triangle(v: &[DVec3; 3], n: u32, local: u32) -> [DVec3; 3] {
     [lattice_point(v, n, c[0].0, c[0].1), lattice_point(v, n, c[1].0, c[1].1), lattice_point(v, n, c[2].0, c[2].1)]
 }
 
+/// Corners of child `slot` (0 to 3) of an element with corners `t` split at its edge
+/// midpoints (see `preprocess::split`): the corner children of `t[0]`, `t[1]` and
+/// `t[2]`, then the middle one, each wound like `t`.
+pub fn child_triangle(t: &[DVec3; 3], slot: usize) -> [DVec3; 3] {
+    let (ab, bc, ca) = ((t[0] + t[1]) * 0.5, (t[1] + t[2]) * 0.5, (t[2] + t[0]) * 0.5);
+    match slot {
+        0 => [t[0], ab, ca],
+        1 => [ab, t[1], bc],
+        2 => [ca, bc, t[2]],
+        _ => [bc, ca, ab],
+    }
+}
+
+/// The child (see [`child_triangle`]) a point with barycentrics `w` in its parent falls
+/// in, and the point's barycentrics in that child. A point on the border between two
+/// children goes to the corner child, deterministically.
+pub fn child_of(w: [f64; 3]) -> (usize, [f64; 3]) {
+    let (slot, c) = if w[0] >= 0.5 {
+        (0, [2.0 * w[0] - 1.0, 2.0 * w[1], 2.0 * w[2]])
+    } else if w[1] >= 0.5 {
+        (1, [2.0 * w[0], 2.0 * w[1] - 1.0, 2.0 * w[2]])
+    } else if w[2] >= 0.5 {
+        (2, [2.0 * w[0], 2.0 * w[1], 2.0 * w[2] - 1.0])
+    } else {
+        (3, [1.0 - 2.0 * w[0], 1.0 - 2.0 * w[1], 1.0 - 2.0 * w[2]])
+    };
+    let c = c.map(|x| x.max(0.0));
+    let s = c[0] + c[1] + c[2];
+    if s > 0.0 {
+        (slot, c.map(|x| x / s))
+    } else {
+        (slot, [1.0 / 3.0; 3])
+    }
+}
+
 /// The element a point with patch barycentrics `bary` falls in, and the point's
 /// barycentrics within that element (weights of its corners in
 /// [`element_corners`] order). Points on an element edge go to the element with the
@@ -137,6 +172,34 @@ pub fn locate(n: u32, bary: [f64; 3]) -> (u32, [f64; 3]) {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_point_lands_in_the_child_that_holds_it_with_the_same_position() {
+        let t = [DVec3::new(0.0, 0.0, 0.0), DVec3::new(2.0, 0.1, 0.0), DVec3::new(0.3, 1.7, 0.5)];
+        let at = |t: &[DVec3; 3], w: [f64; 3]| t[0] * w[0] + t[1] * w[1] + t[2] * w[2];
+        let mut seen = [false; 4];
+        for i in 0..=20 {
+            for j in 0..=(20 - i) {
+                let w = [i as f64 / 20.0, j as f64 / 20.0, (20 - i - j) as f64 / 20.0];
+                let (slot, c) = child_of(w);
+                seen[slot] = true;
+                assert!(c.iter().all(|&x| (0.0..=1.0).contains(&x)), "{w:?} -> {c:?}");
+                let (p, q) = (at(&t, w), at(&child_triangle(&t, slot), c));
+                assert!((p - q).length() < 1e-12, "{w:?}: {p} in the parent, {q} in child {slot}");
+            }
+        }
+        assert_eq!(seen, [true; 4]);
+        // The four children tile the parent: their areas sum to its area.
+        let area = |t: &[DVec3; 3]| (t[1] - t[0]).cross(t[2] - t[0]).length() * 0.5;
+        let sum: f64 = (0..4).map(|k| area(&child_triangle(&t, k))).sum();
+        assert!((sum - area(&t)).abs() < 1e-12 * area(&t));
+        // Each child is wound like the parent.
+        let n = (t[1] - t[0]).cross(t[2] - t[0]);
+        for k in 0..4 {
+            let c = child_triangle(&t, k);
+            assert!((c[1] - c[0]).cross(c[2] - c[0]).dot(n) > 0.0, "child {k}");
+        }
+    }
 
     #[test]
     fn corners_enumerate_every_element_once() {

@@ -9,6 +9,9 @@ use crate::blocks::bvh::{
 use crate::blocks::*;
 use crate::color::Rgb;
 use crate::header::SceneHeader;
+use crate::refine::MAX_LEVELS;
+use crate::subdivision::{child_of, child_triangle, element_triangle};
+use glam::DVec3;
 use std::sync::Arc;
 
 /// Operation counts of the kernels (the basis of the compute cost model).
@@ -134,6 +137,52 @@ impl SceneView {
         }
         let (b, at) = self.header.layout.element_slot(id);
         Ok(ElementRecord::decode(self.cache.get(b)?, at))
+    }
+
+    /// The leaf element under a point: element `id` (record `rec`), or the child of it
+    /// that refinement made and that holds the point, down to a leaf; with the point's
+    /// barycentrics `w` in it.
+    pub fn leaf_element(
+        &mut self,
+        mut id: u32,
+        mut rec: ElementRecord,
+        mut w: [f64; 3],
+    ) -> Result<(u32, ElementRecord, [f64; 3]), BlockError> {
+        let mut depth = 0;
+        while rec.child != 0 {
+            depth += 1;
+            let (slot, inner) = child_of(w);
+            let Some(child) = rec.child.checked_add(slot as u32).filter(|_| depth <= MAX_LEVELS) else {
+                return Err(BlockError::Unavailable { id, reason: "corrupt element refinement".into() });
+            };
+            (id, rec, w) = (child, self.element(child)?, inner);
+        }
+        Ok((id, rec, w))
+    }
+
+    /// Element `id`'s corners, with the record of the element of its patch's lattice it
+    /// lies in (itself, unless refinement made it: then its parents are followed up)
+    /// and that patch's record.
+    pub fn element_geometry(&mut self, id: u32) -> Result<(ElementRecord, PatchRecord, [DVec3; 3]), BlockError> {
+        let corrupt = || BlockError::Unavailable { id, reason: "corrupt element refinement".into() };
+        let mut slots = Vec::new();
+        let (mut at, mut rec) = (id, self.element(id)?);
+        while let Some(parent) = rec.parent() {
+            let up = self.element(parent)?;
+            let slot = at.checked_sub(up.child).filter(|&s| s < 4 && up.child != 0).ok_or_else(corrupt)?;
+            if slots.len() > MAX_LEVELS as usize {
+                return Err(corrupt());
+            }
+            slots.push(slot as usize);
+            (at, rec) = (parent, up);
+        }
+        let p = self.patch(rec.patch)?;
+        let n = p.subdivisions;
+        let mut tri = element_triangle(&p.v, n, rec.lattice_local(n));
+        for &slot in slots.iter().rev() {
+            tri = child_triangle(&tri, slot);
+        }
+        Ok((rec, p, tri))
     }
 
     /// Irradiance of vertex `id` (valid after energy interpolation).

@@ -100,7 +100,10 @@ fn radiance(
         view.counters.shades += 1;
         let (local, w) = locate(prec.subdivisions, hit.bary);
         // The element of the face the viewing ray arrived on.
-        let e = view.element(prec.element_on_face(local, ray.direction))?;
+        let id = prec.element_on_face(local, ray.direction);
+        let rec = view.element(id)?;
+        // Refinement may have split it: the leaf under the hit holds the light.
+        let (_, e, w) = view.leaf_element(id, rec, w)?;
         let mut irr = Rgb::BLACK;
         for k in 0..3 {
             irr = irr.add(view.vertex_energy(e.vertices[k])?.scale(w[k]));

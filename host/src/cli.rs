@@ -480,8 +480,10 @@ impl Knobs {
             s.direct = magg_core::scene::DirectLight::Lrt;
         }
         if scheme == magg_throttle::Scheme::Paper {
-            // The paper's receiving: one element for both faces of a patch.
+            // The paper's receiving: one element for both faces of a patch, on its
+            // regular lattice (no adaptive refinement).
             s.shared_faces = true;
+            s.refine = 0;
         }
         self.apply(s)
     }
@@ -553,10 +555,12 @@ mod tests {
     fn the_paper_scheme_shares_one_element_between_both_faces() {
         use magg_core::scene::RenderSettings;
         use magg_throttle::Scheme;
-        let mut s = RenderSettings::default();
+        let mut s = RenderSettings { refine: 2, ..RenderSettings::default() };
         Knobs::default().apply_for(Scheme::Magg, &mut s).unwrap();
         assert!(!s.shared_faces);
+        assert_eq!(s.refine, 2);
         Knobs::default().apply_for(Scheme::Paper, &mut s).unwrap();
         assert!(s.shared_faces);
+        assert_eq!(s.refine, 0, "the paper's regular lattice");
     }
 }

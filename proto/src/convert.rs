@@ -324,6 +324,8 @@ fn settings_to_wire(s: &RenderSettings) -> v1::RenderSettings {
             DirectLight::Lrt => v1::DirectLight::Lrt,
         } as i32,
         shared_faces: s.shared_faces,
+        refine: s.refine,
+        refine_contrast: s.refine_contrast,
     }
 }
 
@@ -397,6 +399,11 @@ fn settings_from_wire(s: v1::RenderSettings) -> Result<RenderSettings, ConvertEr
         background,
         max_elements: s.max_elements,
         shared_faces: s.shared_faces,
+        refine: in_range(s.refine, 0, magg_core::refine::MAX_LEVELS, "settings.refine")?,
+        refine_contrast: match finite(s.refine_contrast, "settings.refine_contrast")? {
+            c if c > 0.0 && c <= 1.0 => c,
+            c => return Err(invalid("settings.refine_contrast", c, "in (0, 1]")),
+        },
     })
 }
 

@@ -197,13 +197,21 @@ pub struct ShadingRecord {
 pub struct ElementRecord {
     /// Owning patch.
     pub patch: u32,
-    /// Index within the patch's regular subdivision, plus n*n for a back element.
+    /// Index within the patch's regular subdivision, plus n*n for a back element; for
+    /// an element made by refinement, [`REFINED`] plus its parent's id.
     pub local: u32,
     /// Global (welded) vertex ids.
     pub vertices: [u32; 3],
+    /// First of its four children when refinement split it, 0 for a leaf (children come
+    /// after every element of the patch lattices, so no child has id 0).
+    pub child: u32,
     /// Area.
     pub area: f64,
 }
+
+/// Marks [`ElementRecord::local`] of an element made by refinement (its parent's id in
+/// the other bits; element ids stay below 2^31).
+pub const REFINED: u32 = 1 << 31;
 
 pub(super) fn put_u32(b: &mut [u8], at: usize, v: u32) {
     b[at..at + 4].copy_from_slice(&v.to_le_bytes());
@@ -284,6 +292,11 @@ impl ShadingRecord {
 }
 
 impl ElementRecord {
+    /// The element it was split from, for an element made by refinement.
+    #[inline]
+    pub fn parent(&self) -> Option<u32> {
+        (self.local & REFINED != 0).then_some(self.local & !REFINED)
+    }
     /// True for a back element of a patch subdivided `n` times.
     #[inline]
     pub fn is_back(&self, n: u32) -> bool {
@@ -307,6 +320,7 @@ impl ElementRecord {
         for i in 0..3 {
             put_u32(b, at + 8 + 4 * i, self.vertices[i]);
         }
+        put_u32(b, at + 20, self.child);
         put_f64(b, at + 24, self.area);
     }
     /// Reads the record at byte offset `at`.
@@ -315,6 +329,7 @@ impl ElementRecord {
             patch: get_u32(b, at),
             local: get_u32(b, at + 4),
             vertices: [get_u32(b, at + 8), get_u32(b, at + 12), get_u32(b, at + 16)],
+            child: get_u32(b, at + 20),
             area: get_f64(b, at + 24),
         }
     }
@@ -377,7 +392,7 @@ mod tests {
             assert!((*a - *b).length() < 1e-7);
         }
         assert_eq!((back.uv, back.texture), (uv, 3));
-        let e = ElementRecord { patch: 3, local: 9, vertices: [1, 2, 3], area: 0.25 };
+        let e = ElementRecord { patch: 3, local: 9, vertices: [1, 2, 3], child: 77, area: 0.25 };
         e.encode(&mut b, 0);
         assert_eq!(ElementRecord::decode(&b, 0), e);
         encode_vertex_energy(&mut b, 24, Rgb::new(1.5, 2.0, 0.25));

@@ -318,6 +318,7 @@ mod tests {
             back_element: Vec::new(),
             elements: Vec::new(),
             vertex_positions: Vec::new(),
+            midpoints: Vec::new(),
         }
     }
 

@@ -29,6 +29,8 @@ pub(super) struct Mesh {
     pub elements: Vec<ElementInfo>,
     /// Welded vertex positions.
     pub vertex_positions: Vec<DVec3>,
+    /// Vertices refinement made: (edge end, edge end, midpoint), in the order made.
+    pub midpoints: Vec<[u32; 3]>,
 }
 
 /// The subdivision count n of a patch: its own, or `ceil(length / element_size)` with
@@ -119,6 +121,8 @@ pub(super) fn build(scene: &Scene) -> Result<Mesh, PrepareError> {
                     area: triangle_area(&tri),
                     centroid: (tri[0] + tri[1] + tri[2]) / 3.0,
                     face,
+                    parent: super::NO_PARENT,
+                    child: 0,
                 }
             })
         })
@@ -135,6 +139,7 @@ pub(super) fn build(scene: &Scene) -> Result<Mesh, PrepareError> {
         back_element,
         elements,
         vertex_positions,
+        midpoints: Vec::new(),
     })
 }
 

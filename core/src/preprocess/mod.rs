@@ -10,6 +10,7 @@ mod bvh;
 mod grid;
 mod mesh;
 mod pack;
+mod split;
 mod weld;
 
 use crate::blocks::Block;
@@ -67,6 +68,20 @@ pub struct ElementInfo {
     /// Which light it holds: the light arriving on either face of its patch, on the
     /// front only, or on the back only.
     pub face: Face,
+    /// The element refinement split it from, or [`NO_PARENT`].
+    pub parent: u32,
+    /// First of its four children when refinement split it, 0 for a leaf.
+    pub child: u32,
+}
+
+/// [`ElementInfo::parent`] of an element of a patch lattice.
+pub const NO_PARENT: u32 = u32::MAX;
+
+impl ElementInfo {
+    /// True unless refinement split it (only leaves hold light).
+    pub fn is_leaf(&self) -> bool {
+        self.child == 0
+    }
 }
 
 /// The faces of a patch whose light an element holds.
@@ -106,6 +121,11 @@ pub struct PreparedScene {
     pub elements: Vec<ElementInfo>,
     /// Welded vertex positions by id.
     pub vertex_positions: Vec<DVec3>,
+    /// Refinement's T-junctions: (edge end, edge end, midpoint), see
+    /// [`crate::energy::interpolate`].
+    pub t_junctions: Vec<[u32; 3]>,
+    /// The elements refinement split, round by round (empty without refinement).
+    pub splits: Vec<Vec<u32>>,
     /// Wall-clock seconds spent preparing.
     pub preprocess_s: f64,
     /// Operations preprocessing did (for the throttling layer's cost model).
@@ -132,6 +152,7 @@ fn emitters_of(scene: &Scene, elements: &[ElementInfo]) -> Vec<Emitter> {
     elements
         .iter()
         .enumerate()
+        .filter(|(_, info)| info.is_leaf())
         .filter_map(|(e, info)| {
             let m = scene.patches.get(info.patch as usize).and_then(|p| scene.materials.get(p.material as usize))?;
             m.is_emitter().then(|| Emitter { element: e as u32, power: m.emit.scale(std::f64::consts::PI * info.area) })
@@ -151,21 +172,43 @@ pub fn prepare(scene: &Scene) -> Result<PreparedScene, PrepareError> {
 /// cores that the passes after preprocessing need (measured: 2 ms on one of 2 cores,
 /// during which a node thread of the in-process cluster waited 2.4 ms to start).
 pub fn prepare_with_plan(scene: &Scene, plan: EffectsPlan) -> Result<PreparedScene, PrepareError> {
+    prepare_split(scene, plan, &[])
+}
+
+/// [`prepare_with_plan`], then splitting the elements of each round of `splits` in turn
+/// (ascending element ids; see [`crate::refine`], which chooses them).
+pub fn prepare_split(scene: &Scene, plan: EffectsPlan, splits: &[Vec<u32>]) -> Result<PreparedScene, PrepareError> {
     // The pool's start and end count as preprocessing.
     let start = Instant::now();
     match rayon::ThreadPoolBuilder::new().thread_name(|i| format!("magg-preprocess-{i}")).build() {
-        Ok(pool) => pool.install(|| prepare_here(scene, plan, start)),
+        Ok(pool) => pool.install(|| prepare_here(scene, plan, splits, start)),
         // No threads to be had: the global pool (or this thread) does the work.
-        Err(_) => prepare_here(scene, plan, start),
+        Err(_) => prepare_here(scene, plan, splits, start),
     }
 }
 
-/// [`prepare_with_plan`] on the current rayon pool, timed from `start`.
-fn prepare_here(scene: &Scene, plan: EffectsPlan, start: Instant) -> Result<PreparedScene, PrepareError> {
+/// [`prepare_split`] on the current rayon pool, timed from `start`.
+fn prepare_here(
+    scene: &Scene,
+    plan: EffectsPlan,
+    splits: &[Vec<u32>],
+    start: Instant,
+) -> Result<PreparedScene, PrepareError> {
     if scene.patches.is_empty() {
         return Err(PrepareError::Empty { file: scene.name.clone() });
     }
-    let mesh = mesh::build(scene)?;
+    let mut mesh = mesh::build(scene)?;
+    for round in splits {
+        split::split(&mut mesh, round);
+    }
+    let refined = mesh.elements.len() as u64;
+    if refined > scene.settings.max_elements || refined >= u32::MAX as u64 / 2 {
+        return Err(PrepareError::TooLarge {
+            file: scene.name.clone(),
+            what: format!("{refined} elements after refinement"),
+        });
+    }
+    let t_junctions = split::t_junctions(&mesh);
     let (grid, bvh) = match scene.settings.accel {
         Accel::Grid => (grid::build(scene, &mesh), None),
         Accel::Bvh => (grid::bounds_only(&mesh), Some(bvh::build_and_pack(&mesh))),
@@ -200,6 +243,8 @@ fn prepare_here(scene: &Scene, plan: EffectsPlan, start: Instant) -> Result<Prep
         elements: mesh.elements,
         ops,
         vertex_positions: mesh.vertex_positions,
+        t_junctions,
+        splits: splits.to_vec(),
         preprocess_s: start.elapsed().as_secs_f64(),
     })
 }

@@ -114,12 +114,14 @@ pub(super) fn pack(mesh: &Mesh, grid: &Grid, bvh: Option<Bvh>, textures: &[Textu
             let id = (chunk_idx * ELEMENTS_PER_BLOCK + k) as u32;
             // A back element's local index counts on from its patch's n * n front ones.
             let p = e.patch as usize;
-            let local = if e.face == crate::preprocess::Face::Back {
+            let local = if e.parent != super::NO_PARENT {
+                crate::blocks::REFINED | e.parent
+            } else if e.face == crate::preprocess::Face::Back {
                 id - mesh.back_element[p] + (mesh.subdivisions[p] * mesh.subdivisions[p])
             } else {
                 id - mesh.first_element[p]
             };
-            ElementRecord { patch: e.patch, local, vertices: e.vertices, area: e.area }
+            ElementRecord { patch: e.patch, local, vertices: e.vertices, child: e.child, area: e.area }
                 .encode(&mut b, k * ELEMENT_RECORD);
         }
         blocks.push(b);

@@ -209,6 +209,13 @@ pub struct RenderSettings {
     /// of two-sided diffuse materials get back elements
     /// ([`Material::has_back_face`]).
     pub shared_faces: bool,
+    /// Levels of adaptive element refinement (0: none): after a pilot light pass, the
+    /// elements whose light differs sharply from a neighbour's are split in four, up to
+    /// this many times (Heckbert 1990).
+    pub refine: u32,
+    /// The contrast `|a - b| / (a + b)` of two neighbouring elements' irradiance above
+    /// which refinement splits them.
+    pub refine_contrast: f64,
     /// Subspace grid resolution (with [`Accel::Grid`]).
     pub grid: GridSpec,
     /// Seed of every random choice (rays are seeded from it, the pair and the pixel).
@@ -236,6 +243,8 @@ impl Default for RenderSettings {
             accel: Accel::Bvh,
             direct: DirectLight::Auto,
             shared_faces: false,
+            refine: 0,
+            refine_contrast: 0.25,
             grid: GridSpec::Auto,
             seed: 1,
             exposure: Exposure::Auto,

@@ -70,6 +70,8 @@ struct RawRender {
     accel: Option<Spanned<String>>,
     direct: Option<Spanned<String>>,
     faces: Option<Spanned<String>>,
+    refine: Option<Spanned<i64>>,
+    refine_contrast: Option<Spanned<f64>>,
     grid: Option<Spanned<toml::Value>>,
     seed: Option<Spanned<i64>>,
     exposure: Option<Spanned<toml::Value>>,
@@ -377,6 +379,10 @@ impl<'a> Ctx<'a> {
         u32_in(&r.lrt_depth, "render.lrt_depth", 0, 32, &mut s.lrt_depth)?;
         u32_in(&r.vrt_depth, "render.vrt_depth", 0, 32, &mut s.vrt_depth)?;
         u32_in(&r.diffuse_bounces, "render.diffuse_bounces", 0, 16, &mut s.diffuse_bounces)?;
+        u32_in(&r.refine, "render.refine", 0, crate::refine::MAX_LEVELS as i64, &mut s.refine)?;
+        if let Some(v) = &r.refine_contrast {
+            s.refine_contrast = self.float_in(v, "render.refine_contrast", 0.0, true, 1.0)?;
+        }
         if let Some(v) = &r.element_size {
             s.element_size = self.float_in(v, "render.element_size", 0.0, true, f64::MAX)?;
         }

@@ -2,12 +2,11 @@
 
 use crate::cli::InfoArgs;
 use crate::scene_file;
-use magg_core::preprocess;
 
 /// Prints the counts of the prepared scene and its plan.
 pub fn run(args: &InfoArgs, files: &scene_file::SceneFiles) -> anyhow::Result<()> {
     let scene = files.load(&args.scene, &args.set.overrides()?)?;
-    let p = preprocess::prepare(&scene)?;
+    let p = magg_core::refine::prepare(&scene, magg_core::plan::EffectsPlan::for_scene(&scene))?;
     let h = &p.header;
     let c = h.counts;
     if args.json {
@@ -24,6 +23,7 @@ pub fn run(args: &InfoArgs, files: &scene_file::SceneFiles) -> anyhow::Result<()
             "blocks": h.layout.total,
             "plan": { "passes": h.plan.passes(), "reasons": h.plan.reasons },
             "preprocess_s": p.preprocess_s,
+            "refined": p.splits.iter().map(Vec::len).collect::<Vec<_>>(),
         });
         println!("{}", serde_json::to_string_pretty(&v)?);
         return Ok(());
@@ -42,6 +42,10 @@ pub fn run(args: &InfoArgs, files: &scene_file::SceneFiles) -> anyhow::Result<()
         );
     }
     println!("elements   {:>9}  in {:>6} element blocks", c.elements, c.element_blocks);
+    if !p.splits.is_empty() {
+        let split: Vec<String> = p.splits.iter().map(|r| r.len().to_string()).collect();
+        println!("refined    {:>9}  levels, elements split per level: {}", p.splits.len(), split.join(", "));
+    }
     println!("vertices   {:>9}  in {:>6} vertex-energy blocks", c.vertices, c.vertex_blocks);
     let g = h.grid.dims;
     println!(

@@ -15,7 +15,7 @@ use magg_core::fingerprint::EnergyInputs;
 use magg_core::frame::Frame;
 use magg_core::machine::{Energies, Sequence};
 use magg_core::plan::EffectsPlan;
-use magg_core::{preprocess, render};
+use magg_core::render;
 use std::sync::Arc;
 
 /// Renders per `cfg` and writes every requested output. The frame in progress is kept in
@@ -53,7 +53,7 @@ pub fn run(cfg: RenderConfig, files: &scene_file::SceneFiles, partial: &partial:
     let plan = if cfg.all_effects { EffectsPlan::forced_on(&scene) } else { EffectsPlan::for_scene(&scene) };
     // The cluster's runtime, forks and listener start while the scene is preprocessed.
     let (prepared, cluster) = match &cfg.mode {
-        Mode::Embedded => (preprocess::prepare_with_plan(&scene, plan)?, None),
+        Mode::Embedded => (magg_core::refine::prepare(&scene, plan)?, None),
         Mode::Cluster { forks_at, listen, external_nodes, faults, .. } => {
             faults.install_tls(!forks_at.is_empty() || *external_nodes)?;
             let shape = ClusterShape {
@@ -68,7 +68,7 @@ pub fn run(cfg: RenderConfig, files: &scene_file::SceneFiles, partial: &partial:
                     .name("magg-host-start".into())
                     .spawn_scoped(s, || StartedCluster::start(&shape))
                     .context("starting the cluster's start-up thread")?;
-                let prepared = preprocess::prepare_with_plan(&scene, plan);
+                let prepared = magg_core::refine::prepare(&scene, plan);
                 let cluster = cluster.join().map_err(|_| anyhow::anyhow!("starting the cluster panicked"))?;
                 // A scene error first: it is what the user has to fix.
                 anyhow::Ok((prepared?, Some(cluster?)))

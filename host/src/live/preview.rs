@@ -95,7 +95,13 @@ impl Previewer {
     /// The preview of the light pass's element flux `flux` (by element id).
     pub fn trace(&self, flux: &[Fixed]) -> Result<PreviewImage, BlockError> {
         let h = &self.scene.header;
-        let vertex = interpolate(&self.scene.elements, flux, h.counts.vertices as usize, h.energy_quantum);
+        let vertex = interpolate(
+            &self.scene.elements,
+            &self.scene.t_junctions,
+            flux,
+            h.counts.vertices as usize,
+            h.energy_quantum,
+        );
         let blocks = SnapshotBlocks {
             scene: self.scene.clone(),
             vertex: vertex_energy_blocks(&vertex, &h.layout).into_iter().collect(),

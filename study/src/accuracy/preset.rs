@@ -13,12 +13,13 @@ use magg_core::scene::Scene;
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
 pub enum Quality {
     /// Quick look: elements twice the scene's size, a quarter of its light rays per pair
-    /// (at least 4), 1 pixel sample.
+    /// (at least 4), 1 pixel sample, no refinement.
     Draft,
     /// The scene's own `[render]` settings.
     Good,
     /// Near the converged reference: elements half the scene's size, four times its
-    /// light rays per pair, 16 pixel samples.
+    /// light rays per pair, 16 pixel samples, the scene's levels of refinement (so
+    /// refined elements are half the size too).
     Final,
 }
 
@@ -31,6 +32,8 @@ pub struct Preset {
     pub ray_factor: f64,
     /// Viewing rays per pixel; `None` keeps the scene's.
     pub pixel_samples: Option<u32>,
+    /// Whether the scene's adaptive refinement (`[render] refine`) is kept.
+    pub refine: bool,
 }
 
 impl Preset {
@@ -49,9 +52,9 @@ impl Quality {
     /// The settings this preset stands for.
     pub fn preset(self) -> Preset {
         match self {
-            Quality::Draft => Preset { element_scale: 2.0, ray_factor: 0.25, pixel_samples: Some(1) },
-            Quality::Good => Preset { element_scale: 1.0, ray_factor: 1.0, pixel_samples: None },
-            Quality::Final => Preset { element_scale: 0.5, ray_factor: 4.0, pixel_samples: Some(16) },
+            Quality::Draft => Preset { element_scale: 2.0, ray_factor: 0.25, pixel_samples: Some(1), refine: false },
+            Quality::Good => Preset { element_scale: 1.0, ray_factor: 1.0, pixel_samples: None, refine: true },
+            Quality::Final => Preset { element_scale: 0.5, ray_factor: 4.0, pixel_samples: Some(16), refine: true },
         }
     }
 
@@ -62,6 +65,9 @@ impl Quality {
         scene.settings.light_rays = p.light_rays(scene.settings.light_rays);
         if let Some(v) = p.pixel_samples {
             scene.settings.pixel_samples = v;
+        }
+        if !p.refine {
+            scene.settings.refine = 0;
         }
     }
 }
@@ -115,7 +121,13 @@ mod tests {
                 up: DVec3::new(0.0, 1.0, 0.0),
                 fov_y_deg: 45.0,
             },
-            settings: RenderSettings { element_size: 0.2, light_rays: 16, pixel_samples: 2, ..Default::default() },
+            settings: RenderSettings {
+                element_size: 0.2,
+                light_rays: 16,
+                pixel_samples: 2,
+                refine: 2,
+                ..Default::default()
+            },
             lights: vec![],
             materials: vec![],
             patches: vec![patch(Some(16)), patch(None), patch(Some(1))],
@@ -130,6 +142,7 @@ mod tests {
         assert_eq!(s.settings.element_size, 0.4);
         assert_eq!(s.settings.light_rays, 4, "a quarter of 16");
         assert_eq!(s.settings.pixel_samples, 1);
+        assert_eq!(s.settings.refine, 0, "a quick look refines nothing");
         assert_eq!(s.patches[0].subdivisions, Some(8));
         assert_eq!(s.patches[1].subdivisions, None);
         assert_eq!(s.patches[2].subdivisions, Some(1), "never below one subdivision");
@@ -149,6 +162,7 @@ mod tests {
         assert_eq!(s.settings.element_size, 0.1);
         assert_eq!(s.settings.light_rays, 64, "four times 16: sixteen times the rays per unit area");
         assert_eq!(s.settings.pixel_samples, 16);
+        assert_eq!(s.settings.refine, 2, "the scene's levels, on elements half the size");
         assert_eq!(s.patches[0].subdivisions, Some(32));
         assert_eq!(s.patches[2].subdivisions, Some(2));
     }

@@ -116,7 +116,7 @@ struct Measured {
 fn render_point(scene: &Scene, point: &Point, seed: u64, nodes: u32) -> Result<Measured> {
     let mut s = point.apply(scene);
     s.settings.seed = seed;
-    let prepared = preprocess::prepare(&s)?;
+    let prepared = magg_core::refine::prepare(&s, magg_core::plan::EffectsPlan::for_scene(&s))?;
     let opts = render::RenderOptions { nodes, ..Default::default() };
     let out = render::render(&prepared, &opts, &NoProgress)?;
     let irradiance = energy::element_irradiance(&prepared.elements, &out.element_flux, prepared.header.energy_quantum);

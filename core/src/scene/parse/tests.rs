@@ -127,6 +127,18 @@ fn faces_are_apart_unless_the_scene_shares_them() {
 }
 
 #[test]
+fn refinement_is_off_unless_the_scene_asks_for_levels() {
+    let s = parse(MINI).unwrap().settings;
+    assert_eq!((s.refine, s.refine_contrast), (0, 0.25));
+    let s = parse(&format!("{MINI}[render]\nrefine = 3\nrefine_contrast = 0.5\n")).unwrap().settings;
+    assert_eq!((s.refine, s.refine_contrast), (3, 0.5));
+    let e = err(&format!("{MINI}[render]\nrefine = 7\n"));
+    assert!(e.starts_with("t.toml:18: render.refine:"), "{e}");
+    let e = err(&format!("{MINI}[render]\nrefine_contrast = 0.0\n"));
+    assert!(e.starts_with("t.toml:18: render.refine_contrast: 0 is out of range (0, 1]"), "{e}");
+}
+
+#[test]
 fn accel_is_bvh_unless_the_scene_asks_for_the_grid() {
     assert_eq!(parse(MINI).unwrap().settings.accel, Accel::Bvh);
     let grid = parse(&format!("{MINI}[render]\naccel = \"grid\"\n")).unwrap().settings;

@@ -1,0 +1,131 @@
+//! Adaptive element refinement (Heckbert 1990, "Adaptive radiosity textures for
+//! bidirectional ray tracing", the paper's ref. [11]): where the light on neighbouring
+//! elements differs sharply (a shadow's or a caustic's edge, light reflected by a mirror),
+//! one element of blur is too much, so those elements are split in four on their patch's
+//! lattice and the light pass is run on the finer elements.
+//!
+//! [`prepare`] does it as part of preprocessing: it prepares the scene, runs a pilot light
+//! pass on this process's cores (the embedded machine: the same energies, bit for bit, as
+//! any cluster would compute) with the light that makes edges (direct light and light via
+//! mirrors and glass; diffuse bounces are smooth), chooses the elements to split
+//! ([`choose`]), prepares the scene again with them split, and repeats up to
+//! `[render] refine` times. The result is
+//! an ordinary prepared scene whose split elements are elements like any other: they get
+//! owners, pairs and vertex-energy blocks, so the final render runs unchanged in the
+//! embedded renderer and in the cluster, the same bits in every shape.
+//!
+//! ```
+//! use magg_core::{plan::EffectsPlan, refine, scene};
+//! let text = include_str!("../../scenes/magg-paper.toml");
+//! let read = |p: &std::path::Path| std::fs::read(p);
+//! let mut scene = scene::parse_scene_str("magg-paper.toml", text, "scenes".as_ref(), &read).unwrap();
+//! scene.settings.refine = 1;
+//! let prepared = refine::prepare(&scene, EffectsPlan::for_scene(&scene)).unwrap();
+//! // One level at most: the elements split, if any, are listed.
+//! assert!(prepared.splits.len() <= 1);
+//! assert_eq!(prepared.elements.len(), 1664 + 4 * prepared.splits.iter().map(Vec::len).sum::<usize>());
+//! ```
+
+use crate::color::Rgb;
+use crate::energy::{element_irradiance, Fixed};
+use crate::machine::{Machine, RenderError};
+use crate::plan::EffectsPlan;
+use crate::preprocess::{prepare_split, PreparedScene};
+use crate::progress::NoProgress;
+use crate::render::{EmbeddedMachine, RenderOptions};
+use crate::scene::Scene;
+use std::time::Instant;
+
+/// Most levels of refinement (`[render] refine`).
+pub const MAX_LEVELS: u32 = 6;
+
+/// Prepares `scene` with `plan`, refined `scene.settings.refine` times (see the module
+/// doc); preprocessing time includes the pilot passes.
+pub fn prepare(scene: &Scene, plan: EffectsPlan) -> Result<PreparedScene, RenderError> {
+    let start = Instant::now();
+    let mut splits: Vec<Vec<u32>> = Vec::new();
+    if scene.settings.refine > 0 {
+        // The pilot carries the light that makes edges: direct light from the lights and
+        // light via mirrors and glass. Diffuse interreflection is smooth (and noisy in a
+        // pilot's few rays), so it takes no part in the choice.
+        let mut pilot_scene = scene.clone();
+        pilot_scene.settings.diffuse_bounces = 0;
+        let pilot_plan = EffectsPlan::for_scene(&pilot_scene);
+        for _ in 0..scene.settings.refine.min(MAX_LEVELS) {
+            let pilot = prepare_split(&pilot_scene, pilot_plan.clone(), &splits)?;
+            if !pilot.header.plan.lrt {
+                break;
+            }
+            let light = EmbeddedMachine::new(&pilot, &RenderOptions::default()).light_pass(&NoProgress)?;
+            let room = scene.settings.max_elements.saturating_sub(pilot.elements.len() as u64) / 4;
+            let split = choose(scene, &pilot, &light.element_flux, room as usize);
+            if split.is_empty() {
+                break;
+            }
+            splits.push(split);
+        }
+    }
+    let mut prepared = prepare_split(scene, plan, &splits)?;
+    prepared.preprocess_s = start.elapsed().as_secs_f64();
+    Ok(prepared)
+}
+
+/// Luminance-like weight of a colour (the channels' mean: no channel is preferred).
+fn level(c: Rgb) -> f64 {
+    (c.0[0] + c.0[1] + c.0[2]) / 3.0
+}
+
+/// The leaf elements to split, ascending, at most `room` of them: those of a diffuse
+/// (shown) material, not emitting, whose irradiance and a neighbour's (a leaf sharing a
+/// vertex) differ by more than `refine_contrast` of their sum, the sharpest first when
+/// there are more than `room`. A floor of 1e-3 of the mean irradiance keeps noise in the
+/// dark from counting as an edge.
+pub fn choose(scene: &Scene, prepared: &PreparedScene, flux: &[Fixed], room: usize) -> Vec<u32> {
+    let elements = &prepared.elements;
+    let quantum = prepared.header.energy_quantum;
+    let e: Vec<f64> = element_irradiance(elements, flux, quantum).into_iter().map(level).collect();
+    let leaves: Vec<usize> = (0..elements.len()).filter(|&i| elements[i].is_leaf()).collect();
+    if leaves.is_empty() {
+        return Vec::new();
+    }
+    let mean = leaves.iter().map(|&i| e[i]).sum::<f64>() / leaves.len() as f64;
+    let floor = 1e-3 * mean;
+    if !(mean > 0.0) {
+        return Vec::new();
+    }
+    // The leaves around each vertex.
+    let mut around: Vec<Vec<u32>> = vec![Vec::new(); prepared.vertex_positions.len()];
+    for &i in &leaves {
+        for &v in &elements[i].vertices {
+            if let Some(a) = around.get_mut(v as usize) {
+                a.push(i as u32);
+            }
+        }
+    }
+    let shown = |i: usize| {
+        let p = &scene.patches[elements[i].patch as usize];
+        scene.materials.get(p.material as usize).is_some_and(|m| !m.diffuse.is_black() && !m.is_emitter())
+    };
+    let mut sharp: Vec<(f64, u32)> = leaves
+        .iter()
+        .copied()
+        .filter(|&i| shown(i))
+        .filter_map(|i| {
+            let contrast = elements[i]
+                .vertices
+                .iter()
+                .filter_map(|&v| around.get(v as usize))
+                .flatten()
+                .map(|&j| (e[i] - e[j as usize]).abs() / (e[i] + e[j as usize] + floor))
+                .fold(0.0, f64::max);
+            (contrast > scene.settings.refine_contrast).then_some((contrast, i as u32))
+        })
+        .collect();
+    if sharp.len() > room {
+        sharp.sort_by(|a, b| b.0.total_cmp(&a.0).then(a.1.cmp(&b.1)));
+        sharp.truncate(room);
+    }
+    let mut ids: Vec<u32> = sharp.into_iter().map(|(_, i)| i).collect();
+    ids.sort_unstable();
+    ids
+}
