@@ -36,6 +36,32 @@ fn the_same_scene_under_the_bound_renders() {
 }
 
 #[test]
+fn a_refinement_over_the_memory_bound_is_refused_before_the_render() {
+    // cornell.toml refines twice: the estimate up front cannot know how many elements
+    // the pilot passes split, so the refined scene is checked again.
+    let dir = tempfile::tempdir().unwrap();
+    let args = ["--width", "16", "--height", "16", "--max-memory-mb", "100"];
+    let out =
+        run_host(
+            [
+                &[
+                    "render",
+                    scene("cornell.toml").to_str().unwrap(),
+                    "--out",
+                    dir.path().join("x.png").to_str().unwrap(),
+                ][..],
+                &args,
+            ]
+            .concat(),
+        );
+    let line = assert_user_error(&out, "a refinement over the memory bound");
+    for part in ["cornell.toml", "after 2 levels of refinement", "elements", "--max-memory-mb 100"] {
+        assert!(line.contains(part), "{part:?} missing from: {line}");
+    }
+    assert!(!dir.path().join("x.png").exists());
+}
+
+#[test]
 fn a_scene_with_many_lights_is_refused_with_an_estimate_that_counts_pairs() {
     // The paper's scene (1664 elements) with 20,001 lights: 33 M (light, element) pairs,
     // about 40 MB of pair bookkeeping on 5 in-process forks, where elements and pixels

@@ -40,10 +40,30 @@ pub fn estimate(scene: &Scene, forks: u32) -> (f64, f64, f64) {
     // Emitting elements are light sources too.
     let emitting = |p: &&PatchDef| scene.materials.get(p.material as usize).is_some_and(|m| m.is_emitter());
     let emitters: f64 = scene.patches.iter().filter(emitting).map(elements_of).sum();
-    let pixels = s.width as f64 * s.height as f64;
     let pairs = elements * (scene.lights.len() as f64 + emitters);
+    (elements, pairs, bytes(scene, elements, pairs, forks))
+}
+
+/// Bytes charged for `elements` elements and `pairs` pairs of `scene` with `forks` forks.
+fn bytes(scene: &Scene, elements: f64, pairs: f64, forks: u32) -> f64 {
+    let pixels = scene.settings.width as f64 * scene.settings.height as f64;
     let pair_bytes = pairs * 2.0 * forks as f64 / 8.0;
-    (elements, pairs, elements * BYTES_PER_ELEMENT + pixels * BYTES_PER_PIXEL + pair_bytes)
+    elements * BYTES_PER_ELEMENT + pixels * BYTES_PER_PIXEL + pair_bytes
+}
+
+/// After adaptive refinement (which adds elements no estimate can foresee): refuses the
+/// refined scene, `elements` elements and `pairs` pairs, when it is over `max_mb` MiB.
+pub fn check_refined(scene: &Scene, elements: u64, pairs: u64, max_mb: u64, forks: u32) -> anyhow::Result<()> {
+    let mb = bytes(scene, elements as f64, pairs as f64, forks) / (1u64 << 20) as f64;
+    if !(mb <= max_mb as f64) {
+        bail!(
+            "{}: after {} levels of refinement, rendering would need about {mb:.0} MB ({elements} elements), over \
+             --max-memory-mb {max_mb}; lower render.refine, raise render.refine_contrast, or raise the limit",
+            scene.name,
+            scene.settings.refine,
+        );
+    }
+    Ok(())
 }
 
 /// Refuses `scene` when its estimate with `forks` forks in this process is over

@@ -75,6 +75,10 @@ pub fn run(cfg: RenderConfig, files: &scene_file::SceneFiles, partial: &partial:
             })?
         }
     };
+    if !prepared.splits.is_empty() {
+        let (elements, pairs) = (prepared.elements.len() as u64, prepared.header.pair_count());
+        crate::memory::check_refined(&scene, elements, pairs, cfg.max_memory_mb, forks_here)?;
+    }
     // The render's clock: the stats' total is preprocessing plus what follows from here.
     let preprocessed = std::time::Instant::now();
     // Shared: the cluster's shard uploads send the scene's blocks without copying them.
