@@ -5,7 +5,8 @@
 //! The embedded renderer and the cluster differ only in how they run each pass; what
 //! comes between the passes (checking given energies, interpolating, timing the phases,
 //! handing frames to the sink, assembling [`RenderStats`]) lives here. A new pass (a
-//! second light pass, adaptive refinement) is added to [`run`] and to the trait.
+//! second light pass) is added to [`run`] and to the trait; adaptive refinement runs its
+//! pilot passes while preparing the scene ([`crate::refine`]), before any machine.
 
 use crate::energy::interpolate;
 use crate::machine::{FrameSink, Machine, PhaseTimes, RenderError, RenderOutput, Sequence, ViewPass};
