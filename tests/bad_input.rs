@@ -37,7 +37,7 @@ fn the_same_scene_under_the_bound_renders() {
 
 #[test]
 fn a_refinement_over_the_memory_bound_is_refused_before_the_render() {
-    // cornell.toml refines twice: the estimate up front cannot know how many elements
+    // cornell.toml refines three times: the estimate up front cannot know how many elements
     // the pilot passes split, so the refined scene is checked again.
     let dir = tempfile::tempdir().unwrap();
     let args = ["--width", "16", "--height", "16", "--max-memory-mb", "100"];
@@ -55,7 +55,7 @@ fn a_refinement_over_the_memory_bound_is_refused_before_the_render() {
             .concat(),
         );
     let line = assert_user_error(&out, "a refinement over the memory bound");
-    for part in ["cornell.toml", "after 2 levels of refinement", "elements", "--max-memory-mb 100"] {
+    for part in ["cornell.toml", "after 3 levels of refinement", "elements", "--max-memory-mb 100"] {
         assert!(line.contains(part), "{part:?} missing from: {line}");
     }
     assert!(!dir.path().join("x.png").exists());

@@ -27,7 +27,7 @@
 //! ```
 
 use crate::color::Rgb;
-use crate::energy::{element_irradiance, Fixed};
+use crate::energy::{element_irradiance, interpolate, Fixed};
 use crate::machine::{Machine, RenderError};
 use crate::plan::EffectsPlan;
 use crate::preprocess::{prepare_split, PreparedScene};
@@ -76,9 +76,12 @@ fn level(c: Rgb) -> f64 {
 }
 
 /// The leaf elements to split, ascending, at most `room` of them: those of a diffuse
-/// (shown) material, not emitting, whose irradiance and a neighbour's (a leaf sharing a
-/// vertex) differ by more than `refine_contrast` of their sum, the sharpest first when
-/// there are more than `room`. A floor of 1e-3 of the mean irradiance keeps noise in the
+/// (shown) material, not emitting, where the interpolated irradiance of two of their
+/// corners differs by more than `refine_contrast` of its sum (there the linear
+/// interpolation across the element misses what the pilot saw), the sharpest first when
+/// there are more than `room`. Corners, rather than the elements themselves, are
+/// compared because each averages the elements around it: a pilot's noise moves them
+/// less than an edge does. A floor of 1e-3 of the mean irradiance keeps noise in the
 /// dark from counting as an edge.
 pub fn choose(scene: &Scene, prepared: &PreparedScene, flux: &[Fixed], room: usize) -> Vec<u32> {
     let elements = &prepared.elements;
@@ -93,15 +96,13 @@ pub fn choose(scene: &Scene, prepared: &PreparedScene, flux: &[Fixed], room: usi
     if !(mean > 0.0) {
         return Vec::new();
     }
-    // The leaves around each vertex.
-    let mut around: Vec<Vec<u32>> = vec![Vec::new(); prepared.vertex_positions.len()];
-    for &i in &leaves {
-        for &v in &elements[i].vertices {
-            if let Some(a) = around.get_mut(v as usize) {
-                a.push(i as u32);
-            }
-        }
-    }
+    // The interpolated irradiance at the vertices: each averages the elements around it,
+    // so a pilot's noise counts for less than an edge, which moves the vertices on its
+    // two sides apart.
+    let vertex: Vec<f64> = interpolate(elements, &prepared.t_junctions, flux, prepared.vertex_positions.len(), quantum)
+        .into_iter()
+        .map(level)
+        .collect();
     let shown = |i: usize| {
         let p = &scene.patches[elements[i].patch as usize];
         scene.materials.get(p.material as usize).is_some_and(|m| !m.diffuse.is_black() && !m.is_emitter())
@@ -111,13 +112,9 @@ pub fn choose(scene: &Scene, prepared: &PreparedScene, flux: &[Fixed], room: usi
         .copied()
         .filter(|&i| shown(i))
         .filter_map(|i| {
-            let contrast = elements[i]
-                .vertices
-                .iter()
-                .filter_map(|&v| around.get(v as usize))
-                .flatten()
-                .map(|&j| (e[i] - e[j as usize]).abs() / (e[i] + e[j as usize] + floor))
-                .fold(0.0, f64::max);
+            let v = elements[i].vertices.map(|k| vertex.get(k as usize).copied().unwrap_or(0.0));
+            let c = |a: f64, b: f64| (a - b).abs() / (a + b + floor);
+            let contrast = c(v[0], v[1]).max(c(v[1], v[2])).max(c(v[2], v[0]));
             (contrast > scene.settings.refine_contrast).then_some((contrast, i as u32))
         })
         .collect();
