@@ -146,12 +146,13 @@ pub fn trace_pair(
     if !plan.lrt {
         return Ok(out);
     }
-    if view.element(element)?.child != 0 {
+    let own = view.element(element)?;
+    if own.child != 0 {
         // Refinement split it: its four children have pairs of their own.
         return Ok(out);
     }
     // The lattice element it lies in says its face; its own corners are its target.
-    let (erec, prec, tri) = view.element_geometry(element)?;
+    let (erec, prec, tri) = view.element_geometry(element, own)?;
     let material = header.materials.get(prec.material as usize);
     if plan.skips_diffuse_pairs() && material.is_none_or(|m| !m.is_specular()) {
         // Its direct light is computed at VRT and nothing bounces on from it.

@@ -160,13 +160,17 @@ impl SceneView {
         Ok((id, rec, w))
     }
 
-    /// Element `id`'s corners, with the record of the element of its patch's lattice it
-    /// lies in (itself, unless refinement made it: then its parents are followed up)
-    /// and that patch's record.
-    pub fn element_geometry(&mut self, id: u32) -> Result<(ElementRecord, PatchRecord, [DVec3; 3]), BlockError> {
+    /// The corners of element `id` (record `rec`), with the record of the element of its
+    /// patch's lattice it lies in (itself, unless refinement made it: then its parents
+    /// are followed up) and that patch's record.
+    pub fn element_geometry(
+        &mut self,
+        id: u32,
+        rec: ElementRecord,
+    ) -> Result<(ElementRecord, PatchRecord, [DVec3; 3]), BlockError> {
         let corrupt = || BlockError::Unavailable { id, reason: "corrupt element refinement".into() };
         let mut slots = Vec::new();
-        let (mut at, mut rec) = (id, self.element(id)?);
+        let (mut at, mut rec) = (id, rec);
         while let Some(parent) = rec.parent() {
             let up = self.element(parent)?;
             let slot = at.checked_sub(up.child).filter(|&s| s < 4 && up.child != 0).ok_or_else(corrupt)?;

@@ -119,7 +119,8 @@ fn irradiance_is_continuous_across_a_t_junction() {
     assert!(out.frame.pixels.iter().all(|p| p.iter().all(|c| c.is_finite())));
     let mut view = view_of(&p);
     for (id, info) in p.elements.iter().enumerate().filter(|(_, e)| e.parent != magg_core::preprocess::NO_PARENT) {
-        let (_, _, tri) = view.element_geometry(id as u32).unwrap();
+        let rec = view.element(id as u32).unwrap();
+        let (_, _, tri) = view.element_geometry(id as u32, rec).unwrap();
         let c = (tri[0] + tri[1] + tri[2]) / 3.0;
         assert!((c - info.centroid).length() < 1e-12, "element {id}: the geometry nodes read is the host's");
     }

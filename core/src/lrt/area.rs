@@ -63,11 +63,12 @@ pub(super) fn trace_emitter_pair(
     let sp = view.patch(src.patch)?;
     let etri = element_triangle(&sp.v, sp.subdivisions, src.local);
     let en = triangle_normal(&sp.v);
-    if view.element(element)?.child != 0 {
+    let own = view.element(element)?;
+    if own.child != 0 {
         // Refinement split it: its four children have pairs of their own.
         return Ok(out);
     }
-    let (erec, prec, tri) = view.element_geometry(element)?;
+    let (erec, prec, tri) = view.element_geometry(element, own)?;
     let material = header.materials.get(prec.material as usize);
     let normal = triangle_normal(&prec.v);
     if tri.iter().all(|v| en.dot(*v - etri[0]) <= 0.0) {
