@@ -25,7 +25,7 @@ use crate::blocks::BlockError;
 use crate::color::Rgb;
 use crate::energy::{to_fixed, Fixed};
 use crate::geometry::{cosine_hemisphere, sample_spherical_triangle, solid_angle, triangle_normal, Ray};
-use crate::rng::{hammersley, Rng};
+use crate::rng::{halton35, hammersley, Rng};
 use crate::scatter::{arrive, offset_scale, Arrival, Dielectric};
 use crate::scene::Light;
 use crate::subdivision::locate;
@@ -174,6 +174,7 @@ pub fn trace_pair(
     let seed = header.settings.seed;
     let mut rng = Rng::from_words(&[seed, 0x4c5254, light as u64, element as u64]);
     let (sx, sy) = (rng.next_f64(), rng.next_f64());
+    let (bx, by) = (rng.next_f64(), rng.next_f64());
     let per_ray = omega / n as f64;
     let mut deposits: Vec<(u32, Rgb)> = Vec::new();
     let mut stack: Vec<Pending> = Vec::new();
@@ -216,7 +217,9 @@ pub fn trace_pair(
         // Shading normals bend specular directions and a texture colours what bounces
         // diffusely (deposits are flux, taken on the geometric surface).
         let (at, albedo) = arrive(view, &prec, p, w, normal, None)?;
-        scatter(view, &mut rng, &mut stack, &mut out.tally, at, albedo, prec.material, erec.patch, flux, 0, 0, floor);
+        let bounce = Some(halton35(k, bx, by));
+        let s = Surface { at, albedo, material: prec.material, patch: erec.patch };
+        scatter(view, &mut rng, &mut stack, &mut out.tally, s, bounce, flux, 0, 0, floor);
         follow(view, scratch, &mut rng, &mut stack, &mut out.tally, &mut deposits)?;
     }
     out.deposits = merged(deposits, header.energy_quantum);
@@ -255,7 +258,8 @@ fn follow(
         }
         deposits.push((target, s.flux));
         let (at, albedo) = arrive(view, &hp, s.ray.at(hit.t), s.ray.direction, hn, Some(hit.bary))?;
-        scatter(view, rng, stack, tally, at, albedo, hp.material, hit.patch, s.flux, s.specular, s.diffuse, s.floor);
+        let surface = Surface { at, albedo, material: hp.material, patch: hit.patch };
+        scatter(view, rng, stack, tally, surface, None, s.flux, s.specular, s.diffuse, s.floor);
     }
     Ok(())
 }
@@ -274,23 +278,34 @@ fn merged(mut deposits: Vec<(u32, Rgb)>, quantum: f64) -> Vec<(u32, Fixed)> {
     merged.into_iter().map(|(e, f)| (e, to_fixed(f, quantum))).collect()
 }
 
+/// Where a light ray arrived: the point and its frame, the texture's albedo there, the
+/// patch and its material.
+struct Surface {
+    at: Arrival,
+    albedo: Option<Rgb>,
+    material: u32,
+    patch: u32,
+}
+
 /// Splits the flux arriving at a surface point into absorbed, diffusely ended and
-/// secondary rays, per the material and the effects plan.
+/// secondary rays, per the material and the effects plan. `bounce` is the stratified
+/// sample of the diffuse bounce's direction for a pair's primary ray (its rays bounce in
+/// directions spread evenly over the hemisphere, so the light they carry on lands as
+/// evenly); deeper bounces draw theirs from `rng`.
 #[allow(clippy::too_many_arguments)]
 fn scatter(
     view: &SceneView,
     rng: &mut Rng,
     stack: &mut Vec<Pending>,
     tally: &mut LrtTally,
-    at: Arrival,
-    albedo: Option<Rgb>,
-    material: u32,
-    patch: u32,
+    surface: Surface,
+    bounce: Option<(f64, f64)>,
     flux: Rgb,
     specular: u32,
     diffuse: u32,
     floor: f64,
 ) {
+    let Surface { at, albedo, material, patch } = surface;
     let header = &view.header;
     let plan = &header.plan;
     let Some(m) = header.materials.get(material as usize) else {
@@ -343,7 +358,7 @@ fn scatter(
         return;
     }
     if diffuse < plan.diffuse_bounces {
-        let (u0, u1) = (rng.next_f64(), rng.next_f64());
+        let (u0, u1) = bounce.unwrap_or_else(|| (rng.next_f64(), rng.next_f64()));
         let dir = cosine_hemisphere(at.normal, u0, u1);
         push(tally, dir, diff_flux, specular, diffuse + 1);
     } else {

@@ -56,6 +56,29 @@ pub fn hammersley(i: u32, n: u32, sx: f64, sy: f64) -> (f64, f64) {
     (u - u.floor(), v - v.floor())
 }
 
+/// Radical inverse of `i` in base `b` (the digits of `i` mirrored about the point).
+pub fn radical_inverse(b: u32, mut i: u32) -> f64 {
+    let inv = 1.0 / b as f64;
+    let (mut r, mut f) = (0.0, inv);
+    while i > 0 {
+        r += (i % b) as f64 * f;
+        i /= b;
+        f *= inv;
+    }
+    r
+}
+
+/// Sample `i` of a second stratified 2D set, independent of [`hammersley`]'s on the same
+/// indices: the Halton points of bases 3 and 5, shifted by a Cranley-Patterson rotation.
+/// A pair's light rays take their position on the element from the first and the
+/// direction of their first diffuse bounce from this one, so that together the n rays
+/// cover positions and directions evenly (a 4D Halton-Hammersley set).
+pub fn halton35(i: u32, sx: f64, sy: f64) -> (f64, f64) {
+    let u = radical_inverse(3, i) + sx;
+    let v = radical_inverse(5, i) + sy;
+    (u - u.floor(), v - v.floor())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -80,5 +103,33 @@ mod tests {
             cols[(u * 16.0) as usize] += 1;
         }
         assert!(cols.iter().all(|&c| c == 1));
+    }
+
+    #[test]
+    fn radical_inverses_mirror_the_digits() {
+        assert_eq!(radical_inverse(3, 0), 0.0);
+        assert!((radical_inverse(3, 1) - 1.0 / 3.0).abs() < 1e-15);
+        assert!((radical_inverse(3, 5) - (2.0 / 3.0 + 1.0 / 9.0)).abs() < 1e-15, "5 = 12 in base 3");
+        assert!((radical_inverse(5, 7) - (2.0 / 5.0 + 1.0 / 25.0)).abs() < 1e-15, "7 = 12 in base 5");
+        assert!((radical_inverse(2, 6) - radical_inverse2(6)).abs() < 1e-15);
+    }
+
+    #[test]
+    fn halton35_stratifies_both_axes() {
+        // The first 75 = 3 x 5^2 points put one in each box of a third by a 25th (Halton's
+        // elementary intervals), so each of the 15 cells of a third by a fifth holds 5.
+        let mut cells = [[0; 5]; 3];
+        for i in 0..75 {
+            let (u, v) = halton35(i, 0.0, 0.0);
+            cells[(u * 3.0) as usize][(v * 5.0) as usize] += 1;
+        }
+        assert!(cells.iter().flatten().all(|&c| c == 5), "{cells:?}");
+        // A rotation shifts every point alike, modulo 1.
+        for i in [0, 1, 7, 74] {
+            let (u, v) = halton35(i, 0.0, 0.0);
+            let (ru, rv) = halton35(i, 0.75, 0.5);
+            assert!((0.0..1.0).contains(&ru) && (0.0..1.0).contains(&rv));
+            assert!(((u + 0.75).fract() - ru).abs() < 1e-12 && ((v + 0.5).fract() - rv).abs() < 1e-12);
+        }
     }
 }

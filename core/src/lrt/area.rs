@@ -19,12 +19,12 @@
 //! the emitter's plane, or a one-sided receiver whose front faces away from the whole
 //! emitter.
 
-use super::{follow, merged, scatter, PairResult, Pending, MIN_RELATIVE_FLUX};
+use super::{follow, merged, scatter, PairResult, Pending, Surface, MIN_RELATIVE_FLUX};
 use crate::blocks::{BlockError, NO_BACK};
 use crate::color::Rgb;
 use crate::geometry::{sample_spherical_triangle, solid_angle, triangle_normal, Ray};
 use crate::header::Emitter;
-use crate::rng::{hammersley, Rng};
+use crate::rng::{halton35, hammersley, Rng};
 use crate::scatter::{arrive, offset_scale};
 use crate::subdivision::element_triangle;
 use crate::trace::{occluded, TraceScratch};
@@ -94,6 +94,10 @@ pub(super) fn trace_emitter_pair(
     let (points, rays_of) = split(n);
     let mut rng = Rng::from_words(&[header.settings.seed, 0x4c5254, light as u64, element as u64]);
     let (sx, sy) = (rng.next_f64(), rng.next_f64());
+    let (bx, by) = (rng.next_f64(), rng.next_f64());
+    // Index among the pair's n rays of the first ray from the current point (for the
+    // rays' bounce samples).
+    let mut first_ray = 0u32;
     let mut deposits: Vec<(u32, Rgb)> = Vec::new();
     let mut stack: Vec<Pending> = Vec::new();
 
@@ -102,10 +106,12 @@ pub(super) fn trace_emitter_pair(
         let p = point_on(&etri, u0, u1);
         let omega = solid_angle(p, &tri);
         let (tx, ty) = (rng.next_f64(), rng.next_f64());
+        let m = rays_of(i);
+        first_ray += m;
+        let first_ray = first_ray - m;
         if !(omega > 0.0) {
             continue;
         }
-        let m = rays_of(i);
         let per_ray = radiance_area.scale(omega / (points as f64 * m as f64));
         let eps0 = offset_scale(p);
         for j in 0..m {
@@ -142,20 +148,9 @@ pub(super) fn trace_emitter_pair(
             }
             let floor = flux.max_channel() * MIN_RELATIVE_FLUX;
             let (at, albedo) = arrive(view, &prec, ray.at(t_plane), w, normal, None)?;
-            scatter(
-                view,
-                &mut rng,
-                &mut stack,
-                &mut out.tally,
-                at,
-                albedo,
-                prec.material,
-                erec.patch,
-                flux,
-                0,
-                0,
-                floor,
-            );
+            let bounce = Some(halton35(first_ray + j, bx, by));
+            let s = Surface { at, albedo, material: prec.material, patch: erec.patch };
+            scatter(view, &mut rng, &mut stack, &mut out.tally, s, bounce, flux, 0, 0, floor);
             follow(view, scratch, &mut rng, &mut stack, &mut out.tally, &mut deposits)?;
         }
     }
