@@ -149,9 +149,10 @@ pub struct RenderArgs {
     #[arg(short, long)]
     pub quiet: bool,
     /// Accuracy preset, applied before the knob flags below (which override it).
-    /// draft: elements x2 the scene's size (fixed subdivisions halved), 8 light rays,
-    /// 1 pixel sample; good: the scene's own settings; final: elements x0.5, 128 light
-    /// rays, 16 pixel samples. See docs/ACCURACY.md.
+    /// draft: elements x2 the scene's size (fixed subdivisions halved), a quarter of its
+    /// light rays per pair, 1 pixel sample, no refinement; good: the scene's own
+    /// settings; final: the scene's elements, four times its light rays per pair, 16
+    /// pixel samples, one more level of refinement. See docs/ACCURACY.md.
     #[arg(long, value_enum)]
     pub quality: Option<magg_study::accuracy::preset::Quality>,
     /// Serve a live view of the render on this address (HOST:PORT, port 0 picks a free
