@@ -77,7 +77,7 @@ pub struct Diff {
     pub max_abs_diff_at: Option<[u32; 2]>,
     /// Pixels with any channel unequal.
     pub differing_pixels: u64,
-    /// Pixels in all.
+    /// Pixels compared (all, or those of the mask).
     pub pixels: u64,
     /// Whether every channel of every pixel has the same bits.
     pub identical: bool,
@@ -96,13 +96,29 @@ pub fn check_finite(frame: &Frame) -> Result<(), DiffError> {
 
 /// The metrics of `a` against the reference `b`; both must be the same size and finite.
 pub fn diff(a: &Frame, b: &Frame) -> Result<Diff, DiffError> {
+    diff_where(a, b, None)
+}
+
+/// [`diff`] over the pixels where `mask` (an image of the same size) is above one half in
+/// the mean of its channels, every pixel without one: the metrics of a region, such as
+/// the pixels a reference renderer can compute.
+pub fn diff_where(a: &Frame, b: &Frame, mask: Option<&Frame>) -> Result<Diff, DiffError> {
     same_size(a, b)?;
     check_finite(a)?;
     check_finite(b)?;
+    if let Some(m) = mask {
+        same_size(a, m)?;
+    }
+    let kept = |i: usize| mask.is_none_or(|m| m.pixels[i].iter().map(|&c| f64::from(c)).sum::<f64>() > 1.5);
     let (mut rel, mut sq, mut sum_a, mut sum_b) = (0.0, 0.0, 0.0, 0.0);
     let (mut max_abs_diff, mut max_abs_diff_at, mut differing_pixels) = (0.0, None, 0);
     let mut identical = true;
+    let mut pixels = 0u64;
     for (i, (p, q)) in a.pixels.iter().zip(&b.pixels).enumerate() {
+        if !kept(i) {
+            continue;
+        }
+        pixels += 1;
         differing_pixels += u64::from(p != q);
         identical &= p.iter().zip(q).all(|(x, y)| x.to_bits() == y.to_bits());
         for (&x, &y) in p.iter().zip(q) {
@@ -118,7 +134,7 @@ pub fn diff(a: &Frame, b: &Frame) -> Result<Diff, DiffError> {
             }
         }
     }
-    let n = (a.pixels.len() * 3).max(1) as f64;
+    let n = (pixels * 3).max(1) as f64;
     let (mean_a, mean_b) = (sum_a / n, sum_b / n);
     Ok(Diff {
         width: a.width,
@@ -132,7 +148,7 @@ pub fn diff(a: &Frame, b: &Frame) -> Result<Diff, DiffError> {
         max_abs_diff,
         max_abs_diff_at,
         differing_pixels,
-        pixels: a.pixels.len() as u64,
+        pixels,
         identical,
     })
 }
@@ -190,6 +206,23 @@ mod tests {
         assert!(d.identical);
         assert_eq!((d.rel_mse, d.mse, d.rmse, d.max_abs_diff, d.differing_pixels), (0.0, 0.0, 0.0, 0.0, 0));
         assert_eq!((d.max_abs_diff_at, d.mean_ratio, d.pixels), (None, Some(1.0), 6));
+    }
+
+    #[test]
+    fn a_mask_keeps_only_its_pixels() {
+        let b = frame();
+        let mut a = b.clone();
+        a.pixels[4][1] += 0.25; // pixel (1, 1): masked out below
+        a.pixels[0][2] += 0.5; // pixel (0, 0): kept
+        let mut mask = Frame::new(3, 2);
+        mask.pixels[0] = [1.0; 3];
+        mask.pixels[5] = [0.9, 0.6, 0.1]; // mean 0.53: kept
+        mask.pixels[4] = [1.0, 0.5, 0.0]; // mean 0.5: not above one half
+        let d = diff_where(&a, &b, Some(&mask)).unwrap();
+        assert_eq!((d.pixels, d.differing_pixels, d.max_abs_diff_at), (2, 1, Some([0, 0])));
+        let rel = 0.25 / (1.0 + REL_EPS) / 6.0;
+        assert!((d.rel_mse - rel).abs() < 1e-15, "{} against {rel}", d.rel_mse);
+        assert!(diff_where(&a, &b, Some(&Frame::new(2, 3))).is_err(), "a mask of another size");
     }
 
     #[test]

@@ -244,7 +244,7 @@ impl Default for RenderSettings {
             direct: DirectLight::Auto,
             shared_faces: false,
             refine: 0,
-            refine_contrast: 0.25,
+            refine_contrast: 0.2,
             grid: GridSpec::Auto,
             seed: 1,
             exposure: Exposure::Auto,

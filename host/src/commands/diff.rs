@@ -27,6 +27,11 @@ pub struct DiffArgs {
     /// less, red 1e-4, yellow 1e-2, white 1 or more (log scale).
     #[arg(long, value_name = "OUT.png")]
     pub heatmap: Option<PathBuf>,
+    /// Compare only the pixels where this image (same size, any of the same formats) is
+    /// above one half in the mean of its channels, e.g. those a reference renderer can
+    /// compute (deploy/caustics-vs-mitsuba.sh).
+    #[arg(long, value_name = "MASK")]
+    pub mask: Option<PathBuf>,
     /// Print one JSON object instead of the table.
     #[arg(long)]
     pub json: bool,
@@ -54,6 +59,7 @@ struct Report<'a> {
     #[serde(flatten)]
     diff: &'a Diff,
     heatmap: Option<&'a Path>,
+    mask: Option<&'a Path>,
 }
 
 /// Runs `magg-host diff`.
@@ -71,7 +77,11 @@ pub fn run(args: &DiffArgs) -> anyhow::Result<()> {
     let a = read(&args.a)?;
     let b = read(&args.b)?;
     let what = || format!("cannot compare {} with {}", args.a.display(), args.b.display());
-    let diff = image_diff::diff(&a, &b).with_context(what)?;
+    let mask = args.mask.as_deref().map(read).transpose()?;
+    let diff = image_diff::diff_where(&a, &b, mask.as_ref()).with_context(what)?;
+    if diff.pixels == 0 {
+        bail!("{}: the mask keeps no pixel", args.mask.as_deref().unwrap_or(Path::new("")).display());
+    }
     if let Some(out) = &args.heatmap {
         image_diff::heatmap(&a, &b)
             .with_context(what)?
@@ -85,6 +95,7 @@ pub fn run(args: &DiffArgs) -> anyhow::Result<()> {
             rel_eps: image_diff::REL_EPS,
             diff: &diff,
             heatmap: args.heatmap.as_deref(),
+            mask: args.mask.as_deref(),
         };
         println!("{}", serde_json::to_string_pretty(&report)?);
     } else {
@@ -117,6 +128,7 @@ fn table(args: &DiffArgs, d: &Diff) -> String {
         ("mean A / mean B", format!("{ratio}  ({:.6} / {:.6})", d.mean_a, d.mean_b)),
         ("max |a-b|", format!("{:.6e}{at}", d.max_abs_diff)),
         ("differing pixels", format!("{} of {} ({share:.2}%)", d.differing_pixels, d.pixels)),
+        ("mask", args.mask.as_ref().map_or("none (every pixel)".to_string(), |m| m.display().to_string())),
         ("identical", if d.identical { "yes (bitwise)" } else { "no" }.to_string()),
     ];
     let mut out: String = rows.iter().map(|(k, v)| format!("{k:<17} {v}\n")).collect();

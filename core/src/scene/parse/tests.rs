@@ -129,7 +129,7 @@ fn faces_are_apart_unless_the_scene_shares_them() {
 #[test]
 fn refinement_is_off_unless_the_scene_asks_for_levels() {
     let s = parse(MINI).unwrap().settings;
-    assert_eq!((s.refine, s.refine_contrast), (0, 0.25));
+    assert_eq!((s.refine, s.refine_contrast), (0, 0.2));
     let s = parse(&format!("{MINI}[render]\nrefine = 3\nrefine_contrast = 0.5\n")).unwrap().settings;
     assert_eq!((s.refine, s.refine_contrast), (3, 0.5));
     let e = err(&format!("{MINI}[render]\nrefine = 7\n"));
