@@ -170,7 +170,7 @@ pub fn trace_pair(
     let normal = triangle_normal(&prec.v);
     // Every ray from the point light reaches the element's plane from the same side.
     let on_back = material.is_some_and(|m| m.refuses(prec.v[0] - l.position, normal));
-    let n = header.settings.light_rays.max(1);
+    let n = rays_for(view, plan, material, own)?;
     let seed = header.settings.seed;
     let mut rng = Rng::from_words(&[seed, 0x4c5254, light as u64, element as u64]);
     let (sx, sy) = (rng.next_f64(), rng.next_f64());
@@ -224,6 +224,28 @@ pub fn trace_pair(
     }
     out.deposits = merged(deposits, header.energy_quantum);
     Ok(out)
+}
+
+/// Light rays of a point light's pair whose target is element record `own` (of
+/// `material`): the scene's `light_rays`, except for a pair traced only for the diffuse
+/// bounces its rays start (direct light at VRT, a target that neither mirrors nor
+/// transmits). Such a pair casts a quarter of the rays for each level of refinement
+/// that made its element (at least one): the bounce is sent from as many rays per unit
+/// area as before the split, for the same noise, not four times as many per level.
+/// Refinement sharpens where light lands, not where bounced light leaves from.
+fn rays_for(
+    view: &mut SceneView,
+    plan: &crate::plan::EffectsPlan,
+    material: Option<&crate::scene::Material>,
+    own: crate::blocks::ElementRecord,
+) -> Result<u32, BlockError> {
+    let n = view.header.settings.light_rays.max(1);
+    let bounce_only = !plan.deposits_direct(false) && material.is_none_or(|m| !m.is_specular());
+    if !bounce_only || own.parent().is_none() {
+        return Ok(n);
+    }
+    let depth = view.element_depth(own)?;
+    Ok((n >> (2 * depth).min(31)).max(1))
 }
 
 /// Follows the secondary rays on `stack` depth-first: each deposits on the element it

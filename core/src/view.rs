@@ -189,6 +189,20 @@ impl SceneView {
         Ok((rec, p, tri))
     }
 
+    /// How many times refinement split the lattice element that element record `rec`
+    /// descends from to make it: 0 for an element of its patch's lattice.
+    pub fn element_depth(&mut self, mut rec: ElementRecord) -> Result<u32, BlockError> {
+        let mut depth = 0;
+        while let Some(parent) = rec.parent() {
+            if depth >= MAX_LEVELS {
+                return Err(BlockError::Unavailable { id: parent, reason: "corrupt element refinement".into() });
+            }
+            rec = self.element(parent)?;
+            depth += 1;
+        }
+        Ok(depth)
+    }
+
     /// Irradiance of vertex `id` (valid after energy interpolation).
     pub fn vertex_energy(&mut self, id: u32) -> Result<Rgb, BlockError> {
         let count = self.header.counts.vertices;

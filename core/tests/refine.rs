@@ -79,6 +79,33 @@ fn a_split_keeps_its_parents_flux_and_the_closed_form() {
 }
 
 #[test]
+fn bounce_only_pairs_cast_as_many_rays_per_unit_area_after_a_split() {
+    // Direct light at VRT, one diffuse bounce: a diffuse element's pair is traced only
+    // for the bounce its rays start. A child of depth d casts 32 / 4^d rays, so splits
+    // leave the rays (one bounce each, none escaping a floor under a closed lid) and the
+    // flux that bounces unchanged.
+    let mut s = floor_scene(false);
+    s.settings.diffuse_bounces = 1;
+    s.settings.direct = magg_core::scene::DirectLight::Vrt;
+    // Deposits descend to the leaf under the hit when the scene refines.
+    s.settings.refine = 2;
+    s.patches.extend(quad(v(-1.0, 2.0, -1.0), v(1.0, 2.0, -1.0), v(1.0, 2.0, 1.0), v(-1.0, 2.0, 1.0), 0, 2));
+    let plan = EffectsPlan::for_scene(&s);
+    assert!(!plan.deposits_direct(false), "direct light at VRT");
+    let base = prepare_split(&s, plan.clone(), &[]).unwrap();
+    let lattice = base.elements.len() as u32;
+    let first: Vec<u32> = (0..lattice).step_by(3).collect();
+    let second: Vec<u32> = (lattice..lattice + 4 * first.len() as u32).step_by(2).collect();
+    let split = prepare_split(&s, plan, &[first, second]).unwrap();
+    let (a, b) = (run(&base, 2, None), run(&split, 2, None));
+    let rays = |o: &magg_core::machine::RenderOutput| o.stats.work.light_rays;
+    assert_eq!(rays(&a), rays(&b), "light rays before and after the splits");
+    assert!(rays(&a) > 0);
+    let (fa, fb) = (total_flux(&base, &a.element_flux), total_flux(&split, &b.element_flux));
+    assert!((fa - fb).abs() <= 0.05 * fa, "bounced flux {fa} before the splits, {fb} after");
+}
+
+#[test]
 fn refinement_splits_the_elements_along_a_shadows_edge() {
     let mut s = floor_scene(true);
     s.settings.refine = 1;
