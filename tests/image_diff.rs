@@ -1,6 +1,7 @@
 //! `magg-host diff A B`: a render against itself is identical with zero error, against one
 //! with another seed it differs (relMSE > 0), its JSON parses and its heat map is a PNG of
-//! the images' size; bad input is one error line and `--fail-above` exits 2.
+//! the images' size; a mask keeps the pixels above its threshold; bad input is one error
+//! line and `--fail-above` exits 2.
 
 use magg_tests::*;
 
@@ -65,4 +66,40 @@ fn images_that_cannot_be_compared_are_one_error_line_naming_the_file() {
     let missing = dir.path().join("missing.exr");
     let line = assert_user_error(&magg_host().arg("diff").arg(&a.pfm).arg(&missing).output().unwrap(), "no such file");
     assert!(line.contains("missing.exr"), "{line}");
+}
+
+#[test]
+fn a_mask_keeps_the_pixels_above_its_threshold() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = scene("magg-paper.toml");
+    let a = render(&scene, dir.path(), "a", TINY);
+    let b = render(&scene, dir.path(), "b", &[TINY, &["--seed", "7"]].concat());
+    // Rows 0-15 wholly inside (1.0), rows 16-23 partly (0.7), the rest outside.
+    let mask = dir.path().join("mask.pfm");
+    let mut bytes = b"PF\n32 32\n-1.0\n".to_vec();
+    for row in 0..32 {
+        let v: f32 = if row < 16 {
+            1.0
+        } else if row < 24 {
+            0.7
+        } else {
+            0.0
+        };
+        bytes.extend(std::iter::repeat_n(v, 32 * 3).flat_map(|c| c.to_le_bytes()));
+    }
+    std::fs::write(&mask, bytes).unwrap();
+    let masked = |extra: &[&str]| {
+        magg_host().arg("diff").arg(&a.pfm).arg(&b.pfm).arg("--mask").arg(&mask).args(extra).output().unwrap()
+    };
+    let pixels = |extra: &[&str]| {
+        let out = masked(&[extra, &["--json"]].concat());
+        assert_success(&out, "diff --mask");
+        serde_json::from_slice::<serde_json::Value>(&out.stdout).unwrap()["pixels"].as_u64().unwrap()
+    };
+    assert_eq!(pixels(&[]), 24 * 32, "above one half by default");
+    assert_eq!(pixels(&["--mask-above", "0.999"]), 16 * 32, "wholly inside");
+    let none = assert_user_error(&masked(&["--mask-above", "1"]), "a mask that keeps nothing");
+    assert!(none.contains("the mask keeps no pixel"), "{none}");
+    let nan = assert_user_error(&masked(&["--mask-above", "NaN"]), "--mask-above NaN");
+    assert!(nan.contains("expected a finite number"), "{nan}");
 }

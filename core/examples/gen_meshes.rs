@@ -10,7 +10,9 @@
 //! - `--knot FACES OUT.obj`: a (3, 7) torus knot swept by a tube, about FACES triangles
 //!   (100 000 in docs/PERFORMANCE.md). Like a scanned model (the Stanford dragon), its
 //!   triangles crowd along a thin, winding surface and leave most of its bounding box
-//!   empty: a uniform grid's worst case, where a height field is its best.
+//!   empty: a uniform grid's worst case, where a height field is its best. Beside it,
+//!   `OUT-room.toml`: the knot standing in a 30 m room (floor and back wall), one element
+//!   per triangle, as a scanned model is rendered: a small dense mesh in a large scene.
 //!
 //! ```text
 //! cargo run -p magg-core --example gen_meshes            # writes scenes/meshes/
@@ -300,6 +302,51 @@ fn knot(faces: usize) -> Obj {
     obj
 }
 
+/// The knot in a room (`--knot`): the camera and light `magg-host` makes up around the
+/// knot alone, a 30 m floor and a 6 m back wall, one element per triangle.
+const KNOT_ROOM: &str = r#"# A (3, 7) torus knot (gen_meshes --knot) standing in a 30 m x 30 m room with a back wall.
+[camera]
+eye = [5.25295, 6.12291, 12.9226]
+look_at = [0.083905, 1.6, 0.0]
+up = [0.0, 1.0, 0.0]
+fov = 40.0
+
+[render]
+width = 200
+height = 200
+light_rays = 8
+ambient = [0.05, 0.05, 0.05]
+
+[[light]]
+position = [5.25295, 8.29913, 12.9226]
+intensity = [214.169, 214.169, 214.169]
+
+[[material]]
+name = "grey"
+diffuse = [0.7, 0.7, 0.7]
+
+[[material]]
+name = "wall"
+diffuse = [0.6, 0.6, 0.6]
+
+[[mesh]]
+obj = "KNOT_OBJ"    # the older name of `file`: earlier builds read this scene too
+material = "grey"
+subdivisions = 1
+
+# floor
+[[quad]]
+vertices = [[-15.0, 0.0, -15.0], [-15.0, 0.0, 15.0], [15.0, 0.0, 15.0], [15.0, 0.0, -15.0]]
+material = "wall"
+subdivisions = 8
+
+# back wall
+[[quad]]
+vertices = [[-15.0, 0.0, -15.0], [15.0, 0.0, -15.0], [15.0, 6.0, -15.0], [-15.0, 6.0, -15.0]]
+material = "wall"
+subdivisions = 8
+"#;
+
 fn main() -> std::io::Result<()> {
     let args: Vec<String> = std::env::args().collect();
     if args.get(1).map(String::as_str) == Some("--knot") {
@@ -315,6 +362,11 @@ fn main() -> std::io::Result<()> {
         );
         std::fs::write(path, k.write(&header, None))?;
         println!("wrote {path} ({} faces)", k.f.len());
+        let obj = std::path::Path::new(path);
+        let room = obj.with_file_name(format!("{}-room.toml", obj.file_stem().unwrap_or_default().to_string_lossy()));
+        let name = obj.file_name().unwrap_or_default().to_string_lossy();
+        std::fs::write(&room, KNOT_ROOM.replace("KNOT_OBJ", &name))?;
+        println!("wrote {}", room.display());
         return Ok(());
     }
     let out = std::env::args()

@@ -1,4 +1,4 @@
-# Shared by deploy/accuracy-vs-mitsuba.sh and deploy/caustics-vs-mitsuba.sh (sourced).
+# Shared by deploy/accuracy-vs-mitsuba.sh and deploy/ptracer-vs-mitsuba.sh (sourced).
 # The caller sets scene, common (magg's arguments), work, spps, qualities, repeats,
 # ref_spp, and defines `mitsuba_at SPP OUT SEED` (prints Mitsuba's seconds) and `relmse
 # FILE` (prints FILE's relMSE against the reference).
@@ -18,15 +18,18 @@ tools() { # script name
   fi
 }
 
-# magg's wall time for one render at a quality (start-up and preprocessing included).
-magg() { # quality out -> seconds
+# magg's wall time for one render of a scene at a quality (start-up and preprocessing
+# included); `magg` renders the caller's scene.
+magg_on() { # scene quality out -> seconds
   local t0 t1
   t0=$(date +%s.%N)
-  "$host" render "$scene" --quiet --quality "$1" --out "$2" "${common[@]}" >/dev/null
+  "$host" render "$1" --quiet --quality "$2" --out "$3" "${common[@]}" >/dev/null
   t1=$(date +%s.%N)
   python3 -c "print(round($t1 - $t0, 4))"
 }
+magg() { magg_on "$scene" "$@"; } # quality out -> seconds
 
+mean() { python3 -c 'import sys; v=[float(x) for x in sys.argv[1:]]; print(round(sum(v)/len(v), 4))' "$@"; }
 median() { python3 -c 'import sys,statistics; print(statistics.median(float(x) for x in sys.argv[1:]))' "$@"; }
 
 # Renders both sides `repeats` times, interleaved, then prints HEADER and the table of

@@ -8,7 +8,7 @@ RELMSE`. Mitsuba's error against its own converged reference is its noise plus t
 reference's, both falling as 1/spp: relMSE = c (1/spp + 1/REF_SPP), c the median over its
 points; its time per spp is that of its largest point. Each magg row then gets the time
 Mitsuba needs for the same error, and the ratio of the two times. Used by
-deploy/accuracy-vs-mitsuba.sh and deploy/caustics-vs-mitsuba.sh.
+deploy/accuracy-vs-mitsuba.sh and deploy/ptracer-vs-mitsuba.sh.
 """
 import statistics
 import sys

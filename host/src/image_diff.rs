@@ -99,17 +99,28 @@ pub fn diff(a: &Frame, b: &Frame) -> Result<Diff, DiffError> {
     diff_where(a, b, None)
 }
 
-/// [`diff`] over the pixels where `mask` (an image of the same size) is above one half in
-/// the mean of its channels, every pixel without one: the metrics of a region, such as
-/// the pixels a reference renderer can compute.
-pub fn diff_where(a: &Frame, b: &Frame, mask: Option<&Frame>) -> Result<Diff, DiffError> {
+/// Which pixels [`diff_where`] compares: those where `image` (the same size as the two
+/// compared) is above `above` in the mean of its channels.
+#[derive(Clone, Copy, Debug)]
+pub struct Mask<'a> {
+    /// The mask image, e.g. a render of the region lit with radiance 1, so that a pixel's
+    /// value is the share of it the region covers.
+    pub image: &'a Frame,
+    /// The threshold: one half keeps pixels mostly inside, just under 1 those wholly inside.
+    pub above: f64,
+}
+
+/// [`diff`] over the pixels `mask` keeps, every pixel without one: the metrics of a
+/// region, such as the pixels a reference renderer can compute.
+pub fn diff_where(a: &Frame, b: &Frame, mask: Option<Mask>) -> Result<Diff, DiffError> {
     same_size(a, b)?;
     check_finite(a)?;
     check_finite(b)?;
     if let Some(m) = mask {
-        same_size(a, m)?;
+        same_size(a, m.image)?;
     }
-    let kept = |i: usize| mask.is_none_or(|m| m.pixels[i].iter().map(|&c| f64::from(c)).sum::<f64>() > 1.5);
+    let kept =
+        |i: usize| mask.is_none_or(|m| m.image.pixels[i].iter().map(|&c| f64::from(c)).sum::<f64>() > 3.0 * m.above);
     let (mut rel, mut sq, mut sum_a, mut sum_b) = (0.0, 0.0, 0.0, 0.0);
     let (mut max_abs_diff, mut max_abs_diff_at, mut differing_pixels) = (0.0, None, 0);
     let mut identical = true;
@@ -218,11 +229,14 @@ mod tests {
         mask.pixels[0] = [1.0; 3];
         mask.pixels[5] = [0.9, 0.6, 0.1]; // mean 0.53: kept
         mask.pixels[4] = [1.0, 0.5, 0.0]; // mean 0.5: not above one half
-        let d = diff_where(&a, &b, Some(&mask)).unwrap();
+        let d = diff_where(&a, &b, Some(Mask { image: &mask, above: 0.5 })).unwrap();
         assert_eq!((d.pixels, d.differing_pixels, d.max_abs_diff_at), (2, 1, Some([0, 0])));
         let rel = 0.25 / (1.0 + REL_EPS) / 6.0;
         assert!((d.rel_mse - rel).abs() < 1e-15, "{} against {rel}", d.rel_mse);
-        assert!(diff_where(&a, &b, Some(&Frame::new(2, 3))).is_err(), "a mask of another size");
+        let wholly = diff_where(&a, &b, Some(Mask { image: &mask, above: 0.99 })).unwrap();
+        assert_eq!((wholly.pixels, wholly.max_abs_diff_at), (1, Some([0, 0])), "only the pixel wholly inside");
+        let other = Frame::new(2, 3);
+        assert!(diff_where(&a, &b, Some(Mask { image: &other, above: 0.5 })).is_err(), "a mask of another size");
     }
 
     #[test]

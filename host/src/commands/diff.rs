@@ -28,10 +28,14 @@ pub struct DiffArgs {
     #[arg(long, value_name = "OUT.png")]
     pub heatmap: Option<PathBuf>,
     /// Compare only the pixels where this image (same size, any of the same formats) is
-    /// above one half in the mean of its channels, e.g. those a reference renderer can
-    /// compute (deploy/caustics-vs-mitsuba.sh).
+    /// above --mask-above in the mean of its channels, e.g. those a reference renderer can
+    /// compute (deploy/ptracer-vs-mitsuba.sh).
     #[arg(long, value_name = "MASK")]
     pub mask: Option<PathBuf>,
+    /// The mask's threshold: 0.5 keeps pixels mostly inside a region rendered with
+    /// radiance 1, 0.999 those wholly inside it.
+    #[arg(long, value_name = "T", default_value_t = 0.5, requires = "mask")]
+    pub mask_above: f64,
     /// Print one JSON object instead of the table.
     #[arg(long)]
     pub json: bool,
@@ -77,8 +81,12 @@ pub fn run(args: &DiffArgs) -> anyhow::Result<()> {
     let a = read(&args.a)?;
     let b = read(&args.b)?;
     let what = || format!("cannot compare {} with {}", args.a.display(), args.b.display());
+    if !args.mask_above.is_finite() {
+        bail!("--mask-above {}: expected a finite number", args.mask_above);
+    }
     let mask = args.mask.as_deref().map(read).transpose()?;
-    let diff = image_diff::diff_where(&a, &b, mask.as_ref()).with_context(what)?;
+    let mask = mask.as_ref().map(|image| image_diff::Mask { image, above: args.mask_above });
+    let diff = image_diff::diff_where(&a, &b, mask).with_context(what)?;
     if diff.pixels == 0 {
         bail!("{}: the mask keeps no pixel", args.mask.as_deref().unwrap_or(Path::new("")).display());
     }
