@@ -150,7 +150,7 @@ pub struct RenderArgs {
     pub quiet: bool,
     /// Accuracy preset, applied before the knob flags below (which override it).
     /// draft: elements x2 the scene's size (fixed subdivisions halved), a quarter of its
-    /// light rays per pair, 1 pixel sample, no refinement; good: the scene's own
+    /// light rays per pair, 1 pixel sample, the scene's refinement; good: the scene's own
     /// settings; final: the scene's elements, four times its light rays per pair, 16
     /// pixel samples, one more level of refinement. See docs/ACCURACY.md.
     #[arg(long, value_enum)]

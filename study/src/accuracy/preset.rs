@@ -16,7 +16,8 @@ use magg_core::scene::Scene;
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
 pub enum Quality {
     /// Quick look: elements twice the scene's size, a quarter of its light rays per pair
-    /// (at least 4), 1 pixel sample, no refinement.
+    /// (at least 4), 1 pixel sample, the scene's levels of refinement (on coarse
+    /// elements a caustic without them is a smudge, and their pilots cost little).
     Draft,
     /// The scene's own `[render]` settings.
     Good,
@@ -36,8 +37,8 @@ pub struct Preset {
     /// Viewing rays per pixel; `None` keeps the scene's.
     pub pixel_samples: Option<u32>,
     /// Levels of adaptive refinement added to the scene's (`[render] refine`, at most
-    /// [`magg_core::refine::MAX_LEVELS`]); `None` refines nothing.
-    pub refine: Option<u32>,
+    /// [`magg_core::refine::MAX_LEVELS`]).
+    pub refine: u32,
 }
 
 impl Preset {
@@ -56,9 +57,9 @@ impl Quality {
     /// The settings this preset stands for.
     pub fn preset(self) -> Preset {
         match self {
-            Quality::Draft => Preset { element_scale: 2.0, ray_factor: 0.25, pixel_samples: Some(1), refine: None },
-            Quality::Good => Preset { element_scale: 1.0, ray_factor: 1.0, pixel_samples: None, refine: Some(0) },
-            Quality::Final => Preset { element_scale: 1.0, ray_factor: 4.0, pixel_samples: Some(16), refine: Some(1) },
+            Quality::Draft => Preset { element_scale: 2.0, ray_factor: 0.25, pixel_samples: Some(1), refine: 0 },
+            Quality::Good => Preset { element_scale: 1.0, ray_factor: 1.0, pixel_samples: None, refine: 0 },
+            Quality::Final => Preset { element_scale: 1.0, ray_factor: 4.0, pixel_samples: Some(16), refine: 1 },
         }
     }
 
@@ -70,10 +71,7 @@ impl Quality {
         if let Some(v) = p.pixel_samples {
             scene.settings.pixel_samples = v;
         }
-        scene.settings.refine = match p.refine {
-            None => 0,
-            Some(more) => scene.settings.refine.saturating_add(more).min(magg_core::refine::MAX_LEVELS),
-        };
+        scene.settings.refine = scene.settings.refine.saturating_add(p.refine).min(magg_core::refine::MAX_LEVELS);
     }
 }
 
@@ -147,7 +145,7 @@ mod tests {
         assert_eq!(s.settings.element_size, 0.4);
         assert_eq!(s.settings.light_rays, 4, "a quarter of 16");
         assert_eq!(s.settings.pixel_samples, 1);
-        assert_eq!(s.settings.refine, 0, "a quick look refines nothing");
+        assert_eq!(s.settings.refine, 2, "the scene's levels: a caustic's edges need them most on coarse elements");
         assert_eq!(s.patches[0].subdivisions, Some(8));
         assert_eq!(s.patches[1].subdivisions, None);
         assert_eq!(s.patches[2].subdivisions, Some(1), "never below one subdivision");
