@@ -80,6 +80,68 @@ pub struct PairResult {
     pub tally: LrtTally,
 }
 
+/// A deposit as a pair's rays make it, before refinement's leaves are looked up: on an
+/// element itself (the pair's own target), or at local coordinates `w` within a lattice
+/// element, which refinement may have split (the leaf under `w` takes it). A pair's raw
+/// deposits stay the same while other elements are split, so refinement's pilot passes
+/// trace a pair once and bin its deposits again at each level ([`bin`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum RawDeposit {
+    /// On this element.
+    On(u32, Rgb),
+    /// On the leaf under local coordinates `w` of lattice element `element`.
+    Under {
+        /// The lattice element (on the face the ray arrived at).
+        element: u32,
+        /// Local (barycentric) coordinates within it.
+        w: [f64; 3],
+        /// The flux.
+        flux: Rgb,
+    },
+}
+
+/// A pair's raw deposits, in the order its rays made them, and its tally.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct RawPair {
+    /// The deposits, in generation order.
+    pub deposits: Vec<RawDeposit>,
+    /// Where the flux went.
+    pub tally: LrtTally,
+}
+
+/// Where [`trace_into`] puts a pair's deposits: binned to leaves at once, or raw.
+enum Sink {
+    Binned(Vec<(u32, Rgb)>),
+    Raw(Vec<RawDeposit>),
+}
+
+impl Sink {
+    fn on(&mut self, element: u32, flux: Rgb) {
+        match self {
+            Sink::Binned(d) => d.push((element, flux)),
+            Sink::Raw(d) => d.push(RawDeposit::On(element, flux)),
+        }
+    }
+
+    fn under(&mut self, view: &mut SceneView, element: u32, w: [f64; 3], flux: Rgb) -> Result<(), BlockError> {
+        match self {
+            Sink::Binned(d) => d.push((leaf_under(view, element, w)?, flux)),
+            Sink::Raw(d) => d.push(RawDeposit::Under { element, w, flux }),
+        }
+        Ok(())
+    }
+}
+
+/// The leaf element under local coordinates `w` of lattice element `element`.
+fn leaf_under(view: &mut SceneView, element: u32, w: [f64; 3]) -> Result<u32, BlockError> {
+    if view.header.settings.refine == 0 {
+        return Ok(element);
+    }
+    // Refinement may have split it: the deposit goes to the leaf under the hit.
+    let rec = view.element(element)?;
+    Ok(view.leaf_element(element, rec, w)?.0)
+}
+
 /// Radiant intensity of `light` in unit direction `w`.
 pub fn intensity_towards(light: &Light, w: DVec3) -> Rgb {
     match &light.spot {
@@ -133,39 +195,86 @@ pub fn trace_pair(
     light: u32,
     element: u32,
 ) -> Result<PairResult, BlockError> {
-    let header = view.header.clone();
-    let Some(l) = header.lights.get(light as usize) else {
-        let emitter = (light as usize).checked_sub(header.lights.len()).and_then(|k| header.emitters.get(k));
+    if light as usize >= view.header.lights.len() {
+        let header = &view.header;
+        let emitter = (light as usize).checked_sub(header.lights.len()).and_then(|k| header.emitters.get(k)).copied();
         return match emitter {
-            Some(e) => area::trace_emitter_pair(view, scratch, light, *e, element),
+            Some(e) => area::trace_emitter_pair(view, scratch, light, e, element),
             None => Err(BlockError::BadId { kind: "light", id: light as u64, count: header.light_sources() as u64 }),
         };
-    };
+    }
+    let mut sink = Sink::Binned(Vec::new());
+    let tally = trace_into(view, scratch, light, element, &mut sink)?;
+    let Sink::Binned(deposits) = sink else { unreachable!("a binned sink stays binned") };
+    Ok(PairResult { deposits: merged(deposits, view.header.energy_quantum), tally })
+}
+
+/// [`trace_pair`] of a point light's pair, its deposits raw: what [`bin`] turns into the
+/// pair's result under any later refinement of the other elements.
+pub fn trace_pair_raw(
+    view: &mut SceneView,
+    scratch: &mut TraceScratch,
+    light: u32,
+    element: u32,
+) -> Result<RawPair, BlockError> {
+    let mut sink = Sink::Raw(Vec::new());
+    let tally = trace_into(view, scratch, light, element, &mut sink)?;
+    let Sink::Raw(deposits) = sink else { unreachable!("a raw sink stays raw") };
+    Ok(RawPair { deposits, tally })
+}
+
+/// The result of pair (`_`, `element`) from its raw deposits, binned to the leaves of
+/// `view`'s elements: exactly what [`trace_pair`] returns on `view`'s scene, as long as
+/// the pair's rays are the same (its element is a leaf there, as when it was traced).
+pub fn bin(view: &mut SceneView, element: u32, raw: &RawPair) -> Result<PairResult, BlockError> {
+    if view.element(element)?.child != 0 {
+        return Ok(PairResult::default());
+    }
+    let mut deposits = Vec::with_capacity(raw.deposits.len());
+    for d in &raw.deposits {
+        deposits.push(match *d {
+            RawDeposit::On(e, f) => (e, f),
+            RawDeposit::Under { element, w, flux } => (leaf_under(view, element, w)?, flux),
+        });
+    }
+    Ok(PairResult { deposits: merged(deposits, view.header.energy_quantum), tally: raw.tally })
+}
+
+/// Traces point light `light`'s pair with `element` into `sink`; returns its tally.
+fn trace_into(
+    view: &mut SceneView,
+    scratch: &mut TraceScratch,
+    light: u32,
+    element: u32,
+    sink: &mut Sink,
+) -> Result<LrtTally, BlockError> {
+    let header = view.header.clone();
+    let l = &header.lights[light as usize];
     let plan = &header.plan;
-    let mut out = PairResult::default();
+    let mut tally = LrtTally::default();
     if !plan.lrt {
-        return Ok(out);
+        return Ok(tally);
     }
     let own = view.element(element)?;
     if own.child != 0 {
         // Refinement split it: its four children have pairs of their own.
-        return Ok(out);
+        return Ok(tally);
     }
     // The lattice element it lies in says its face; its own corners are its target.
     let (erec, prec, tri) = view.element_geometry(element, own)?;
     let material = header.materials.get(prec.material as usize);
     if plan.skips_diffuse_pairs() && material.is_none_or(|m| !m.is_specular()) {
         // Its direct light is computed at VRT and nothing bounces on from it.
-        return Ok(out);
+        return Ok(tally);
     }
     if !prec.receives_on(&erec, prec.v[0] - l.position) {
         // Every ray from the point light arrives on the other face of the patch, whose
         // element (front or back) has a pair of its own.
-        return Ok(out);
+        return Ok(tally);
     }
     let omega = solid_angle(l.position, &tri);
     if !(omega > 0.0) || outside_cone(l, &tri) {
-        return Ok(out);
+        return Ok(tally);
     }
     let normal = triangle_normal(&prec.v);
     // Every ray from the point light reaches the element's plane from the same side.
@@ -176,7 +285,6 @@ pub fn trace_pair(
     let (sx, sy) = (rng.next_f64(), rng.next_f64());
     let (bx, by) = (rng.next_f64(), rng.next_f64());
     let per_ray = omega / n as f64;
-    let mut deposits: Vec<(u32, Rgb)> = Vec::new();
     let mut stack: Vec<Pending> = Vec::new();
     let eps0 = offset_scale(l.position);
 
@@ -200,18 +308,18 @@ pub fn trace_pair(
         // An occlusion query up to (just short of) the element; secondary rays below are
         // nearest-hit queries. Both go through the scene's acceleration structure.
         if occluded(view, scratch, &ray, eps0, t_plane * (1.0 - 1e-9), erec.patch)? {
-            out.tally.occluded = out.tally.occluded.add(flux);
+            tally.occluded = tally.occluded.add(flux);
             continue;
         }
-        out.tally.reached = out.tally.reached.add(flux);
+        tally.reached = tally.reached.add(flux);
         if on_back {
             // The back of a one-sided patch: absorbed, nothing deposited or reflected.
-            out.tally.absorbed = out.tally.absorbed.add(flux);
+            tally.absorbed = tally.absorbed.add(flux);
             continue;
         }
         let p = ray.at(t_plane);
         if plan.deposits_direct(false) {
-            deposits.push((element, flux));
+            sink.on(element, flux);
         }
         let floor = flux.max_channel() * MIN_RELATIVE_FLUX;
         // Shading normals bend specular directions and a texture colours what bounces
@@ -219,11 +327,10 @@ pub fn trace_pair(
         let (at, albedo) = arrive(view, &prec, p, w, normal, None)?;
         let bounce = Some(halton35(k, bx, by));
         let s = Surface { at, albedo, material: prec.material, patch: erec.patch };
-        scatter(view, &mut rng, &mut stack, &mut out.tally, s, bounce, flux, 0, 0, floor);
-        follow(view, scratch, &mut rng, &mut stack, &mut out.tally, &mut deposits)?;
+        scatter(view, &mut rng, &mut stack, &mut tally, s, bounce, flux, 0, 0, floor);
+        follow(view, scratch, &mut rng, &mut stack, &mut tally, sink)?;
     }
-    out.deposits = merged(deposits, header.energy_quantum);
-    Ok(out)
+    Ok(tally)
 }
 
 /// Light rays of a point light's pair whose target is element record `own` (of
@@ -256,7 +363,7 @@ fn follow(
     rng: &mut Rng,
     stack: &mut Vec<Pending>,
     tally: &mut LrtTally,
-    deposits: &mut Vec<(u32, Rgb)>,
+    sink: &mut Sink,
 ) -> Result<(), BlockError> {
     while let Some(s) = stack.pop() {
         view.counters.light_rays += 1;
@@ -272,13 +379,7 @@ fn follow(
             continue;
         }
         let (local, w) = locate(hp.subdivisions, hit.bary);
-        let mut target = hp.element_on_face(local, s.ray.direction);
-        if view.header.settings.refine > 0 {
-            // Refinement may have split it: the deposit goes to the leaf under the hit.
-            let rec = view.element(target)?;
-            target = view.leaf_element(target, rec, w)?.0;
-        }
-        deposits.push((target, s.flux));
+        sink.under(view, hp.element_on_face(local, s.ray.direction), w, s.flux)?;
         let (at, albedo) = arrive(view, &hp, s.ray.at(hit.t), s.ray.direction, hn, Some(hit.bary))?;
         let surface = Surface { at, albedo, material: hp.material, patch: hit.patch };
         scatter(view, rng, stack, tally, surface, None, s.flux, s.specular, s.diffuse, s.floor);

@@ -9,7 +9,11 @@
 //! any cluster would compute) with the light that makes edges (direct light and light via
 //! mirrors and glass; diffuse bounces are smooth), chooses the elements to split
 //! ([`choose`]), prepares the scene again with them split, and repeats up to
-//! `[render] refine` times. The result is
+//! `[render] refine` times. A pilot traces each pair once: refinement splits diffuse
+//! elements and leaves every other element, and so every pair's rays, as they were, so
+//! a pair's deposits are kept raw (where in which lattice element) and binned again to
+//! the leaves at each level ([`PilotPairs`]); only the new elements' pairs are traced.
+//! The result is
 //! an ordinary prepared scene whose split elements are elements like any other: they get
 //! owners, pairs and vertex-energy blocks, so the final render runs unchanged in the
 //! embedded renderer and in the cluster, the same bits in every shape.
@@ -26,14 +30,20 @@
 //! assert_eq!(prepared.elements.len(), 1664 + 4 * prepared.splits.iter().map(Vec::len).sum::<usize>());
 //! ```
 
+use crate::blocks::BlockError;
 use crate::color::Rgb;
 use crate::energy::{element_irradiance, interpolate, Fixed};
-use crate::machine::{Machine, RenderError};
+use crate::lrt::{bin, trace_pair, trace_pair_raw, PairResult, RawDeposit, RawPair};
+use crate::machine::RenderError;
 use crate::plan::EffectsPlan;
 use crate::preprocess::{prepare_split, PreparedScene};
 use crate::progress::NoProgress;
 use crate::render::{EmbeddedMachine, RenderOptions};
 use crate::scene::Scene;
+use crate::trace::TraceScratch;
+use crate::view::SceneView;
+use std::collections::HashMap;
+use std::sync::{Arc, Mutex};
 use std::time::Instant;
 
 /// Most levels of refinement (`[render] refine`).
@@ -51,12 +61,16 @@ pub fn prepare(scene: &Scene, plan: EffectsPlan) -> Result<PreparedScene, Render
         let mut pilot_scene = scene.clone();
         pilot_scene.settings.diffuse_bounces = 0;
         let pilot_plan = EffectsPlan::for_scene(&pilot_scene);
+        let pairs = PilotPairs::default();
         for _ in 0..scene.settings.refine.min(MAX_LEVELS) {
             let pilot = prepare_split(&pilot_scene, pilot_plan.clone(), &splits)?;
             if !pilot.header.plan.lrt {
                 break;
             }
-            let light = EmbeddedMachine::new(&pilot, &RenderOptions::default()).light_pass(&NoProgress)?;
+            let trace = |view: &mut SceneView, scratch: &mut TraceScratch, light: u32, element: u32| {
+                pairs.trace(view, scratch, light, element)
+            };
+            let light = EmbeddedMachine::new(&pilot, &RenderOptions::default()).light_pass_with(&trace, &NoProgress)?;
             let room = scene.settings.max_elements.saturating_sub(pilot.elements.len() as u64) / 4;
             let split = choose(scene, &pilot, &light.element_flux, room as usize);
             if split.is_empty() {
@@ -68,6 +82,57 @@ pub fn prepare(scene: &Scene, plan: EffectsPlan) -> Result<PreparedScene, Render
     let mut prepared = prepare_split(scene, plan, &splits)?;
     prepared.preprocess_s = start.elapsed().as_secs_f64();
     Ok(prepared)
+}
+
+/// The pilots' pairs of point lights, traced once and kept raw: every level's pilot has
+/// the same lights and, for every element not split since, the same element ids and
+/// rays ([`crate::lrt::bin`] gives exactly the result a new trace would). A pair whose
+/// deposits all fall on its own element keeps their sum (the same sum, in the same
+/// order, as binning them would make), so the pairs of direct light carried by light
+/// rays cost one entry each. Pairs of area lights are traced at every level.
+#[derive(Default)]
+struct PilotPairs {
+    raw: Mutex<HashMap<(u32, u32), Arc<RawPair>>>,
+}
+
+impl PilotPairs {
+    fn trace(
+        &self,
+        view: &mut SceneView,
+        scratch: &mut TraceScratch,
+        light: u32,
+        element: u32,
+    ) -> Result<PairResult, BlockError> {
+        if light as usize >= view.header.lights.len() {
+            return trace_pair(view, scratch, light, element);
+        }
+        let kept = self.raw.lock().unwrap_or_else(|e| e.into_inner()).get(&(light, element)).cloned();
+        let raw = match kept {
+            Some(raw) => raw,
+            None => {
+                let raw = Arc::new(compact(trace_pair_raw(view, scratch, light, element)?));
+                self.raw.lock().unwrap_or_else(|e| e.into_inner()).insert((light, element), raw.clone());
+                raw
+            }
+        };
+        bin(view, element, &raw)
+    }
+}
+
+/// `raw` with its deposits summed into one when they all fall on the same element
+/// itself, in generation order (as [`bin`] would sum them).
+fn compact(raw: RawPair) -> RawPair {
+    let Some(&RawDeposit::On(first, _)) = raw.deposits.first() else { return raw };
+    if !raw.deposits.iter().all(|d| matches!(d, RawDeposit::On(e, _) if *e == first)) {
+        return raw;
+    }
+    let mut sum: Option<Rgb> = None;
+    for d in &raw.deposits {
+        if let RawDeposit::On(_, f) = d {
+            sum = Some(sum.map_or(*f, |s| s.add(*f)));
+        }
+    }
+    RawPair { deposits: sum.map(|s| RawDeposit::On(first, s)).into_iter().collect(), tally: raw.tally }
 }
 
 /// Luminance-like weight of a colour (the channels' mean: no channel is preferred).

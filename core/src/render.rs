@@ -15,7 +15,7 @@ use crate::camera::CameraRig;
 use crate::color::Rgb;
 use crate::energy::{vertex_energy_blocks, Fixed};
 use crate::frame::Frame;
-use crate::lrt::{trace_pair, LrtTally};
+use crate::lrt::{trace_pair, LrtTally, PairResult};
 use crate::machine::{
     self, FrameSink, Machine, MachineFigures, PhaseTimes, RenderError, RenderOutput, Sequence, ViewPass, ViewedFrame,
 };
@@ -79,11 +79,17 @@ struct LightPass {
 
 /// LRT: nodes pull (light, element) pairs from a shared counter (lights: the point
 /// lights, then the emitting elements).
+/// What traces a pair in [`EmbeddedMachine::light_pass_with`]: [`trace_pair`], or a
+/// stand-in that gives the same results (refinement's pilots reuse a pair's rays).
+pub type PairTracer<'a> =
+    dyn Fn(&mut SceneView, &mut TraceScratch, u32, u32) -> Result<PairResult, BlockError> + Sync + 'a;
+
 fn light_pass(
     views: &mut [SceneView],
     cores: &[usize],
     header: &crate::header::SceneHeader,
     progress: &dyn Progress,
+    trace: &PairTracer,
 ) -> Result<LightPass, RenderError> {
     let n_el = header.counts.elements;
     let flux: Vec<[AtomicI64; 3]> =
@@ -111,7 +117,7 @@ fn light_pass(
                         let end = (start + PAIR_BATCH).min(total_pairs);
                         for k in start..end {
                             let (light, element) = ((k / n_el as u64) as u32, (k % n_el as u64) as u32);
-                            let r = trace_pair(view, &mut scratch, light, element)?;
+                            let r = trace(view, &mut scratch, light, element)?;
                             for (e, f) in r.deposits {
                                 if let Some(slot) = flux.get(e as usize) {
                                     for c in 0..3 {
@@ -271,12 +277,24 @@ impl EmbeddedMachine {
     }
 }
 
-impl Machine for EmbeddedMachine {
-    fn light_pass(&mut self, progress: &dyn Progress) -> Result<machine::LightPass, RenderError> {
-        let light = light_pass(&mut self.views, &self.cores, &self.header, progress)?;
+impl EmbeddedMachine {
+    /// The light pass with pairs traced by `trace` ([`Machine::light_pass`] uses
+    /// [`trace_pair`]).
+    pub fn light_pass_with(
+        &mut self,
+        trace: &PairTracer,
+        progress: &dyn Progress,
+    ) -> Result<machine::LightPass, RenderError> {
+        let light = light_pass(&mut self.views, &self.cores, &self.header, progress, trace)?;
         self.node_pairs = light.node_pairs;
         self.tally = light.tally;
         Ok(machine::LightPass { element_flux: light.flux, pairs: light.pairs, collect_s: 0.0 })
+    }
+}
+
+impl Machine for EmbeddedMachine {
+    fn light_pass(&mut self, progress: &dyn Progress) -> Result<machine::LightPass, RenderError> {
+        self.light_pass_with(&trace_pair, progress)
     }
 
     fn publish_vertex_energies(&mut self, vertex_irradiance: &[Rgb]) -> Result<(), RenderError> {

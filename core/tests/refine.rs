@@ -1,7 +1,8 @@
 //! Adaptive element refinement (`[render] refine`): elements split in four keep the
 //! light of their parent (flux conserved across a split, against the closed form of a
 //! point light), refinement chooses the elements along a shadow's edge, the irradiance
-//! stays continuous across a T-junction, and the image comes closer to a finer render.
+//! stays continuous across a T-junction, the image comes closer to a finer render, and
+//! pilots that trace each pair once choose the splits of pilots that trace every level.
 
 mod common;
 use common::*;
@@ -176,4 +177,38 @@ fn refinement_brings_the_image_closer_to_a_finer_render() {
     };
     let (e0, e2) = (error(0), error(2));
     assert!(e2 < 0.5 * e0, "relMSE {e0} without refinement, {e2} with two levels");
+}
+
+#[test]
+fn pilots_that_trace_each_pair_once_split_as_pilots_that_trace_every_level() {
+    // The floor and blocker, and a mirror beside them sending light back onto the floor:
+    // pairs of direct light (carried by light rays) and of light via the mirror, whose
+    // deposits land on elements that later levels split.
+    let mut s = floor_scene(true);
+    s.materials.push(material("mirror", 0.0, 0.9, 0.0));
+    s.patches.extend(quad(v(0.9, 0.2, -0.5), v(0.9, 0.2, 0.5), v(0.9, 1.2, 0.5), v(0.9, 1.2, -0.5), 1, 2));
+    s.settings.direct = magg_core::scene::DirectLight::Lrt;
+    s.settings.refine = 3;
+    let plan = EffectsPlan::for_scene(&s);
+    let refined = refine::prepare(&s, plan.clone()).unwrap();
+    assert!(refined.splits.len() >= 2, "levels split: {:?}", refined.splits.iter().map(Vec::len).collect::<Vec<_>>());
+
+    // The same levels with every pair traced anew at each, as a machine's light pass does.
+    let mut pilot_scene = s.clone();
+    pilot_scene.settings.diffuse_bounces = 0;
+    let pilot_plan = EffectsPlan::for_scene(&pilot_scene);
+    let mut splits: Vec<Vec<u32>> = Vec::new();
+    for _ in 0..s.settings.refine {
+        let pilot = prepare_split(&pilot_scene, pilot_plan.clone(), &splits).unwrap();
+        let flux = run(&pilot, 1, None).element_flux;
+        let room = s.settings.max_elements.saturating_sub(pilot.elements.len() as u64) / 4;
+        let split = refine::choose(&s, &pilot, &flux, room as usize);
+        if split.is_empty() {
+            break;
+        }
+        splits.push(split);
+    }
+    assert_eq!(refined.splits, splits, "the same elements split at every level");
+    let again = prepare_split(&s, plan, &splits).unwrap();
+    assert_eq!(run(&refined, 2, None).frame.pixels, run(&again, 2, None).frame.pixels, "and the same image");
 }

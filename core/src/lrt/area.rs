@@ -19,9 +19,8 @@
 //! the emitter's plane, or a one-sided receiver whose front faces away from the whole
 //! emitter.
 
-use super::{follow, merged, scatter, PairResult, Pending, Surface, MIN_RELATIVE_FLUX};
+use super::{follow, merged, scatter, PairResult, Pending, Sink, Surface, MIN_RELATIVE_FLUX};
 use crate::blocks::{BlockError, NO_BACK};
-use crate::color::Rgb;
 use crate::geometry::{sample_spherical_triangle, solid_angle, triangle_normal, Ray};
 use crate::header::Emitter;
 use crate::rng::{halton35, hammersley, Rng};
@@ -98,7 +97,7 @@ pub(super) fn trace_emitter_pair(
     // Index among the pair's n rays of the first ray from the current point (for the
     // rays' bounce samples).
     let mut first_ray = 0u32;
-    let mut deposits: Vec<(u32, Rgb)> = Vec::new();
+    let mut sink = Sink::Binned(Vec::new());
     let mut stack: Vec<Pending> = Vec::new();
 
     for i in 0..points {
@@ -144,16 +143,17 @@ pub(super) fn trace_emitter_pair(
                 continue;
             }
             if plan.deposits_direct(true) {
-                deposits.push((element, flux));
+                sink.on(element, flux);
             }
             let floor = flux.max_channel() * MIN_RELATIVE_FLUX;
             let (at, albedo) = arrive(view, &prec, ray.at(t_plane), w, normal, None)?;
             let bounce = Some(halton35(first_ray + j, bx, by));
             let s = Surface { at, albedo, material: prec.material, patch: erec.patch };
             scatter(view, &mut rng, &mut stack, &mut out.tally, s, bounce, flux, 0, 0, floor);
-            follow(view, scratch, &mut rng, &mut stack, &mut out.tally, &mut deposits)?;
+            follow(view, scratch, &mut rng, &mut stack, &mut out.tally, &mut sink)?;
         }
     }
+    let Sink::Binned(deposits) = sink else { unreachable!("a binned sink stays binned") };
     out.deposits = merged(deposits, header.energy_quantum);
     Ok(out)
 }
