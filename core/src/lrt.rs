@@ -249,7 +249,9 @@ fn trace_into(
     sink: &mut Sink,
 ) -> Result<LrtTally, BlockError> {
     let header = view.header.clone();
-    let l = &header.lights[light as usize];
+    let Some(l) = header.lights.get(light as usize) else {
+        return Err(BlockError::BadId { kind: "point light", id: light as u64, count: header.lights.len() as u64 });
+    };
     let plan = &header.plan;
     let mut tally = LrtTally::default();
     if !plan.lrt {
