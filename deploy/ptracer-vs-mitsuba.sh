@@ -18,7 +18,7 @@
 # a receiver's image keeps). Prints both renderers' relMSE against a converged reference
 # and their times, and for each magg row the time Mitsuba needs for the same error
 # (deploy/mitsuba/table.py). Mitsuba's time at a sample count is the mean over the
-# receivers' renders: each traces the same particles as one ptracer render of the scene.
+# receivers' renders: each emits as many particles as one ptracer render of the scene.
 #
 # Environment: PER_RECEIVER (0; 1: magg renders each receiver's scene too, see below),
 # SIZE (128), REF_SPP (4096: particles per pixel of the reference), SPPS
