@@ -48,7 +48,12 @@ tools ptracer-vs-mitsuba
 common=(--width "$size" --height "$size" --set 'render.ambient=[0,0,0]' "${extra[@]}")
 export MAGG_ALLOW_PATH=$(cd "$(dirname "$scene")" && pwd)
 python3 deploy/mitsuba/receivers.py "$scene" "$work/receivers" >"$work/receivers.json"
-mapfile -t materials < <(python3 -c 'import json,sys; [print(r["material"]) for r in json.load(open(sys.argv[1]))]' "$work/receivers.json")
+# Each receiver's material (which its export names) and shape (for the tables).
+materials=() shapes=()
+while IFS=$'\t' read -r material shape; do
+  materials+=("$material")
+  shapes+=("$shape")
+done < <(python3 -c 'import json,sys; [print(r["material"], r["shape"], sep="\t") for r in json.load(open(sys.argv[1]))]' "$work/receivers.json")
 count=${#materials[@]}
 for ((k = 0; k < count; k++)); do
   "$host" export --mitsuba "$work/receivers/receiver-$k.toml" --out "$work/r$k" "${common[@]}" >&2
@@ -111,7 +116,6 @@ pixels=$(for ((k = 0; k < count; k++)); do "$host" diff "$work/ref-r$k.exr" "$wo
 how="magg renders the scene"
 [[ ${PER_RECEIVER:-0} == 1 ]] && how="magg renders each receiver's scene, time per receiver"
 compare "scene $scene, $how, ${size}x${size} ($pixels pixels of $count receivers compared), extra args: ${extra[*]:-(none)}; reference Mitsuba ptracer $ref_spp spp ($ref_s s per receiver)" "ptracer (scalar_rgb)"
-mapfile -t shapes < <(python3 -c 'import json,sys; [print(r["shape"]) for r in json.load(open(sys.argv[1]))]' "$work/receivers.json")
 for q in "${qualities[@]}"; do
   echo "magg $q, per receiver (relMSE; light of the brightest and darkest pixels, deploy/mitsuba/regions.py):" >&2
   relmse "$work/magg-$q.pfm" detail >/dev/null

@@ -122,17 +122,15 @@ impl PilotPairs {
 /// `raw` with its deposits summed into one when they all fall on the same element
 /// itself, in generation order (as [`bin`] would sum them).
 fn compact(raw: RawPair) -> RawPair {
-    let Some(&RawDeposit::On(first, _)) = raw.deposits.first() else { return raw };
-    if !raw.deposits.iter().all(|d| matches!(d, RawDeposit::On(e, _) if *e == first)) {
-        return raw;
-    }
-    let mut sum: Option<Rgb> = None;
-    for d in &raw.deposits {
-        if let RawDeposit::On(_, f) = d {
-            sum = Some(sum.map_or(*f, |s| s.add(*f)));
+    let Some(&RawDeposit::On(first, f0)) = raw.deposits.first() else { return raw };
+    let mut sum = f0;
+    for d in &raw.deposits[1..] {
+        match *d {
+            RawDeposit::On(e, f) if e == first => sum = sum.add(f),
+            _ => return raw,
         }
     }
-    RawPair { deposits: sum.map(|s| RawDeposit::On(first, s)).into_iter().collect(), tally: raw.tally }
+    RawPair { deposits: vec![RawDeposit::On(first, sum)], tally: raw.tally }
 }
 
 /// Luminance-like weight of a colour (the channels' mean: no channel is preferred).
