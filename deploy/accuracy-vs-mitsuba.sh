@@ -8,9 +8,10 @@
 # Environment: SIZE (128: width = height), REF_SPP (4096), SPPS ("4 16 64 256": Mitsuba's
 # points), QUALITIES ("draft good final": magg's points), REPEATS (3: medians of times,
 # runs interleaved), MAX_DEPTH (Mitsuba's path depth; default the export's: vrt_depth + 2 +
-# diffuse_bounces), VARIANT (scalar_rgb; llvm_ad_rgb needs Debian libllvm19), WORK (a
-# temporary directory), MAGG_HOST (a built magg-host; default: cargo build --release),
-# REUSE_REF (1: keep WORK/ref.exr from an earlier run of the same scene and size).
+# diffuse_bounces), VARIANT (default llvm_ad_rgb where it works, with Debian libllvm19,
+# else scalar_rgb), WORK (a temporary directory), MAGG_HOST (a built magg-host; default:
+# cargo build --release), REUSE_REF (1: keep WORK/ref.exr from an earlier run of the same
+# scene and size).
 #
 # Like for like: the ambient term is set to 0 (a physically based renderer has none), and
 # the arguments after `--` go to both the export and magg's renders (e.g. `--set
@@ -31,9 +32,9 @@ ref_spp=${REF_SPP:-4096}
 spps=(${SPPS:-4 16 64 256})
 qualities=(${QUALITIES:-draft good final})
 repeats=${REPEATS:-3}
-variant=${VARIANT:-scalar_rgb}
 work=${WORK:-$(mktemp -d)}
 tools accuracy-vs-mitsuba
+choose_variant accuracy-vs-mitsuba
 common=(--width "$size" --height "$size" --set 'render.ambient=[0,0,0]' "${extra[@]}")
 "$host" export --mitsuba "$scene" --out "$work/mitsuba" "${common[@]}" >&2
 depth=()

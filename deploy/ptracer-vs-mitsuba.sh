@@ -20,11 +20,21 @@
 # (deploy/mitsuba/table.py). Mitsuba's time at a sample count is the mean over the
 # receivers' renders: each emits as many particles as one ptracer render of the scene.
 #
+# What the reference holds (REFERENCE): with `first` (the default when the scene, after
+# ARGS, has `diffuse_bounces = 0`), receiver k's BSDF is wrapped in `firstdiffuse`
+# (deploy/mitsuba/first_diffuse.py), so that a path ends at its diffuse bounce on the
+# receiver: like for like with magg's transport. With `receiver` (the default otherwise)
+# the receiver keeps reflecting, and its image also holds the light it sends back onto
+# itself through mirrors and glass, which magg carries only with a diffuse bounce.
+# Mitsuba runs as VARIANT, by default llvm_ad_rgb where it works (Debian libllvm19), else
+# scalar_rgb (`first` is slow there: its BSDF is Python, called at every scattering).
+#
 # Environment: PER_RECEIVER (0; 1: magg renders each receiver's scene too, see below),
 # SIZE (128), REF_SPP (4096: particles per pixel of the reference), SPPS
 # ("16 64 256"), QUALITIES ("draft good final"), REPEATS (3), WORK (a temporary
 # directory), REUSE_REF (1: keep the references and masks in WORK from an earlier run of
-# the same scene and size), MAGG_HOST (a built magg-host; default: cargo build --release).
+# the same scene, size, REF_SPP and REFERENCE), REFERENCE and VARIANT (above), MAGG_HOST
+# (a built magg-host; default: cargo build --release).
 #
 # A receiver's mask: its exported scene with the receiver made an area light of radiance 1
 # and the point lights removed, rendered by Mitsuba's path tracer at depth 1 (what the
@@ -45,6 +55,22 @@ qualities=(${QUALITIES:-draft good final})
 repeats=${REPEATS:-3}
 work=${WORK:-$(mktemp -d)}
 tools ptracer-vs-mitsuba
+# The diffuse bounces magg carries: the scene's, or the last `--set render.diffuse_bounces=N`.
+bounces=$(python3 - "$scene" "${extra[@]}" <<'PY'
+import sys, tomllib
+n = tomllib.load(open(sys.argv[1], "rb")).get("render", {}).get("diffuse_bounces", 0)
+for a in sys.argv[2:]:
+    if a.startswith("render.diffuse_bounces="):
+        n = int(a.split("=", 1)[1])
+print(n)
+PY
+)
+reference=${REFERENCE:-$([[ $bounces == 0 ]] && echo first || echo receiver)}
+[[ $reference == first || $reference == receiver ]] ||
+  { echo "ptracer-vs-mitsuba: REFERENCE is first or receiver, not $reference" >&2; exit 2; }
+choose_variant ptracer-vs-mitsuba
+[[ $reference == first && $variant == scalar_* ]] &&
+  echo "ptracer-vs-mitsuba: REFERENCE=first in $variant calls into Python at every scattering: slow" >&2
 common=(--width "$size" --height "$size" --set 'render.ambient=[0,0,0]' "${extra[@]}")
 export MAGG_ALLOW_PATH=$(cd "$(dirname "$scene")" && pwd)
 python3 deploy/mitsuba/receivers.py "$scene" "$work/receivers" >"$work/receivers.json"
@@ -57,10 +83,17 @@ done < <(python3 -c 'import json,sys; [print(r["material"], r["shape"], sep="\t"
 count=${#materials[@]}
 for ((k = 0; k < count; k++)); do
   "$host" export --mitsuba "$work/receivers/receiver-$k.toml" --out "$work/r$k" "${common[@]}" >&2
-  # The mask scene, beside the exported one (same meshes).
-  python3 - "$work/r$k/scene.xml" "$work/r$k/mask.xml" "${materials[k]}" <<'PY'
+  # The mask scene, beside the exported one (same meshes); with REFERENCE=first, the
+  # receiver's BSDF wrapped in `firstdiffuse`.
+  python3 - "$work/r$k/scene.xml" "$work/r$k/mask.xml" "${materials[k]}" "$reference" <<'PY'
 import re, sys
 xml = open(sys.argv[1]).read()
+if sys.argv[4] == "first":
+    start = xml.index(f'<!-- material "{sys.argv[3]}"')
+    end = xml.index("</shape>", start)
+    lo, hi = xml.index("<bsdf", start), xml.rindex("</bsdf>", start, end) + len("</bsdf>")
+    xml = xml[:lo] + '<bsdf type="firstdiffuse">' + xml[lo:hi] + "</bsdf>" + xml[hi:]
+    open(sys.argv[1], "w").write(xml)
 xml = re.sub(r'\s*<emitter type="(point|spot)">.*?</emitter>', "", xml, flags=re.S)
 head, sep, rest = xml.partition(f'<!-- material "{sys.argv[3]}"')
 if not sep:
@@ -82,7 +115,7 @@ if [[ ${PER_RECEIVER:-0} == 1 ]]; then
 fi
 mitsuba() { # dir xml integrator depth spp out seed -> seconds
   python3 deploy/mitsuba/render.py "$1" --scene "$2" --integrator "$3" --max-depth "$4" --spp "$5" \
-    --out "$6" --seed "$7" | python3 -c 'import json,sys; print(json.load(sys.stdin)["seconds"])'
+    --out "$6" --seed "$7" --variant "$variant" | python3 -c 'import json,sys; print(json.load(sys.stdin)["seconds"])'
 }
 # One ptracer render per receiver, OUT-r0.exr ...; prints the mean of their seconds.
 mitsuba_at() { # spp out seed -> seconds
@@ -103,19 +136,22 @@ relmse() { # file [detail]
   printf '%s\n' "${lines[@]}" | python3 deploy/mitsuba/weighted.py "$work/receivers.json" ${2:+--detail}
 }
 
-if [[ ${REUSE_REF:-0} == 1 && -f $work/ref-r$((count - 1)).exr && -f $work/mask-r$((count - 1)).exr ]]; then
+kind="$reference $ref_spp $size"
+if [[ ${REUSE_REF:-0} == 1 && -f $work/ref-r$((count - 1)).exr && -f $work/mask-r$((count - 1)).exr &&
+  $(cat "$work/ref-kind" 2>/dev/null) == "$kind" ]]; then
   ref_s="reused"
   echo "reference: reusing $work/ref-r*.exr and $work/mask-r*.exr" >&2
 else
   for ((k = 0; k < count; k++)); do mitsuba "$work/r$k" mask.xml path 1 256 "$work/mask-r$k.exr" 0 >/dev/null; done
-  echo "reference: Mitsuba ptracer, $ref_spp spp, ${size}x${size}, $count receivers" >&2
+  echo "reference: Mitsuba ptracer ($variant), $ref_spp spp, ${size}x${size}, $count receivers, REFERENCE=$reference" >&2
   ref_s=$(mitsuba_at "$ref_spp" "$work/ref.exr" 7)
+  echo "$kind" >"$work/ref-kind"
 fi
 pixels=$(for ((k = 0; k < count; k++)); do "$host" diff "$work/ref-r$k.exr" "$work/ref-r$k.exr" --mask "$work/mask-r$k.exr" --mask-above 0.999 --json |
   python3 -c 'import json,sys; print(json.load(sys.stdin)["pixels"])'; done | python3 -c 'import sys; print(sum(int(x) for x in sys.stdin))')
 how="magg renders the scene"
 [[ ${PER_RECEIVER:-0} == 1 ]] && how="magg renders each receiver's scene, time per receiver"
-compare "scene $scene, $how, ${size}x${size} ($pixels pixels of $count receivers compared), extra args: ${extra[*]:-(none)}; reference Mitsuba ptracer $ref_spp spp ($ref_s s per receiver)" "ptracer (scalar_rgb)"
+compare "scene $scene, $how, ${size}x${size} ($pixels pixels of $count receivers compared), extra args: ${extra[*]:-(none)}; reference Mitsuba ptracer $ref_spp spp ($ref_s s per receiver), REFERENCE=$reference" "ptracer ($variant)"
 for q in "${qualities[@]}"; do
   echo "magg $q, per receiver (relMSE; light of the brightest and darkest pixels, deploy/mitsuba/regions.py):" >&2
   relmse "$work/magg-$q.pfm" detail >/dev/null

@@ -18,6 +18,20 @@ tools() { # script name
   fi
 }
 
+# Sets variant to VARIANT, or else to Mitsuba's fastest CPU variant where its LLVM backend
+# works (Debian libllvm19: older LLVMs load but fail to compile its kernels), about twice
+# as fast as scalar_rgb, the fallback.
+choose_variant() { # script name
+  variant=${VARIANT:-}
+  [[ -n $variant ]] && return
+  if python3 -c 'import mitsuba as mi; mi.set_variant("llvm_ad_rgb"); mi.render(mi.load_dict(mi.cornell_box()), spp=1)' >/dev/null 2>&1; then
+    variant=llvm_ad_rgb
+  else
+    variant=scalar_rgb
+    echo "$1: Mitsuba's llvm_ad_rgb does not work here (apt install libllvm19); scalar_rgb, about half as fast" >&2
+  fi
+}
+
 # magg's wall time for one render of a scene at a quality (start-up and preprocessing
 # included); `magg` renders the caller's scene.
 magg_on() { # scene quality out -> seconds

@@ -7,7 +7,9 @@
 
 Prints one JSON line: {"spp", "seconds", "integrator", "variant", "out"}; the time is the
 render alone (scene loading excluded), measured around `mi.render`. `llvm_ad_rgb` needs
-LLVM (Debian `libllvm19`); `scalar_rgb` works as is. Used by deploy/accuracy-vs-mitsuba.sh.
+LLVM (Debian `libllvm19`); `scalar_rgb` works as is. Scenes may use the `firstdiffuse`
+BSDF (deploy/mitsuba/first_diffuse.py). Used by deploy/accuracy-vs-mitsuba.sh and
+deploy/ptracer-vs-mitsuba.sh.
 """
 import argparse
 import json
@@ -36,6 +38,8 @@ def main():
         mi.set_variant(a.variant)
     except Exception as e:  # the variant's backend (LLVM) may be missing
         sys.exit(f"cannot use Mitsuba variant {a.variant}: {e}")
+    sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+    import first_diffuse  # noqa: F401 (registers the `firstdiffuse` BSDF)
     if a.threads:
         mi.Thread.thread_count = a.threads  # noqa: best effort; older versions ignore it
     params = {"spp": str(a.spp)}
