@@ -24,7 +24,7 @@
 use crate::blocks::BlockError;
 use crate::color::Rgb;
 use crate::energy::{to_fixed, Fixed};
-use crate::geometry::{cosine_hemisphere, sample_spherical_triangle, solid_angle, triangle_normal, Ray};
+use crate::geometry::{cosine_hemisphere, solid_angle, triangle_normal, Ray, SphericalTriangle};
 use crate::rng::{halton35, hammersley, Rng};
 use crate::scatter::{arrive, offset_scale, Arrival, Dielectric};
 use crate::scene::Light;
@@ -289,10 +289,14 @@ fn trace_into(
     let per_ray = omega / n as f64;
     let mut stack: Vec<Pending> = Vec::new();
     let eps0 = offset_scale(l.position);
+    // Every ray of the pair leaves the light towards the same element.
+    let Some(seen) = SphericalTriangle::new(l.position, &tri) else {
+        return Ok(tally);
+    };
 
     for k in 0..n {
         let (u0, u1) = hammersley(k, n, sx, sy);
-        let Some(w) = sample_spherical_triangle(l.position, &tri, u0, u1) else {
+        let Some(w) = seen.sample(u0, u1) else {
             continue;
         };
         let flux = intensity_towards(l, w).scale(per_ray);

@@ -8,5 +8,5 @@ mod triangle;
 
 pub use aabb::{triangle_overlaps_box, Aabb};
 pub use ray::Ray;
-pub use sampling::{cosine_hemisphere, sample_spherical_triangle};
+pub use sampling::{cosine_hemisphere, sample_spherical_triangle, SphericalTriangle};
 pub use triangle::{intersect_watertight, solid_angle, triangle_area, triangle_normal, TriHit, WatertightRay};

@@ -23,48 +23,83 @@ fn gram_schmidt(v: DVec3, w: DVec3) -> DVec3 {
 /// A unit direction uniformly distributed over the solid angle the triangle `v`
 /// subtends from `p` (Arvo 1995, in the numerically careful form of pbrt-v4), for
 /// `(u0, u1)` in the unit square; stratified inputs give stratified directions.
-/// Returns `None` for degenerate configurations (zero solid angle).
+/// Returns `None` for degenerate configurations (zero solid angle). A caller drawing many
+/// directions towards one triangle from one point builds the [`SphericalTriangle`] once.
 pub fn sample_spherical_triangle(p: DVec3, v: &[DVec3; 3], u0: f64, u1: f64) -> Option<DVec3> {
-    let a = (v[0] - p).normalized();
-    let b = (v[1] - p).normalized();
-    let c = (v[2] - p).normalized();
-    let n_ab = a.cross(b);
-    let n_bc = b.cross(c);
-    let n_ca = c.cross(a);
-    if n_ab.length_squared() == 0.0 || n_bc.length_squared() == 0.0 || n_ca.length_squared() == 0.0 {
-        return None;
+    SphericalTriangle::new(p, v)?.sample(u0, u1)
+}
+
+/// The triangle `v` as seen from a point: what [`sample_spherical_triangle`] computes
+/// before it looks at `(u0, u1)` (three normalisations, three cross products, three
+/// arcsines and a sine and cosine), kept for every sample of a pair, whose light rays all
+/// leave one point towards one element. [`SphericalTriangle::sample`] then does the same
+/// operations on the same values as the one-shot function: the same bits.
+#[derive(Clone, Copy, Debug)]
+pub struct SphericalTriangle {
+    /// Unit directions to the first two corners.
+    a: DVec3,
+    b: DVec3,
+    /// The spherical triangle's area plus pi (the sum of its angles).
+    a_pi: f64,
+    sin_alpha: f64,
+    cos_alpha: f64,
+    /// `a . b`.
+    ab: f64,
+    /// The direction to the third corner, orthogonal to `a`, normalised.
+    c_perp: DVec3,
+}
+
+impl SphericalTriangle {
+    /// The triangle `v` seen from `p`; `None` when its solid angle is zero (or the
+    /// configuration degenerate).
+    pub fn new(p: DVec3, v: &[DVec3; 3]) -> Option<SphericalTriangle> {
+        let a = (v[0] - p).normalized();
+        let b = (v[1] - p).normalized();
+        let c = (v[2] - p).normalized();
+        let n_ab = a.cross(b);
+        let n_bc = b.cross(c);
+        let n_ca = c.cross(a);
+        if n_ab.length_squared() == 0.0 || n_bc.length_squared() == 0.0 || n_ca.length_squared() == 0.0 {
+            return None;
+        }
+        let (n_ab, n_bc, n_ca) = (n_ab.normalized(), n_bc.normalized(), n_ca.normalized());
+        let alpha = angle_between(n_ab, -n_ca);
+        let beta = angle_between(n_bc, -n_ab);
+        let gamma = angle_between(n_ca, -n_bc);
+        let a_pi = alpha + beta + gamma;
+        if !(a_pi > PI) {
+            return None;
+        }
+        let (sin_alpha, cos_alpha) = alpha.sin_cos();
+        Some(SphericalTriangle { a, b, a_pi, sin_alpha, cos_alpha, ab: a.dot(b), c_perp: gram_schmidt(c, a) })
     }
-    let (n_ab, n_bc, n_ca) = (n_ab.normalized(), n_bc.normalized(), n_ca.normalized());
-    let alpha = angle_between(n_ab, -n_ca);
-    let beta = angle_between(n_bc, -n_ab);
-    let gamma = angle_between(n_ca, -n_bc);
-    let a_pi = alpha + beta + gamma;
-    if !(a_pi > PI) {
-        return None;
-    }
-    // Sub-triangle area (plus pi) chosen by u0.
-    let ap_pi = PI + u0 * (a_pi - PI);
-    let (sin_alpha, cos_alpha) = alpha.sin_cos();
-    let sin_phi = ap_pi.sin() * cos_alpha - ap_pi.cos() * sin_alpha;
-    let cos_phi = ap_pi.cos() * cos_alpha + ap_pi.sin() * sin_alpha;
-    let k1 = cos_phi + cos_alpha;
-    let k2 = sin_phi - sin_alpha * a.dot(b);
-    let den = (k2 * sin_phi + k1 * cos_phi) * sin_alpha;
-    let mut cos_bp = if den != 0.0 { (k2 + (k2 * cos_phi - k1 * sin_phi) * cos_alpha) / den } else { 1.0 };
-    if !cos_bp.is_finite() {
-        cos_bp = 1.0;
-    }
-    let cos_bp = cos_bp.clamp(-1.0, 1.0);
-    let sin_bp = (1.0 - cos_bp * cos_bp).max(0.0).sqrt();
-    let cp = a * cos_bp + gram_schmidt(c, a) * sin_bp;
-    let cos_theta = 1.0 - u1 * (1.0 - cp.dot(b));
-    let sin_theta = (1.0 - cos_theta * cos_theta).max(0.0).sqrt();
-    let w = b * cos_theta + gram_schmidt(cp, b) * sin_theta;
-    let w = w.normalized();
-    if w.is_finite() && w.length_squared() > 0.5 {
-        Some(w)
-    } else {
-        None
+
+    /// The direction for `(u0, u1)` in the unit square (see [`sample_spherical_triangle`]).
+    pub fn sample(&self, u0: f64, u1: f64) -> Option<DVec3> {
+        let SphericalTriangle { a, b, a_pi, sin_alpha, cos_alpha, ab, c_perp } = *self;
+        // Sub-triangle area (plus pi) chosen by u0.
+        let ap_pi = PI + u0 * (a_pi - PI);
+        let sin_phi = ap_pi.sin() * cos_alpha - ap_pi.cos() * sin_alpha;
+        let cos_phi = ap_pi.cos() * cos_alpha + ap_pi.sin() * sin_alpha;
+        let k1 = cos_phi + cos_alpha;
+        let k2 = sin_phi - sin_alpha * ab;
+        let den = (k2 * sin_phi + k1 * cos_phi) * sin_alpha;
+        let mut cos_bp = if den != 0.0 { (k2 + (k2 * cos_phi - k1 * sin_phi) * cos_alpha) / den } else { 1.0 };
+        if !cos_bp.is_finite() {
+            cos_bp = 1.0;
+        }
+        let cos_bp = cos_bp.clamp(-1.0, 1.0);
+        let sin_bp = (1.0 - cos_bp * cos_bp).max(0.0).sqrt();
+        let cp = a * cos_bp + c_perp * sin_bp;
+        let cos_theta = 1.0 - u1 * (1.0 - cp.dot(b));
+        let sin_theta = (1.0 - cos_theta * cos_theta).max(0.0).sqrt();
+        let w = b * cos_theta + gram_schmidt(cp, b) * sin_theta;
+        let w = w.normalized();
+        if w.is_finite() && w.length_squared() > 0.5 {
+            Some(w)
+        } else {
+            None
+        }
     }
 }
 

@@ -21,7 +21,7 @@
 
 use super::{follow, merged, scatter, PairResult, Pending, Sink, Surface, MIN_RELATIVE_FLUX};
 use crate::blocks::{BlockError, NO_BACK};
-use crate::geometry::{sample_spherical_triangle, solid_angle, triangle_normal, Ray};
+use crate::geometry::{solid_angle, triangle_normal, Ray, SphericalTriangle};
 use crate::header::Emitter;
 use crate::rng::{halton35, hammersley, Rng};
 use crate::scatter::{arrive, offset_scale};
@@ -113,9 +113,13 @@ pub(super) fn trace_emitter_pair(
         }
         let per_ray = radiance_area.scale(omega / (points as f64 * m as f64));
         let eps0 = offset_scale(p);
+        // This point's rays all go towards the same element.
+        let Some(seen) = SphericalTriangle::new(p, &tri) else {
+            continue;
+        };
         for j in 0..m {
             let (w0, w1) = hammersley(j, m, tx, ty);
-            let Some(w) = sample_spherical_triangle(p, &tri, w0, w1) else {
+            let Some(w) = seen.sample(w0, w1) else {
                 continue;
             };
             let cos_e = en.dot(w);
