@@ -216,13 +216,20 @@ impl SceneView {
     /// BVH node `n` (node 0 is the root), read in place from its node block.
     #[inline]
     pub fn bvh_node(&mut self, n: u32) -> Result<BvhNodeLanes, BlockError> {
+        Ok(BvhNodeLanes::read(self.bvh_node_record(n)?))
+    }
+
+    /// The bytes of node `n`'s record, to be read in place (the traversal loads its
+    /// bounds straight into vector registers).
+    #[inline]
+    pub fn bvh_node_record(&mut self, n: u32) -> Result<&[u8; BVH_NODE_RECORD], BlockError> {
         let bvh = self.header.bvh;
         if n >= bvh.nodes {
             return Err(BlockError::BadId { kind: "BVH node", id: n as u64, count: bvh.nodes as u64 });
         }
         let b = self.header.layout.bvh_base + (n >> BVH_NODE_SHIFT);
         let at = (n & ((1 << BVH_NODE_SHIFT) - 1)) as usize * BVH_NODE_RECORD;
-        Ok(BvhNodeLanes::read(node_record(self.cache.get(b)?, at)))
+        Ok(node_record(self.cache.get(b)?, at))
     }
 
     /// The bytes of the `count` leaf-triangle records from address `first` (all in one

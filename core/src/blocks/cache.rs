@@ -218,67 +218,82 @@ impl BlockCache {
     }
 
     /// Block `id`, from the cache or fetched from the source (evicting the least
-    /// recently used block when full). A hit hashes nothing and divides nothing.
-    #[inline]
+    /// recently used block when full). A hit hashes nothing and divides nothing, and is
+    /// inlined into the caller: the miss path is a call of its own.
+    #[inline(always)]
     pub fn get(&mut self, id: u32) -> Result<&Block, BlockError> {
+        let i = id as usize;
+        let hit = match &self.slots {
+            Slots::Bounded(lru) => lru.slot(id).is_some(),
+            Slots::Unlimited { table, .. } => matches!(table.get(i), Some(Some(_))),
+        };
+        if hit {
+            self.stats.hits += 1;
+        } else {
+            self.fetch_missing(id)?;
+        }
+        // The block is cached now (a miss has just stored it).
+        match &mut self.slots {
+            Slots::Bounded(lru) => match lru.slot(id) {
+                Some(s) => {
+                    lru.touch(s);
+                    Ok(&*lru.blocks[s as usize])
+                }
+                None => Err(BlockError::Unavailable { id, reason: "cache lost a block it just stored".into() }),
+            },
+            Slots::Unlimited { table, .. } => match table.get(i) {
+                Some(Some(b)) => Ok(&**b),
+                _ => Err(BlockError::Unavailable { id, reason: "cache lost a block it just stored".into() }),
+            },
+        }
+    }
+
+    /// Fetches block `id`, which is not cached, and stores it: with a bounded cache in
+    /// the least recently used slot (as the most recently used block), with an unlimited
+    /// one together with the prefetch window's uncached blocks.
+    #[cold]
+    #[inline(never)]
+    fn fetch_missing(&mut self, id: u32) -> Result<(), BlockError> {
         match &mut self.slots {
             Slots::Bounded(lru) => {
-                let s = match lru.slot(id) {
-                    Some(s) => {
-                        self.stats.hits += 1;
-                        lru.touch(s);
-                        s
-                    }
-                    None => {
-                        self.stats.misses += 1;
-                        self.stats.remote_misses += (fork_of_block(id, self.home.1) != self.home.0) as u64;
-                        let s = lru.take_slot();
-                        if let Err(e) = self.source.fetch(id, &mut lru.blocks[s as usize]) {
-                            lru.free.push(s);
-                            return Err(e);
-                        }
-                        lru.bind(s, id);
-                        s
-                    }
-                };
-                Ok(&*lru.blocks[s as usize])
+                self.stats.misses += 1;
+                self.stats.remote_misses += (fork_of_block(id, self.home.1) != self.home.0) as u64;
+                let s = lru.take_slot();
+                if let Err(e) = self.source.fetch(id, &mut lru.blocks[s as usize]) {
+                    lru.free.push(s);
+                    return Err(e);
+                }
+                lru.bind(s, id);
+                Ok(())
             }
             Slots::Unlimited { table, held } => {
-                let i = id as usize;
-                if table.get(i).is_some_and(|s| s.is_some()) {
-                    self.stats.hits += 1;
-                } else {
-                    // The missed block and the uncached ones after it, up to the window,
-                    // within the same kind of block.
-                    let (window, stride) = (self.prefetch.0 as usize, self.prefetch.1);
-                    let limit = self.prefetch.2.iter().copied().filter(|&b| b > id).min().unwrap_or(u32::MAX);
-                    let mut ids = vec![id];
-                    let mut next = id.saturating_add(stride);
-                    while ids.len() < window && next < limit {
-                        if !table.get(next as usize).is_some_and(|s| s.is_some()) {
-                            ids.push(next);
-                        }
-                        next = next.saturating_add(stride);
+                // The missed block and the uncached ones after it, up to the window,
+                // within the same kind of block.
+                let (window, stride) = (self.prefetch.0 as usize, self.prefetch.1);
+                let limit = self.prefetch.2.iter().copied().filter(|&b| b > id).min().unwrap_or(u32::MAX);
+                let mut ids = vec![id];
+                let mut next = id.saturating_add(stride);
+                while ids.len() < window && next < limit {
+                    if !table.get(next as usize).is_some_and(|s| s.is_some()) {
+                        ids.push(next);
                     }
-                    let mut bufs: Vec<Box<Block>> = ids.iter().map(|_| Box::new([0u8; BLOCK_SIZE])).collect();
-                    self.source.fetch_batch(&ids, &mut bufs)?;
-                    self.stats.misses += 1;
-                    self.stats.remote_misses += (fork_of_block(id, self.home.1) != self.home.0) as u64;
-                    self.stats.prefetched += ids.len() as u64 - 1;
-                    for (b, buf) in ids.iter().zip(bufs) {
-                        let k = *b as usize;
-                        if table.len() <= k {
-                            table.resize_with(k + 1, || None);
-                        }
-                        if table[k].replace(buf).is_none() {
-                            *held += 1;
-                        }
+                    next = next.saturating_add(stride);
+                }
+                let mut bufs: Vec<Box<Block>> = ids.iter().map(|_| Box::new([0u8; BLOCK_SIZE])).collect();
+                self.source.fetch_batch(&ids, &mut bufs)?;
+                self.stats.misses += 1;
+                self.stats.remote_misses += (fork_of_block(id, self.home.1) != self.home.0) as u64;
+                self.stats.prefetched += ids.len() as u64 - 1;
+                for (b, buf) in ids.iter().zip(bufs) {
+                    let k = *b as usize;
+                    if table.len() <= k {
+                        table.resize_with(k + 1, || None);
+                    }
+                    if table[k].replace(buf).is_none() {
+                        *held += 1;
                     }
                 }
-                match table.get(i) {
-                    Some(Some(b)) => Ok(&**b),
-                    _ => Err(BlockError::Unavailable { id, reason: "cache lost a block it just stored".into() }),
-                }
+                Ok(())
             }
         }
     }
