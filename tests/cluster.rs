@@ -172,10 +172,28 @@ fn separate_processes_on_localhost_give_the_same_bits_and_slow_nodes_are_redivid
     }
 }
 
+/// The first of `n` consecutive ports on 127.0.0.1 that are free now, below the range
+/// the system hands out for port 0 (32768 and up on Linux), so that no other test's
+/// listener, bound to port 0 while this one runs, can take one of them: a run of ports
+/// chosen from `free_port()` could collide with one (the host then fails to bind).
+fn free_port_run(n: u16) -> u16 {
+    let seed = std::process::id() as u64
+        ^ std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map_or(0, |d| d.subsec_nanos() as u64);
+    for attempt in 0..200u64 {
+        let base = 20_000
+            + ((seed.wrapping_mul(6364136223846793005).wrapping_add(attempt * 1442695040888963407) >> 33) % 12_000)
+                as u16;
+        if (0..n).all(|k| std::net::TcpListener::bind(("127.0.0.1", base + k)).is_ok()) {
+            return base;
+        }
+    }
+    panic!("no run of {n} free ports between 20000 and 32000 on 127.0.0.1");
+}
+
 #[test]
 fn local_cluster_script_renders_and_leaves_no_process_behind() {
     let dir = tempfile::tempdir().unwrap();
-    let base_port = free_port().saturating_sub(20).max(20000);
+    let base_port = free_port_run(3);
     let bin_dir = magg_bin("magg-fork").parent().unwrap().to_path_buf();
     let out_png = dir.path().join("script.png");
     let out = Command::new("bash")
