@@ -89,7 +89,9 @@ for ((k = 0; k < count; k++)); do
 import re, sys
 xml = open(sys.argv[1]).read()
 if sys.argv[4] == "first":
-    start = xml.index(f'<!-- material "{sys.argv[3]}"')
+    start = xml.find(f'<!-- material "{sys.argv[3]}"')
+    if start < 0:
+        sys.exit(f"ptracer-vs-mitsuba: the export has no material named {sys.argv[3]}")
     end = xml.index("</shape>", start)
     lo, hi = xml.index("<bsdf", start), xml.rindex("</bsdf>", start, end) + len("</bsdf>")
     xml = xml[:lo] + '<bsdf type="firstdiffuse">' + xml[lo:hi] + "</bsdf>" + xml[hi:]

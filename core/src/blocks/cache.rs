@@ -233,18 +233,14 @@ impl BlockCache {
             self.fetch_missing(id)?;
         }
         // The block is cached now (a miss has just stored it).
+        let lost = || BlockError::Unavailable { id, reason: "cache lost a block it just stored".into() };
         match &mut self.slots {
-            Slots::Bounded(lru) => match lru.slot(id) {
-                Some(s) => {
-                    lru.touch(s);
-                    Ok(&*lru.blocks[s as usize])
-                }
-                None => Err(BlockError::Unavailable { id, reason: "cache lost a block it just stored".into() }),
-            },
-            Slots::Unlimited { table, .. } => match table.get(i) {
-                Some(Some(b)) => Ok(&**b),
-                _ => Err(BlockError::Unavailable { id, reason: "cache lost a block it just stored".into() }),
-            },
+            Slots::Bounded(lru) => {
+                let s = lru.slot(id).ok_or_else(lost)?;
+                lru.touch(s);
+                Ok(&*lru.blocks[s as usize])
+            }
+            Slots::Unlimited { table, .. } => table.get(i).and_then(|b| b.as_deref()).ok_or_else(lost),
         }
     }
 
