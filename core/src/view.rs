@@ -3,8 +3,7 @@
 //! hit ratio is the real one.
 
 use crate::blocks::bvh::{
-    node_record, BvhNodeLanes, BVH_NODE_RECORD, BVH_NODE_SHIFT, BVH_TRIANGLES_PER_BLOCK, BVH_TRIANGLE_RECORD,
-    BVH_TRIANGLE_SHIFT,
+    node_record, BVH_NODE_RECORD, BVH_NODE_SHIFT, BVH_TRIANGLES_PER_BLOCK, BVH_TRIANGLE_RECORD, BVH_TRIANGLE_SHIFT,
 };
 use crate::blocks::*;
 use crate::color::Rgb;
@@ -213,14 +212,9 @@ impl SceneView {
         Ok(decode_vertex_energy(self.cache.get(b)?, at))
     }
 
-    /// BVH node `n` (node 0 is the root), read in place from its node block.
-    #[inline]
-    pub fn bvh_node(&mut self, n: u32) -> Result<BvhNodeLanes, BlockError> {
-        Ok(BvhNodeLanes::read(self.bvh_node_record(n)?))
-    }
-
-    /// The bytes of node `n`'s record, to be read in place (the traversal loads its
-    /// bounds straight into vector registers).
+    /// The bytes of BVH node `n`'s record (node 0 is the root), to be read in place (the
+    /// traversal loads its bounds straight into vector registers;
+    /// [`crate::blocks::bvh::BvhNodeLanes::read`] decodes it).
     #[inline]
     pub fn bvh_node_record(&mut self, n: u32) -> Result<&[u8; BVH_NODE_RECORD], BlockError> {
         let bvh = self.header.bvh;
