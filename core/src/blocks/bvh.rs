@@ -145,6 +145,14 @@ impl BvhTriangle {
         put_u32(b, at + 72, self.patch);
     }
 
+    /// The corner bytes (nine f64, as [`crate::geometry::WatertightRay::intersect_record`]
+    /// reads them) and the patch id of one record, read in place.
+    #[inline]
+    pub fn parts(record: &[u8]) -> (&[u8; 72], u32) {
+        let corners = record.get(..72).and_then(|c| c.try_into().ok()).unwrap_or(&[0; 72]);
+        (corners, get_u32(record, 72))
+    }
+
     /// Reads the record at byte offset `at` of `b` (a block or a slice of one).
     #[inline]
     pub fn decode(b: &[u8], at: usize) -> BvhTriangle {

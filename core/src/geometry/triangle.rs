@@ -28,12 +28,16 @@ pub fn intersect_watertight(ray: &Ray, v: &[DVec3; 3], tmin: f64, tmax: f64) -> 
 /// The per-ray part of [`intersect_watertight`] (axis permutation and shear), computed
 /// once for a ray tested against many triangles. `WatertightRay::new(ray)?.intersect(..)`
 /// is `intersect_watertight`, the same operations in the same order: the same bits.
+///
+/// The test reads only the permuted components of each corner (`x` along `kx`, ...), so
+/// it can read them straight from a record's bytes ([`WatertightRay::intersect_record`])
+/// without decoding the corners first.
 #[derive(Clone, Copy, Debug)]
 pub struct WatertightRay {
-    origin: DVec3,
-    kx: usize,
-    ky: usize,
-    kz: usize,
+    /// The origin's components along `kx`, `ky`, `kz`.
+    origin: [f64; 3],
+    /// The axes that become x, y and z (each 0, 1 or 2).
+    k: [usize; 3],
     sx: f64,
     sy: f64,
     sz: f64,
@@ -62,22 +66,56 @@ impl WatertightRay {
         if dz == 0.0 || !dz.is_finite() {
             return None; // zero or non-finite direction
         }
-        Some(WatertightRay { origin: ray.origin, kx, ky, kz, sx: d[kx] / dz, sy: d[ky] / dz, sz: 1.0 / dz })
+        let o = ray.origin;
+        Some(WatertightRay {
+            origin: [o[kx], o[ky], o[kz]],
+            k: [kx, ky, kz],
+            sx: d[kx] / dz,
+            sy: d[ky] / dz,
+            sz: 1.0 / dz,
+        })
     }
 
     /// The hit of triangle `v` with `tmin < t < tmax`, as [`intersect_watertight`].
     #[inline]
     pub fn intersect(&self, v: &[DVec3; 3], tmin: f64, tmax: f64) -> Option<TriHit> {
-        let WatertightRay { origin, kx, ky, kz, sx, sy, sz } = *self;
-        let a = v[0] - origin;
-        let b = v[1] - origin;
-        let c = v[2] - origin;
-        let ax = a[kx] - sx * a[kz];
-        let ay = a[ky] - sy * a[kz];
-        let bx = b[kx] - sx * b[kz];
-        let by = b[ky] - sy * b[kz];
-        let cx = c[kx] - sx * c[kz];
-        let cy = c[ky] - sy * c[kz];
+        let [kx, ky, kz] = self.k;
+        let p = v.map(|c| {
+            let c = c.to_array();
+            [c[kx], c[ky], c[kz]]
+        });
+        self.intersect_permuted(&p, tmin, tmax)
+    }
+
+    /// [`WatertightRay::intersect`] on corners stored as nine little-endian f64 (corner 0's
+    /// x, y, z, then corner 1's, corner 2's) at the start of `record`, as patch and leaf
+    /// triangle records hold them: the same bits, without decoding the corners.
+    #[inline]
+    pub fn intersect_record(&self, record: &[u8; 72], tmin: f64, tmax: f64) -> Option<TriHit> {
+        // `k & 3` is at most 3, so every offset read lies in the 72 bytes (the compiler
+        // sees it and checks nothing); `k` is 0, 1 or 2, so the mask changes nothing.
+        let at = |corner: usize, k: usize| {
+            let o = 24 * corner + 8 * (k & 3);
+            let bytes: [u8; 8] = record[o.min(64)..o.min(64) + 8].try_into().unwrap_or([0; 8]);
+            f64::from_le_bytes(bytes)
+        };
+        let [kx, ky, kz] = self.k;
+        let p = [0, 1, 2].map(|c| [at(c, kx), at(c, ky), at(c, kz)]);
+        self.intersect_permuted(&p, tmin, tmax)
+    }
+
+    /// The test on each corner's components along `kx`, `ky`, `kz`.
+    #[inline(always)]
+    fn intersect_permuted(&self, p: &[[f64; 3]; 3], tmin: f64, tmax: f64) -> Option<TriHit> {
+        let WatertightRay { origin: o, sx, sy, sz, .. } = *self;
+        let rel = |c: &[f64; 3]| [c[0] - o[0], c[1] - o[1], c[2] - o[2]];
+        let (a, b, c) = (rel(&p[0]), rel(&p[1]), rel(&p[2]));
+        let ax = a[0] - sx * a[2];
+        let ay = a[1] - sy * a[2];
+        let bx = b[0] - sx * b[2];
+        let by = b[1] - sy * b[2];
+        let cx = c[0] - sx * c[2];
+        let cy = c[1] - sy * c[2];
 
         let u = cx * by - cy * bx;
         let vv = ax * cy - ay * cx;
@@ -89,9 +127,9 @@ impl WatertightRay {
         if det == 0.0 || !det.is_finite() {
             return None;
         }
-        let az = sz * a[kz];
-        let bz = sz * b[kz];
-        let cz = sz * c[kz];
+        let az = sz * a[2];
+        let bz = sz * b[2];
+        let cz = sz * c[2];
         let t_scaled = u * az + vv * bz + w * cz;
         let t = t_scaled / det;
         if !(t > tmin && t < tmax) {
@@ -142,6 +180,37 @@ pub fn solid_angle(p: DVec3, v: &[DVec3; 3]) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Reading the corners in place from a record gives the bits of the decoded test,
+    /// on random and awkward triangles and rays (shared edges, axis-parallel rays).
+    #[test]
+    fn the_test_on_record_bytes_gives_the_decoded_bits() {
+        let mut rng = crate::rng::Rng::from_words(&[19, 0x7e57]);
+        let c = |rng: &mut crate::rng::Rng| match (rng.next_f64() * 6.0) as u32 {
+            0 => 0.0,
+            1 => 1.0,
+            _ => (rng.next_f64() - 0.5) * 8.0,
+        };
+        let mut hits = 0;
+        for case in 0..20_000 {
+            let v = [0, 1, 2].map(|_| DVec3::new(c(&mut rng), c(&mut rng), c(&mut rng)));
+            let mut d = DVec3::new(rng.next_f64() - 0.5, rng.next_f64() - 0.5, rng.next_f64() - 0.5);
+            if case % 4 == 0 {
+                d[case % 3] = 0.0;
+            }
+            let ray = Ray::new(DVec3::new(c(&mut rng), c(&mut rng), c(&mut rng)), d.normalize());
+            let mut record = [0u8; 72];
+            for (i, x) in v.iter().flat_map(|p| p.to_array()).enumerate() {
+                record[8 * i..8 * i + 8].copy_from_slice(&x.to_le_bytes());
+            }
+            let Some(w) = WatertightRay::new(&ray) else { continue };
+            let bits = |h: Option<TriHit>| h.map(|h| (h.t.to_bits(), h.bary.map(f64::to_bits)));
+            let (a, b) = (w.intersect(&v, 1e-9, f64::INFINITY), w.intersect_record(&record, 1e-9, f64::INFINITY));
+            assert_eq!(bits(a), bits(b), "case {case}: {v:?} {ray:?}");
+            hits += a.is_some() as u32;
+        }
+        assert!(hits > 500, "too few hits to compare: {hits}");
+    }
 
     fn tri() -> [DVec3; 3] {
         [DVec3::new(0.0, 0.0, 0.0), DVec3::new(1.0, 0.0, 0.0), DVec3::new(0.0, 1.0, 0.0)]

@@ -13,7 +13,7 @@
 //! can only enter more boxes, never fewer.
 
 use super::{Hit, Query, TraceScratch};
-use crate::blocks::bvh::{BvhNodeLanes, BvhTriangle, BVH_NODE_RECORD, BVH_NO_CHILD, BVH_TRIANGLE_RECORD, BVH_WIDTH};
+use crate::blocks::bvh::{BvhNodeLanes, BvhTriangle, BVH_NODE_RECORD, BVH_NODE_SHIFT, BVH_TRIANGLE_RECORD, BVH_WIDTH};
 use crate::blocks::BlockError;
 use crate::view::SceneView;
 
@@ -77,11 +77,15 @@ impl SlabRay {
         let (slack, t1) = (_mm_set1_pd(FAR_SLACK), _mm_set1_pd(t1));
         let far01 = _mm_min_pd(_mm_mul_pd(far01, slack), t1);
         let far23 = _mm_min_pd(_mm_mul_pd(far23, slack), t1);
-        let inside = _mm_movemask_pd(_mm_cmple_pd(near01, far01)) | (_mm_movemask_pd(_mm_cmple_pd(near23, far23)) << 2);
+        // Entered within the interval, and not only at infinity.
+        let inf = _mm_set1_pd(f64::INFINITY);
+        let in01 = _mm_and_pd(_mm_cmple_pd(near01, far01), _mm_cmplt_pd(near01, inf));
+        let in23 = _mm_and_pd(_mm_cmple_pd(near23, far23), _mm_cmplt_pd(near23, inf));
+        let mask = _mm_movemask_pd(in01) | (_mm_movemask_pd(in23) << 2);
         let lanes = |v: __m128d| [_mm_cvtsd_f64(v), _mm_cvtsd_f64(_mm_unpackhi_pd(v, v))];
         let [n0, n1] = lanes(near01);
         let [n2, n3] = lanes(near23);
-        Entered::new(record, [n0, n1, n2, n3], inside as u32)
+        Entered { near: [n0, n1, n2, n3], mask: mask as u32 }
     }
 
     /// [`SlabRay::enter`] one lane at a time (other processors; the SSE2 version's
@@ -106,12 +110,12 @@ impl SlabRay {
                 far[k] = if tf < far[k] { tf } else { far[k] };
             }
         }
-        let inside = (0..BVH_WIDTH).fold(0, |m, k| {
+        let mask = (0..BVH_WIDTH).fold(0, |m, k| {
             let f = far[k] * FAR_SLACK;
             let f = if f < t1 { f } else { t1 };
-            m | ((near[k] <= f) as u32) << k
+            m | ((near[k] <= f && near[k] < f64::INFINITY) as u32) << k
         });
-        Entered::new(record, near, inside)
+        Entered { near, mask }
     }
 
     /// [`SlabRay::enter`] on processors without SSE2 code here.
@@ -127,20 +131,11 @@ impl SlabRay {
 struct Entered {
     /// Distance at which the ray enters each child's box (meaningful for those entered).
     near: [f64; BVH_WIDTH],
-    /// Bit k set when the ray enters child k's box within the interval and child k exists.
+    /// Bit k set when the ray enters child k's box within the interval, at a finite
+    /// distance. An absent child's box is empty (`lo` = +inf, `hi` = -inf), which every
+    /// ray enters at +inf, so its bit is never set; a ray parallel to a slab and outside
+    /// it enters at +inf too.
     mask: u32,
-}
-
-impl Entered {
-    /// The children of `record` whose box the ray is `inside` (bit k for child k), less
-    /// the absent ones and those entered only at infinity (a ray parallel to a slab and
-    /// outside it, with no end).
-    #[inline]
-    fn new(record: &[u8; BVH_NODE_RECORD], near: [f64; BVH_WIDTH], inside: u32) -> Entered {
-        let usable = (0..BVH_WIDTH)
-            .fold(0, |m, k| m | ((child_index(record, k) != BVH_NO_CHILD && near[k] < f64::INFINITY) as u32) << k);
-        Entered { near, mask: inside & usable }
-    }
 }
 
 /// [`super::cast`] through the BVH.
@@ -169,13 +164,14 @@ pub(super) fn cast(view: &mut SceneView, scratch: &mut TraceScratch, q: &Query) 
                 Ok(l) => l,
                 Err(e) => break Err(e),
             };
-            for k in 0..count as usize {
-                let tri = BvhTriangle::decode(leaf, k * BVH_TRIANGLE_RECORD);
-                if tri.patch == q.exclude {
+            // Each record read in place: the corners by the test, the patch id here.
+            for record in leaf.chunks_exact(BVH_TRIANGLE_RECORD) {
+                let (corners, patch) = BvhTriangle::parts(record);
+                if patch == q.exclude {
                     continue;
                 }
                 tests += 1;
-                if q.test(&tri.v, tri.patch, q.tmax, &mut best) && q.any {
+                if q.test_record(corners, patch, q.tmax, &mut best) && q.any {
                     break 'walk Ok(best);
                 }
             }
@@ -239,14 +235,14 @@ fn child_count(record: &[u8; BVH_NODE_RECORD], k: usize) -> u32 {
 
 /// The error for a node record that points back up the tree.
 fn corrupt(bvh_base: u32, index: u32) -> BlockError {
-    let id = bvh_base + (index >> crate::blocks::bvh::BVH_NODE_SHIFT);
+    let id = bvh_base + (index >> BVH_NODE_SHIFT);
     BlockError::Unavailable { id, reason: "corrupt BVH node block".into() }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::blocks::bvh::BvhNode;
+    use crate::blocks::bvh::{BvhNode, BVH_NO_CHILD};
     use crate::rng::Rng;
 
     /// The SSE2 slab test answers as the scalar one, bit for bit, on random boxes and

@@ -12,7 +12,7 @@ mod bvh;
 mod grid;
 
 use crate::blocks::BlockError;
-use crate::geometry::{Ray, WatertightRay};
+use crate::geometry::{Ray, TriHit, WatertightRay};
 use crate::scene::Accel;
 use crate::view::SceneView;
 use glam::DVec3;
@@ -104,7 +104,23 @@ impl Query<'_> {
     fn test(&self, v: &[DVec3; 3], pid: u32, limit: f64, best: &mut Option<Hit>) -> bool {
         let bound = best.map_or(limit, |b| b.t);
         // Allow equal distance so that ties can go to the lower id.
-        let Some(h) = self.wray.intersect(v, self.tmin, bound.next_up_or(bound)) else {
+        let hit = self.wray.intersect(v, self.tmin, bound.next_up_or(bound));
+        Self::keep(hit, pid, best)
+    }
+
+    /// [`Query::test`] on corners read in place from a record's first 72 bytes (see
+    /// [`WatertightRay::intersect_record`]): the same bits.
+    #[inline]
+    fn test_record(&self, record: &[u8; 72], pid: u32, limit: f64, best: &mut Option<Hit>) -> bool {
+        let bound = best.map_or(limit, |b| b.t);
+        let hit = self.wray.intersect_record(record, self.tmin, bound.next_up_or(bound));
+        Self::keep(hit, pid, best)
+    }
+
+    /// Keeps `hit` of patch `pid` when it is nearer than `best`, or as near with a lower id.
+    #[inline(always)]
+    fn keep(hit: Option<TriHit>, pid: u32, best: &mut Option<Hit>) -> bool {
+        let Some(h) = hit else {
             return false;
         };
         let better = match best {
