@@ -85,25 +85,10 @@ for ((k = 0; k < count; k++)); do
   "$host" export --mitsuba "$work/receivers/receiver-$k.toml" --out "$work/r$k" "${common[@]}" >&2
   # The mask scene, beside the exported one (same meshes); with REFERENCE=first, the
   # receiver's BSDF wrapped in `firstdiffuse`.
-  python3 - "$work/r$k/scene.xml" "$work/r$k/mask.xml" "${materials[k]}" "$reference" <<'PY'
-import re, sys
-xml = open(sys.argv[1]).read()
-if sys.argv[4] == "first":
-    start = xml.find(f'<!-- material "{sys.argv[3]}"')
-    if start < 0:
-        sys.exit(f"ptracer-vs-mitsuba: the export has no material named {sys.argv[3]}")
-    end = xml.index("</shape>", start)
-    lo, hi = xml.index("<bsdf", start), xml.rindex("</bsdf>", start, end) + len("</bsdf>")
-    xml = xml[:lo] + '<bsdf type="firstdiffuse">' + xml[lo:hi] + "</bsdf>" + xml[hi:]
-    open(sys.argv[1], "w").write(xml)
-xml = re.sub(r'\s*<emitter type="(point|spot)">.*?</emitter>', "", xml, flags=re.S)
-head, sep, rest = xml.partition(f'<!-- material "{sys.argv[3]}"')
-if not sep:
-    sys.exit(f"ptracer-vs-mitsuba: the export has no material named {sys.argv[3]}")
-shape_end = rest.index("</shape>")
-rest = rest[:shape_end] + '<emitter type="area"><rgb name="radiance" value="1, 1, 1"/></emitter>\n  ' + rest[shape_end:]
-open(sys.argv[2], "w").write(head + sep + rest)
-PY
+  if [[ $reference == first ]]; then
+    python3 deploy/mitsuba/scene_xml.py first "$work/r$k/scene.xml" "${materials[k]}"
+  fi
+  python3 deploy/mitsuba/scene_xml.py mask "$work/r$k/scene.xml" "${materials[k]}" "$work/r$k/mask.xml"
 done
 # With PER_RECEIVER=1, magg renders each receiver's scene as Mitsuba does, OUT-r0.pfm ...,
 # and its time is their mean (add `-- --set render.diffuse_bounces=1` for the light a
