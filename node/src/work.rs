@@ -37,10 +37,32 @@ pub const MAX_WAIT_MS: u32 = 1000;
 /// Longest time a node keeps finished rows before sending them to the host.
 pub const ROW_REPORT: Duration = Duration::from_millis(5);
 
-/// Pairs asked for per request (batched hand-out, `--scheme magg` in docs/ARCHITECTURE.md; the
-/// fork may hand out fewer, see `magg_fork::state::pairs::guided_batch`). The paper's scheme
-/// asks for one pair per request.
+/// Pairs asked for in the first request (batched hand-out, `--scheme magg` in
+/// docs/ARCHITECTURE.md; the fork may hand out fewer, see
+/// `magg_fork::state::pairs::guided_batch`). Later requests ask for
+/// [`next_pair_batch`] pairs. The paper's scheme asks for one pair per request.
 pub const PAIR_BATCH: u32 = 64;
+
+/// Most pairs asked for in one request: cheap pairs (a target that neither mirrors nor
+/// bounces light has nothing to trace when direct light is computed at VRT) come in
+/// batches this large, so that a request and a deposit per fork are not paid every 64.
+pub const MAX_PAIR_BATCH: u32 = 1024;
+
+/// Element deposits a batch's pairs are expected to make, at most (a quarter of what a
+/// fork accepts in one deposit request, `magg_fork::shard::MAX_DEPOSITS`).
+pub const BATCH_DEPOSITS: u64 = 1 << 18;
+
+/// Pairs to ask for next, from the deposits the node's pairs have made so far (`pairs`
+/// traced, `deposits` made): as many as keep a batch's expected deposits within
+/// [`BATCH_DEPOSITS`], between [`PAIR_BATCH`] and [`MAX_PAIR_BATCH`]. The batch size
+/// changes when pairs are handed out and deposited, never what they deposit.
+pub fn next_pair_batch(pairs: u64, deposits: u64) -> u32 {
+    if pairs == 0 {
+        return PAIR_BATCH;
+    }
+    let per_pair = deposits.div_ceil(pairs).max(1);
+    (BATCH_DEPOSITS / per_pair).clamp(PAIR_BATCH as u64, MAX_PAIR_BATCH as u64) as u32
+}
 
 /// Batches whose deposits may still be on their way while the next batch is traced.
 pub const DEPOSITS_IN_FLIGHT: usize = 2;
@@ -198,12 +220,14 @@ impl Worker {
         let elements = h.counts.elements as u64;
         let total = h.pair_count();
         let mut scratch = TraceScratch::default();
-        let max = if self.scheme == Scheme::Paper { 1 } else { PAIR_BATCH };
+        let paper = self.scheme == Scheme::Paper;
+        // Pairs traced and deposits made so far, for the size of the next request.
+        let (mut traced, mut deposited) = (0u64, 0u64);
         let pace = self.pace.clone();
         // Lost answers are harmless: pairs handed out and never traced go back to the
         // queue when their lease expires.
         let (backoff, secret) = (self.backoff, self.secret);
-        let take = move |home: ForkClient<Authed>, node: u32| {
+        let take = move |home: ForkClient<Authed>, node: u32, max: u32| {
             let pace = pace.clone();
             async move {
                 let req = TakePairsRequest { max, node, node_secret: secret };
@@ -224,8 +248,9 @@ impl Worker {
         let mut in_flight: VecDeque<JoinHandle<Result<(), NodeError>>> = VecDeque::new();
         // The next batch's request: already on its way when overlapping, else made when
         // this batch is done.
-        let ask = |w: &Self| w.overlap.then(|| w.rt.spawn(take(w.forks[w.home].clone(), w.node)));
-        let mut next = ask(self);
+        let batch = |traced: u64, deposited: u64| if paper { 1 } else { next_pair_batch(traced, deposited) };
+        let ask = |w: &Self, max: u32| w.overlap.then(|| w.rt.spawn(take(w.forks[w.home].clone(), w.node, max)));
+        let mut next = ask(self, batch(0, 0));
         let mut times = PassTimes::default();
         // Without overlap, the next batch is asked for in the call that completes this
         // one on the home fork, and arrives with its reply.
@@ -241,7 +266,7 @@ impl Worker {
                     .map_err(NodeError::rpc("TakePairs"))?,
                 (None, None) => self
                     .rt
-                    .block_on(take(self.forks[self.home].clone(), self.node))
+                    .block_on(take(self.forks[self.home].clone(), self.node, batch(traced, deposited)))
                     .map_err(NodeError::rpc("TakePairs"))?,
             };
             let asked = PassTimes::lap(&mut times.asking, t);
@@ -250,10 +275,10 @@ impl Worker {
                     break;
                 }
                 std::thread::sleep(Duration::from_millis(2));
-                next = ask(self);
+                next = ask(self, batch(traced, deposited));
                 continue;
             }
-            next = ask(self);
+            next = ask(self, batch(traced, deposited));
             times.unit(t);
             let t = asked;
             tracing::debug!(node = self.node, pairs = got.pairs.len(), "tracing a batch of pairs");
@@ -271,10 +296,12 @@ impl Worker {
                 }
                 self.mine.pairs += 1;
                 self.mine.tally = self.mine.tally.add(r.tally);
+                (traced, deposited) = (traced + 1, deposited + r.deposits.len() as u64);
                 rounds.add(pair, self.owner_of(element), r.deposits, |e| self.owner_of(e));
             }
             let (round1, round2) = rounds.into_writers();
             let t = PassTimes::lap(&mut times.tracing, t);
+            let max = batch(traced, deposited);
             let home_take = (!self.overlap)
                 .then_some((self.home, TakePairsRequest { max, node: self.node, node_secret: self.secret }));
             let send = send_deposits(self.forks.clone(), self.pace.clone(), round1, round2, self.backoff, home_take);
@@ -431,4 +458,26 @@ async fn send_deposits(
         }
     }
     Ok(taken)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn pair_batches_grow_for_cheap_pairs_and_keep_deposits_bounded() {
+        // Nothing traced yet: the first batch.
+        assert_eq!(next_pair_batch(0, 0), PAIR_BATCH);
+        // Pairs that deposit nothing (direct light at VRT, a diffuse target): the largest.
+        assert_eq!(next_pair_batch(500, 0), MAX_PAIR_BATCH);
+        // Pairs with many deposits: as many as keep a batch within the budget...
+        assert_eq!(next_pair_batch(100, 100 * 1024), (BATCH_DEPOSITS / 1024) as u32);
+        // ... but never fewer than the first batch.
+        assert_eq!(next_pair_batch(10, 10 * 100_000), PAIR_BATCH);
+        // A batch's expected deposits stay within a quarter of what a fork accepts.
+        for per_pair in [1u64, 7, 100, 300, 5000] {
+            let n = next_pair_batch(64, 64 * per_pair) as u64;
+            assert!(n * per_pair <= BATCH_DEPOSITS.max(PAIR_BATCH as u64 * per_pair), "{per_pair}: {n}");
+        }
+    }
 }
