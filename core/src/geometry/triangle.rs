@@ -92,8 +92,8 @@ impl WatertightRay {
     /// triangle records hold them: the same bits, without decoding the corners.
     #[inline]
     pub fn intersect_record(&self, record: &[u8; 72], tmin: f64, tmax: f64) -> Option<TriHit> {
-        // `k & 3` is at most 3, so every offset read lies in the 72 bytes (the compiler
-        // sees it and checks nothing); `k` is 0, 1 or 2, so the mask changes nothing.
+        // `k & 3` and `min(64)` keep every read within the 72 bytes whatever `k` (the
+        // compiler sees it and checks nothing); `k` is 0, 1 or 2, so neither changes one.
         let at = |corner: usize, k: usize| {
             let o = 24 * corner + 8 * (k & 3);
             let bytes: [u8; 8] = record[o.min(64)..o.min(64) + 8].try_into().unwrap_or([0; 8]);
