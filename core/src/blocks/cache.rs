@@ -199,12 +199,14 @@ impl BlockCache {
     }
 
     /// With an unlimited cache, fetch up to `window` blocks per miss in one request: the
-    /// missed block b and the uncached blocks b + stride, b + 2 stride, ... without
-    /// crossing any of `boundaries` (the first ids of each kind of block). With the stride
-    /// equal to the number of forks, they all live on the missed block's fork (no extra
-    /// G-bus transfers) and, for the element blocks of a node's home fork, they are the
-    /// blocks of the pairs it traces next. A bounded cache ignores this: prefetched blocks
-    /// would evict ones still in use.
+    /// missed block b and the uncached blocks b + stride, b + 2 stride, ..., then b -
+    /// stride, b - 2 stride, ..., without crossing any of `boundaries` (the first ids of
+    /// each kind of block). With the stride equal to the number of forks, they all live
+    /// on the missed block's fork (no extra G-bus transfers) and, for the element blocks
+    /// of a node's home fork, the first of them are the blocks of the pairs it traces
+    /// next; those before b would otherwise be missed one at a time when a ray goes back
+    /// to them. A bounded cache ignores this: prefetched blocks would evict ones still in
+    /// use.
     pub fn with_prefetch(mut self, window: u32, stride: u32, boundaries: Vec<u32>) -> Self {
         self.prefetch = (window.max(1), stride.max(1), boundaries);
         self
@@ -263,17 +265,27 @@ impl BlockCache {
                 Ok(())
             }
             Slots::Unlimited { table, held } => {
-                // The missed block and the uncached ones after it, up to the window,
-                // within the same kind of block.
+                // The missed block and the uncached ones after it, then those before
+                // it, up to the window, within the same kind of block.
                 let (window, stride) = (self.prefetch.0 as usize, self.prefetch.1);
-                let limit = self.prefetch.2.iter().copied().filter(|&b| b > id).min().unwrap_or(u32::MAX);
+                let kinds = &self.prefetch.2;
+                let limit = kinds.iter().copied().filter(|&b| b > id).min().unwrap_or(u32::MAX);
+                let start = kinds.iter().copied().filter(|&b| b <= id).max().unwrap_or(0);
+                let uncached = |b: u32| !table.get(b as usize).is_some_and(|s| s.is_some());
                 let mut ids = vec![id];
                 let mut next = id.saturating_add(stride);
                 while ids.len() < window && next < limit {
-                    if !table.get(next as usize).is_some_and(|s| s.is_some()) {
+                    if uncached(next) {
                         ids.push(next);
                     }
                     next = next.saturating_add(stride);
+                }
+                let mut prev = id.checked_sub(stride).filter(|&b| b >= start);
+                while let Some(b) = prev.filter(|_| ids.len() < window) {
+                    if uncached(b) {
+                        ids.push(b);
+                    }
+                    prev = b.checked_sub(stride).filter(|&b| b >= start);
                 }
                 let mut bufs: Vec<Box<Block>> = ids.iter().map(|_| Box::new([0u8; BLOCK_SIZE])).collect();
                 self.source.fetch_batch(&ids, &mut bufs)?;
@@ -387,6 +399,20 @@ mod tests {
         assert_eq!(c.get(7).unwrap()[0], 7);
         c.get(3).unwrap(); // 3 alone: 4 is cached
         assert_eq!((c.stats().misses, c.stats().prefetched), (3, 5));
+    }
+
+    #[test]
+    fn prefetch_goes_back_within_a_kind_after_going_forward() {
+        let mut c = BlockCache::new(store(8), None).with_prefetch(3, 1, vec![0, 3, 8]);
+        c.get(5).unwrap(); // 5, 6, 7, then 4 would pass the window of 3
+        assert_eq!((c.stats().misses, c.stats().prefetched, c.len()), (1, 2, 3));
+        c.get(4).unwrap(); // 4, then 3 (2 is another kind)
+        assert_eq!((c.stats().misses, c.stats().prefetched, c.len()), (2, 3, 5));
+        let mut c = BlockCache::new(store(8), None).with_prefetch(8, 3, vec![0, 8]);
+        c.get(7).unwrap(); // 7, then 4 and 1 on the same fork
+        assert_eq!((c.stats().prefetched, c.len()), (2, 3));
+        assert_eq!(c.get(1).unwrap()[0], 1);
+        assert_eq!(c.stats().misses, 1);
     }
 
     #[test]
