@@ -121,8 +121,22 @@ fn bvh_and_grid_agree_with_brute_force_on_random_rays() {
             let got_g = cast(&mut vg, &mut sg, &ray, tmin, tmax, exclude, false).unwrap();
             assert_eq!(got_b, want, "BVH, seed {seed}, ray {k}: {ray:?} [{tmin}, {tmax}] exclude {exclude}");
             assert_eq!(got_g, want, "grid, seed {seed}, ray {k}: {ray:?} [{tmin}, {tmax}] exclude {exclude}");
+            // Occlusion queries, through both structures.
             let any = cast(&mut vb, &mut sb, &ray, tmin, tmax, exclude, true).unwrap();
             assert_eq!(any.is_some(), want.is_some(), "BVH occlusion, seed {seed}, ray {k}");
+            let any = cast(&mut vg, &mut sg, &ray, tmin, tmax, exclude, true).unwrap();
+            assert_eq!(any.is_some(), want.is_some(), "grid occlusion, seed {seed}, ray {k}");
+            if let Some(h) = want {
+                // The same ray again, without the patch it hit, then stopped short of it:
+                // an occlusion query must not answer with what it found before.
+                for (ex, top) in [(h.patch, tmax), (exclude, h.t * 0.5)] {
+                    let want = brute_force(&mut vb, &ray, tmin, top, ex).is_some();
+                    for (view, scratch, what) in [(&mut vb, &mut sb, "BVH"), (&mut vg, &mut sg, "grid")] {
+                        let got = cast(view, scratch, &ray, tmin, top, ex, true).unwrap().is_some();
+                        assert_eq!(got, want, "{what} occlusion after a hit, seed {seed}, ray {k}, exclude {ex}");
+                    }
+                }
+            }
             hits += want.is_some() as u32;
         }
         assert!(hits > 1000, "too few hits to mean anything: {hits}");
