@@ -227,7 +227,8 @@ impl SceneView {
     }
 
     /// The bytes of the `count` leaf-triangle records from address `first` (all in one
-    /// block), to be read in place with [`bvh::BvhTriangle::decode`].
+    /// block), to be read in place: [`bvh::BvhTriangle::parts`] gives a record's corner
+    /// bytes and patch id, [`bvh::BvhTriangle::decode`] the decoded triangle.
     #[inline]
     pub fn bvh_leaf(&mut self, first: u32, count: u32) -> Result<&[u8], BlockError> {
         let bvh = self.header.bvh;
