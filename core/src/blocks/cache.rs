@@ -220,29 +220,44 @@ impl BlockCache {
     }
 
     /// Block `id`, from the cache or fetched from the source (evicting the least
-    /// recently used block when full). A hit hashes nothing and divides nothing, and is
-    /// inlined into the caller: the miss path is a call of its own.
+    /// recently used block when full). A hit hashes nothing and divides nothing, looks
+    /// the block up once, and is inlined into the caller: the miss path is a call of its
+    /// own.
     #[inline(always)]
     pub fn get(&mut self, id: u32) -> Result<&Block, BlockError> {
         let i = id as usize;
-        let hit = match &self.slots {
-            Slots::Bounded(lru) => lru.slot(id).is_some(),
-            Slots::Unlimited { table, .. } => matches!(table.get(i), Some(Some(_))),
+        let cached: Option<*const Block> = match &mut self.slots {
+            Slots::Bounded(lru) => lru.slot(id).map(|s| {
+                lru.touch(s);
+                &*lru.blocks[s as usize] as *const Block
+            }),
+            Slots::Unlimited { table, .. } => table.get(i).and_then(|b| b.as_deref()).map(|b| b as *const Block),
         };
-        if hit {
+        if let Some(block) = cached {
             self.stats.hits += 1;
-        } else {
-            self.fetch_missing(id)?;
+            // SAFETY: `block` points into a boxed block that `self.slots` owns; nothing
+            // between the lookup and here touches the slots, and the reference returned
+            // borrows `self` mutably for as long as it lives, so the box can be neither
+            // dropped nor moved (nor its block written) while it is in use. (The pointer
+            // only works around the borrow checker's refusal of a reference returned on
+            // one path of a match followed by a mutable use of `self` on the other.)
+            return Ok(unsafe { &*block });
         }
-        // The block is cached now (a miss has just stored it).
+        self.get_missed(id)
+    }
+
+    /// [`BlockCache::get`] of a block not cached: fetched, stored, then returned.
+    #[cold]
+    #[inline(never)]
+    fn get_missed(&mut self, id: u32) -> Result<&Block, BlockError> {
+        self.fetch_missing(id)?;
         let lost = || BlockError::Unavailable { id, reason: "cache lost a block it just stored".into() };
         match &mut self.slots {
             Slots::Bounded(lru) => {
                 let s = lru.slot(id).ok_or_else(lost)?;
-                lru.touch(s);
                 Ok(&*lru.blocks[s as usize])
             }
-            Slots::Unlimited { table, .. } => table.get(i).and_then(|b| b.as_deref()).ok_or_else(lost),
+            Slots::Unlimited { table, .. } => table.get(id as usize).and_then(|b| b.as_deref()).ok_or_else(lost),
         }
     }
 

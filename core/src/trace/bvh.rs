@@ -1,27 +1,68 @@
 //! Ray casting through the BVH: a depth-first walk over nodes of four children, the
 //! nearest child first, that skips every node entered beyond the best hit so far.
 //!
-//! Node bounds are f32 rounded outward and padded at build time, and the slab test's far
-//! distance is widened by `1 + 2 gamma(3)` (Ize 2013), so a box holding a hit is never
-//! skipped; a node entered exactly at the best distance is still visited, so that a tie
-//! can go to the lower patch id. The patch test itself is the f64 watertight one, on the
-//! same corners as the patch records: the grid's answer, bit for bit.
+//! Node bounds are f32 rounded outward and padded at build time. The reference slab test
+//! runs in f64 on those bounds with its far distance widened by `1 + 2 gamma(3)` (Ize
+//! 2013), so a box holding a hit is never skipped; a node entered exactly at the best
+//! distance is still visited, so that a tie can go to the lower patch id. The walk runs a
+//! faster f32 test that is conservative against that one (it enters every box the f64
+//! test enters, no later; see [`SlabRay`]), so it visits every node the f64 test would.
+//! The patch test itself is the f64 watertight one, on the same corners as the patch
+//! records: the grid's answer, bit for bit, whatever order the nodes are visited in.
 //!
 //! The slab test reads a node's bounds in place from its record and, on x86_64, runs
-//! two children at a time in SSE2 registers (the scalar code elsewhere gives the same
-//! bits); a ray in the plane of a face (0 x inf = NaN) is not limited by that slab, so it
-//! can only enter more boxes, never fewer.
+//! the four children at once in an SSE register (the scalar code elsewhere gives the
+//! same bits); a ray in the plane of a face (0 x inf = NaN) is not limited by that slab,
+//! so it can only enter more boxes, never fewer.
 
-use super::{Hit, Query, TraceScratch};
-use crate::blocks::bvh::{BvhNodeLanes, BvhTriangle, BVH_NODE_RECORD, BVH_NODE_SHIFT, BVH_TRIANGLE_RECORD, BVH_WIDTH};
+use super::{Hit, NextUp, Query, TraceScratch};
+use crate::blocks::bvh::{
+    f32_down, BvhNodeLanes, BvhTriangle, BVH_NODE_RECORD, BVH_NODE_SHIFT, BVH_TRIANGLE_RECORD, BVH_WIDTH,
+};
 use crate::blocks::BlockError;
 use crate::view::SceneView;
 
 /// `1 + 2 gamma(3)`, gamma(n) = n eps / (1 - n eps) with eps = 2^-53.
 const FAR_SLACK: f64 = 1.0 + 2.0 * (3.0 * f64::EPSILON * 0.5) / (1.0 - 3.0 * f64::EPSILON * 0.5);
 
+/// The f32 test's relative widening, `2^-20`: sixteen f32 rounding units, against the
+/// four roundings of its distances (difference, inverse, product, this scaling) and the
+/// f64 test's own two, with room to spare.
+const WIDEN: f32 = 1.0 / (1 << 20) as f32;
+
+/// The smallest positive f32 (subnormal): subtracted from near and added to far distances
+/// after scaling, for products that underflowed (where relative bounds do not hold).
+const TINY: f32 = f32::from_bits(1);
+
+/// Rays whose every entry distance below this could hold a hit take the f32 test: with
+/// the scene's vertices within [`crate::scene::MAX_COORDINATE`] (< 2^100), an origin
+/// within 2^100 and a largest direction component of at least 2^-25, every hit lies
+/// nearer than 2^126, so a distance that overflows f32 (>= 2^128) is beyond any hit.
+const FAST_ORIGIN: f64 = (1u128 << 100) as f64;
+const FAST_MIN_DIRECTION: f64 = 1.0 / (1u64 << 25) as f64;
+
 /// The ray as the slab test wants it.
+///
+/// The usual test runs in f32, four children in one SSE register, and is conservative
+/// against the f64 test on the same f32 bounds (the one the grid-exact result was
+/// argued on): every box that test enters, this one enters too, at a distance no
+/// greater. Per axis the origin is rounded to f32 in the direction that lowers the near
+/// distance (`o_near`) or raises the far one (`o_far`), so the origin's rounding only
+/// ever widens the slab; the remaining errors are relative (the f32 difference, the f32
+/// inverse, the product) and [`WIDEN`] covers them, applied once to the nearest far and
+/// farthest near over the axes (scaling by a positive constant keeps their order). A
+/// widened box can only add nodes to the walk, never drop one, and the hit kept (nearest,
+/// ties to the lower patch id) does not depend on the order nodes are visited in.
+///
+/// Rays outside the ranges where these bounds hold (an inverse direction component that
+/// is not a normal f32 or infinite, an origin beyond 2^100, a direction whose largest
+/// component is below 2^-25) take the f64 test instead.
 struct SlabRay {
+    /// Whether the f32 test applies.
+    fast: bool,
+    o_near: [f32; 3],
+    o_far: [f32; 3],
+    inv32: [f32; 3],
     origin: [f64; 3],
     inv: [f64; 3],
     /// Per axis, whether the ray runs towards lower coordinates: then a box's near face
@@ -33,66 +74,126 @@ struct SlabRay {
 impl SlabRay {
     fn new(origin: [f64; 3], direction: [f64; 3]) -> SlabRay {
         let inv = direction.map(|d| 1.0 / d);
-        SlabRay { origin, inv, negative: inv.map(f64::is_sign_negative) }
+        let negative = inv.map(f64::is_sign_negative);
+        let inv32 = inv.map(|i| i as f32);
+        // An f32 inverse is infinite only where the f64 one is (not by overflow), and
+        // otherwise normal (its relative error bounded).
+        let bounded = |a: usize| inv32[a].is_normal() || (inv32[a].is_infinite() && inv[a].is_infinite());
+        let largest = direction[0].abs().max(direction[1].abs()).max(direction[2].abs());
+        let within = |o: f64| o.abs() <= FAST_ORIGIN;
+        // (`&`, not `&&`: every check is cheap, and branches are not.)
+        let fast = bounded(0)
+            & bounded(1)
+            & bounded(2)
+            & within(origin[0])
+            & within(origin[1])
+            & within(origin[2])
+            & (largest >= FAST_MIN_DIRECTION);
+        // A larger origin lowers (b - o) * inv when inv > 0 and raises it when inv < 0.
+        let o_near = std::array::from_fn(|a| if negative[a] { f32_below(origin[a]) } else { f32_above(origin[a]) });
+        let o_far = std::array::from_fn(|a| if negative[a] { f32_above(origin[a]) } else { f32_below(origin[a]) });
+        SlabRay { fast, o_near, o_far, inv32, origin, inv, negative }
     }
 
     /// Which of the child boxes of the node `record` the ray enters within `[t0, t1]`,
-    /// and at what distance: the four boxes side by side, in f64 from the f32 bounds,
-    /// two lanes at a time in SSE2 registers.
+    /// and at what distance (a lower bound, as an f32); `t0` and `t1` are given in f64
+    /// and rounded outward to f32 (`t0_32`, `t1_32`).
+    #[inline]
+    fn enter(&self, record: &[u8; BVH_NODE_RECORD], (t0, t0_32): (f64, f32), (t1, t1_32): (f64, f32)) -> Entered {
+        if self.fast {
+            self.enter_f32(record, t0_32, t1_32)
+        } else {
+            let e = self.enter_f64(record, t0, t1);
+            Entered { near: e.near.map(f32_down), mask: e.mask }
+        }
+    }
+
+    /// The f32 test (see [`SlabRay`]), `t0` and `t1` rounded outward to f32.
     #[cfg(target_arch = "x86_64")]
     #[inline]
-    fn enter(&self, record: &[u8; BVH_NODE_RECORD], t0: f64, t1: f64) -> Entered {
+    fn enter_f32(&self, record: &[u8; BVH_NODE_RECORD], t0: f32, t1: f32) -> Entered {
         // SAFETY: SSE2 is part of the x86_64 baseline, so every processor that runs this
         // build has it; the function reads nothing but its arguments.
-        unsafe { self.enter_sse2(record, t0, t1) }
+        unsafe { self.enter_f32_sse2(record, t0, t1) }
     }
 
-    /// [`SlabRay::enter`] with SSE2: the same operations on the same values, so the same
-    /// bits as [`SlabRay::enter_scalar`] (`max` and `min` keep their second operand when
-    /// either is NaN, as the scalar comparisons do).
+    /// [`SlabRay::enter_f32`] with SSE2, four children at once: the same operations on
+    /// the same values as [`SlabRay::enter_f32_scalar`], so the same bits (`max` and
+    /// `min` keep their second operand when either is NaN, as the scalar comparisons do).
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "sse2")]
-    fn enter_sse2(&self, record: &[u8; BVH_NODE_RECORD], t0: f64, t1: f64) -> Entered {
+    fn enter_f32_sse2(&self, record: &[u8; BVH_NODE_RECORD], t0: f32, t1: f32) -> Entered {
         use std::arch::x86_64::*;
         // Row r of the record's bounds (lo x, y, z, then hi x, y, z: four f32 each, little
-        // endian like the processor), children 0 and 1, and 2 and 3, widened to f64.
-        let row = |r: usize| {
-            // SAFETY: r < 6, so the 16 bytes read, from byte 16 r, lie in the record's 128
-            // (an unaligned load).
-            let v = unsafe { _mm_loadu_ps(record.as_ptr().add(16 * r).cast::<f32>()) };
-            (_mm_cvtps_pd(v), _mm_cvtps_pd(_mm_movehl_ps(v, v)))
-        };
-        let (mut near01, mut near23) = (_mm_set1_pd(t0), _mm_set1_pd(t0));
-        let (mut far01, mut far23) = (_mm_set1_pd(f64::INFINITY), _mm_set1_pd(f64::INFINITY));
+        // endian like the processor).
+        // SAFETY: r < 6, so the 16 bytes read, from byte 16 r, lie in the record's 128
+        // (an unaligned load).
+        let row = |r: usize| unsafe { _mm_loadu_ps(record.as_ptr().add(16 * r).cast::<f32>()) };
+        let mut near = _mm_set1_ps(f32::NEG_INFINITY);
+        let mut far = _mm_set1_ps(f32::INFINITY);
         for a in 0..3 {
             let (near_row, far_row) = if self.negative[a] { (3 + a, a) } else { (a, 3 + a) };
-            let (o, inv) = (_mm_set1_pd(self.origin[a]), _mm_set1_pd(self.inv[a]));
-            let (n01, n23) = row(near_row);
-            let (f01, f23) = row(far_row);
-            near01 = _mm_max_pd(_mm_mul_pd(_mm_sub_pd(n01, o), inv), near01);
-            near23 = _mm_max_pd(_mm_mul_pd(_mm_sub_pd(n23, o), inv), near23);
-            far01 = _mm_min_pd(_mm_mul_pd(_mm_sub_pd(f01, o), inv), far01);
-            far23 = _mm_min_pd(_mm_mul_pd(_mm_sub_pd(f23, o), inv), far23);
+            let inv = _mm_set1_ps(self.inv32[a]);
+            let n = _mm_mul_ps(_mm_sub_ps(row(near_row), _mm_set1_ps(self.o_near[a])), inv);
+            let f = _mm_mul_ps(_mm_sub_ps(row(far_row), _mm_set1_ps(self.o_far[a])), inv);
+            near = _mm_max_ps(n, near);
+            far = _mm_min_ps(f, far);
         }
-        let (slack, t1) = (_mm_set1_pd(FAR_SLACK), _mm_set1_pd(t1));
-        let far01 = _mm_min_pd(_mm_mul_pd(far01, slack), t1);
-        let far23 = _mm_min_pd(_mm_mul_pd(far23, slack), t1);
+        let tiny = _mm_set1_ps(TINY);
+        let near = _mm_sub_ps(_mm_mul_ps(near, _mm_set1_ps(1.0 - WIDEN)), tiny);
+        let far = _mm_add_ps(_mm_mul_ps(far, _mm_set1_ps(1.0 + WIDEN)), tiny);
+        let near = _mm_max_ps(near, _mm_set1_ps(t0));
+        let far = _mm_min_ps(far, _mm_set1_ps(t1));
         // Entered within the interval, and not only at infinity.
-        let inf = _mm_set1_pd(f64::INFINITY);
-        let in01 = _mm_and_pd(_mm_cmple_pd(near01, far01), _mm_cmplt_pd(near01, inf));
-        let in23 = _mm_and_pd(_mm_cmple_pd(near23, far23), _mm_cmplt_pd(near23, inf));
-        let mask = _mm_movemask_pd(in01) | (_mm_movemask_pd(in23) << 2);
-        let lanes = |v: __m128d| [_mm_cvtsd_f64(v), _mm_cvtsd_f64(_mm_unpackhi_pd(v, v))];
-        let [n0, n1] = lanes(near01);
-        let [n2, n3] = lanes(near23);
-        Entered { near: [n0, n1, n2, n3], mask: mask as u32 }
+        let inside = _mm_and_ps(_mm_cmple_ps(near, far), _mm_cmplt_ps(near, _mm_set1_ps(f32::INFINITY)));
+        let mut out = [0.0f32; BVH_WIDTH];
+        // SAFETY: `out` holds four f32 (an unaligned store).
+        unsafe { _mm_storeu_ps(out.as_mut_ptr(), near) };
+        Entered { near: out, mask: _mm_movemask_ps(inside) as u32 }
     }
 
-    /// [`SlabRay::enter`] one lane at a time (other processors; the SSE2 version's
+    /// [`SlabRay::enter_f32`] one lane at a time (other processors; the SSE2 version's
     /// oracle in the tests).
     #[cfg_attr(target_arch = "x86_64", allow(dead_code))]
     #[inline]
-    fn enter_scalar(&self, record: &[u8; BVH_NODE_RECORD], t0: f64, t1: f64) -> Entered {
+    fn enter_f32_scalar(&self, record: &[u8; BVH_NODE_RECORD], t0: f32, t1: f32) -> Entered {
+        let node = &BvhNodeLanes::read(record);
+        let mut near = [f32::NEG_INFINITY; BVH_WIDTH];
+        let mut far = [f32::INFINITY; BVH_WIDTH];
+        for a in 0..3 {
+            let (near_face, far_face) =
+                if self.negative[a] { (&node.hi[a], &node.lo[a]) } else { (&node.lo[a], &node.hi[a]) };
+            let inv = self.inv32[a];
+            for k in 0..BVH_WIDTH {
+                let tn = (near_face[k] - self.o_near[a]) * inv;
+                let tf = (far_face[k] - self.o_far[a]) * inv;
+                near[k] = if tn > near[k] { tn } else { near[k] };
+                far[k] = if tf < far[k] { tf } else { far[k] };
+            }
+        }
+        let mut mask = 0;
+        for k in 0..BVH_WIDTH {
+            let n = near[k] * (1.0 - WIDEN) - TINY;
+            let f = far[k] * (1.0 + WIDEN) + TINY;
+            near[k] = if n > t0 { n } else { t0 };
+            let f = if f < t1 { f } else { t1 };
+            mask |= ((near[k] <= f && near[k] < f32::INFINITY) as u32) << k;
+        }
+        Entered { near, mask }
+    }
+
+    /// [`SlabRay::enter_f32`] on processors without SSE2 code here.
+    #[cfg(not(target_arch = "x86_64"))]
+    #[inline]
+    fn enter_f32(&self, record: &[u8; BVH_NODE_RECORD], t0: f32, t1: f32) -> Entered {
+        self.enter_f32_scalar(record, t0, t1)
+    }
+
+    /// The f64 test: the four boxes side by side, in f64 from the f32 bounds, the far
+    /// distance widened by [`FAR_SLACK`] (Ize 2013). Used for the rays the f32 test does
+    /// not take, and as its reference in the tests.
+    #[cold]
+    fn enter_f64(&self, record: &[u8; BVH_NODE_RECORD], t0: f64, t1: f64) -> Entered64 {
         let node = &BvhNodeLanes::read(record);
         let mut near = [t0; BVH_WIDTH];
         let mut far = [f64::INFINITY; BVH_WIDTH];
@@ -115,22 +216,44 @@ impl SlabRay {
             let f = if f < t1 { f } else { t1 };
             m | ((near[k] <= f && near[k] < f64::INFINITY) as u32) << k
         });
-        Entered { near, mask }
-    }
-
-    /// [`SlabRay::enter`] on processors without SSE2 code here.
-    #[cfg(not(target_arch = "x86_64"))]
-    #[inline]
-    fn enter(&self, record: &[u8; BVH_NODE_RECORD], t0: f64, t1: f64) -> Entered {
-        self.enter_scalar(record, t0, t1)
+        Entered64 { near, mask }
     }
 }
+
+/// An f32 not above `x`, within two f32 units of it (not always the nearest: no
+/// branch), for finite `x` within 2^100 in magnitude; infinite `x` stays infinite.
+/// Rounding to nearest moves `x - |x| 2^-23 - 2^-149` by at most half a unit, which is
+/// less than what was taken off.
+#[inline]
+fn f32_below(x: f64) -> f32 {
+    if x.is_finite() {
+        (x - x.abs() * F32_UNIT - F32_TINY) as f32
+    } else {
+        x as f32
+    }
+}
+
+/// An f32 not below `x`, as [`f32_below`] the other way.
+#[inline]
+fn f32_above(x: f64) -> f32 {
+    if x.is_finite() {
+        (x + x.abs() * F32_UNIT + F32_TINY) as f32
+    } else {
+        x as f32
+    }
+}
+
+/// 2^-23, an f32 unit relative to its value (at most twice the half unit of rounding).
+const F32_UNIT: f64 = 1.0 / (1u32 << 23) as f64;
+/// 2^-149, the smallest positive f32, in f64.
+const F32_TINY: f64 = TINY as f64;
 
 /// What the slab test found for a node's children.
 #[derive(Clone, Copy, Debug, PartialEq)]
 struct Entered {
-    /// Distance at which the ray enters each child's box (meaningful for those entered).
-    near: [f64; BVH_WIDTH],
+    /// Distance at which the ray enters each child's box, rounded down to f32
+    /// (meaningful for those entered).
+    near: [f32; BVH_WIDTH],
     /// Bit k set when the ray enters child k's box within the interval, at a finite
     /// distance. An absent child's box is empty (`lo` = +inf, `hi` = -inf), which every
     /// ray enters at +inf, so its bit is never set; a ray parallel to a slab and outside
@@ -138,25 +261,38 @@ struct Entered {
     mask: u32,
 }
 
+/// [`Entered`] of the f64 test.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Entered64 {
+    near: [f64; BVH_WIDTH],
+    mask: u32,
+}
+
 /// [`super::cast`] through the BVH.
+#[inline(never)]
 pub(super) fn cast(view: &mut SceneView, scratch: &mut TraceScratch, q: &Query) -> Result<Option<Hit>, BlockError> {
     let (o, d) = (q.ray.origin, q.ray.direction);
     let t0 = q.tmin.max(0.0);
+    let t0 = (t0, f32_below(t0));
     let slab = SlabRay::new(o.to_array(), d.to_array());
     let mut best: Option<Hit> = None;
+    // The farthest distance still of use (the best hit's, or tmax), in f64 and rounded
+    // up to f32, and the triangle test's upper limit (next above it, for ties); renewed
+    // when a leaf changes the best hit.
+    let mut bound = (q.tmax, f32_above(q.tmax));
+    let mut upper = q.tmax.next_up_or(q.tmax);
     let (mut steps, mut tests) = (0u64, 0u64);
     let mut stack = std::mem::take(&mut scratch.stack);
     stack.clear();
     // (node index or first triangle address, leaf triangle count (0: a node), entry t):
     // the entry visited next (the nearer child of the last node), then the stack.
-    let mut next = Some((0, 0, t0));
+    let mut next = Some((0, 0, t0.1));
     let (max_steps, bvh_base) = (view.header.bvh.nodes as u64, view.header.layout.bvh_base);
     let result = 'walk: loop {
         let Some((index, count, near)) = next.take().or_else(|| stack.pop()) else {
             break Ok(best);
         };
-        let bound = best.map_or(q.tmax, |b| b.t);
-        if near > bound {
+        if near as f64 > bound.0 {
             continue;
         }
         if count > 0 {
@@ -165,15 +301,25 @@ pub(super) fn cast(view: &mut SceneView, scratch: &mut TraceScratch, q: &Query) 
                 Err(e) => break Err(e),
             };
             // Each record read in place: the corners by the test, the patch id here.
+            let mut kept = false;
             for record in leaf.chunks_exact(BVH_TRIANGLE_RECORD) {
                 let (corners, patch) = BvhTriangle::parts(record);
                 if patch == q.exclude {
                     continue;
                 }
                 tests += 1;
-                if q.test_record(corners, patch, q.tmax, &mut best) && q.any {
-                    break 'walk Ok(best);
+                if q.test_record(corners, patch, upper, &mut best) {
+                    if q.any {
+                        break 'walk Ok(best);
+                    }
+                    if let Some(b) = best {
+                        upper = b.t.next_up_or(b.t);
+                    }
+                    kept = true;
                 }
+            }
+            if let Some(b) = best.filter(|_| kept) {
+                bound = (b.t, f32_above(b.t));
             }
             continue;
         }
@@ -188,7 +334,7 @@ pub(super) fn cast(view: &mut SceneView, scratch: &mut TraceScratch, q: &Query) 
         // The children entered, nearest first (ties in the node's order): the nearest
         // is visited next, the others stacked farthest first.
         let Entered { near: t, mut mask } = slab.enter(record, t0, bound);
-        let mut entered = [(0.0f64, 0u32, 0u32); BVH_WIDTH];
+        let mut entered = [(0.0f32, 0u32, 0u32); BVH_WIDTH];
         let mut n = 0;
         while mask != 0 {
             let k = mask.trailing_zeros() as usize;
@@ -242,59 +388,122 @@ fn corrupt(bvh_base: u32, index: u32) -> BlockError {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::blocks::bvh::{BvhNode, BVH_NO_CHILD};
+    use crate::blocks::bvh::{f32_up, BvhNode, BVH_NO_CHILD};
     use crate::rng::Rng;
 
-    /// The SSE2 slab test answers as the scalar one, bit for bit, on random boxes and
-    /// rays and on the awkward ones: axis-parallel rays (infinite inverse), origins on a
-    /// face (0 x inf = NaN), absent children, empty and degenerate boxes.
+    /// A random node and ray, including the awkward ones: axis-parallel rays (infinite
+    /// inverse), origins on a face (0 x inf = NaN), absent children, empty and
+    /// degenerate boxes, boxes touching the origin, far and tiny scales.
+    fn case(rng: &mut Rng, case: usize) -> (BvhNodeLanes, SlabRay, f64, f64) {
+        let scale = match case % 11 {
+            0 => 1e-30,
+            1 => 1e25,
+            _ => 1.0,
+        };
+        let coord = |rng: &mut Rng| -> f64 {
+            scale
+                * match (rng.next_f64() * 8.0) as u32 {
+                    0 => 0.0,
+                    1 => 1.0,
+                    _ => (rng.next_f64() - 0.5) * 4.0,
+                }
+        };
+        let mut node = BvhNodeLanes {
+            lo: [[0.0; BVH_WIDTH]; 3],
+            hi: [[0.0; BVH_WIDTH]; 3],
+            index: [1, 2, 3, 4],
+            count: [0; BVH_WIDTH],
+        };
+        for a in 0..3 {
+            for k in 0..BVH_WIDTH {
+                let (x, y) = (coord(rng), coord(rng));
+                node.lo[a][k] = f32_down(x.min(y));
+                node.hi[a][k] = f32_up(x.max(y));
+            }
+        }
+        if case % 7 == 0 {
+            let k = case % BVH_WIDTH;
+            node.index[k] = BVH_NO_CHILD;
+            for a in 0..3 {
+                node.lo[a][k] = f32::INFINITY;
+                node.hi[a][k] = f32::NEG_INFINITY;
+            }
+        }
+        let mut origin = [coord(rng), coord(rng), coord(rng)];
+        if case % 13 == 0 {
+            // On a corner of a box, in f64 just off it.
+            let k = case % BVH_WIDTH;
+            origin = [0, 1, 2].map(|a| node.lo[a][k] as f64 * (1.0 + 1e-12));
+        }
+        let mut direction = [rng.next_f64() - 0.5, rng.next_f64() - 0.5, rng.next_f64() - 0.5];
+        if case % 5 == 0 {
+            direction[case % 3] = if case % 2 == 0 { 0.0 } else { -0.0 };
+        }
+        if case % 17 == 0 {
+            direction[(case + 1) % 3] *= 1e-30;
+        }
+        let ray = SlabRay::new(origin, direction);
+        let (t0, t1) = (
+            if case % 4 == 0 { 0.0 } else { rng.next_f64() * 0.1 * scale },
+            if case % 3 == 0 { f64::INFINITY } else { rng.next_f64() * 5.0 * scale },
+        );
+        (node, ray, t0, t1)
+    }
+
+    fn record(node: &BvhNodeLanes) -> [u8; crate::blocks::BLOCK_SIZE] {
+        let mut block = [0u8; crate::blocks::BLOCK_SIZE];
+        BvhNode { children: std::array::from_fn(|k| node.child(k)) }.encode(&mut block, 0);
+        assert_eq!(&BvhNodeLanes::read(crate::blocks::bvh::node_record(&block, 0)), node);
+        block
+    }
+
+    /// The SSE2 slab test answers as the scalar one, bit for bit.
     #[test]
     fn the_sse2_slab_test_gives_the_scalar_bits() {
         let mut rng = Rng::from_words(&[7, 0x51ab]);
-        let coord = |rng: &mut Rng| -> f64 {
-            match (rng.next_f64() * 8.0) as u32 {
-                0 => 0.0,
-                1 => 1.0,
-                _ => (rng.next_f64() - 0.5) * 4.0,
-            }
-        };
-        for case in 0..20_000 {
-            let mut node = BvhNodeLanes {
-                lo: [[0.0; BVH_WIDTH]; 3],
-                hi: [[0.0; BVH_WIDTH]; 3],
-                index: [1, 2, 3, 4],
-                count: [0; BVH_WIDTH],
-            };
-            for a in 0..3 {
-                for k in 0..BVH_WIDTH {
-                    let (x, y) = (coord(&mut rng) as f32, coord(&mut rng) as f32);
-                    node.lo[a][k] = x.min(y);
-                    node.hi[a][k] = x.max(y);
-                }
-            }
-            if case % 7 == 0 {
-                let k = case % BVH_WIDTH;
-                node.index[k] = BVH_NO_CHILD;
-                for a in 0..3 {
-                    node.lo[a][k] = f32::INFINITY;
-                    node.hi[a][k] = f32::NEG_INFINITY;
-                }
-            }
-            let origin = [coord(&mut rng), coord(&mut rng), coord(&mut rng)];
-            let mut direction = [rng.next_f64() - 0.5, rng.next_f64() - 0.5, rng.next_f64() - 0.5];
-            if case % 5 == 0 {
-                direction[case % 3] = if case % 2 == 0 { 0.0 } else { -0.0 };
-            }
-            let ray = SlabRay::new(origin, direction);
-            let (t0, t1) = (rng.next_f64() * 0.1, if case % 3 == 0 { f64::INFINITY } else { rng.next_f64() * 5.0 });
-            let mut block = [0u8; crate::blocks::BLOCK_SIZE];
-            BvhNode { children: std::array::from_fn(|k| node.child(k)) }.encode(&mut block, 0);
-            let record = crate::blocks::bvh::node_record(&block, 0);
-            assert_eq!(BvhNodeLanes::read(record), node);
-            let fast = ray.enter(record, t0, t1);
-            let slow = ray.enter_scalar(record, t0, t1);
-            let bits = |e: Entered| (e.near.map(f64::to_bits), e.mask);
-            assert_eq!(bits(fast), bits(slow), "case {case}: {node:?} {origin:?} {direction:?}");
+        for c in 0..20_000 {
+            let (node, ray, t0, t1) = case(&mut rng, c);
+            let block = record(&node);
+            let r = crate::blocks::bvh::node_record(&block, 0);
+            let fast = ray.enter_f32(r, f32_below(t0), f32_above(t1));
+            let slow = ray.enter_f32_scalar(r, f32_below(t0), f32_above(t1));
+            let bits = |e: Entered| (e.near.map(f32::to_bits), e.mask);
+            assert_eq!(bits(fast), bits(slow), "case {c}: {node:?}");
         }
+    }
+
+    /// The f32 test enters every box the f64 test enters, at a distance no greater: so
+    /// the walk visits every node it visited with the f64 test (and the hit is the same).
+    #[test]
+    fn the_f32_slab_test_is_conservative_against_the_f64_one() {
+        let mut rng = Rng::from_words(&[8, 0x51ab]);
+        let mut fast = 0;
+        for c in 0..200_000 {
+            let (node, ray, t0, t1) = case(&mut rng, c);
+            let block = record(&node);
+            let r = crate::blocks::bvh::node_record(&block, 0);
+            let wide = ray.enter(r, (t0, f32_below(t0)), (t1, f32_above(t1)));
+            let exact = ray.enter_f64(r, t0, t1);
+            fast += ray.fast as u32;
+            assert_eq!(wide.mask & exact.mask, exact.mask, "case {c}: {node:?}");
+            for k in 0..BVH_WIDTH {
+                if exact.mask >> k & 1 == 1 {
+                    assert!(wide.near[k] as f64 <= exact.near[k], "case {c}, child {k}: {node:?}");
+                }
+            }
+        }
+        // Most cases take the f32 test; the others check the fallback's answer.
+        assert!(fast > 150_000, "{fast}");
+    }
+
+    /// Rays the f32 test cannot bound take the f64 one.
+    #[test]
+    fn extreme_rays_take_the_f64_test() {
+        assert!(SlabRay::new([0.0; 3], [1.0, 0.5, 0.0]).fast);
+        assert!(SlabRay::new([1e29, -1e29, 0.0], [0.0, -0.0, 1.0]).fast);
+        assert!(!SlabRay::new([1e31, 0.0, 0.0], [1.0, 0.0, 0.0]).fast);
+        assert!(!SlabRay::new([0.0; 3], [1e-30, 1e-30, 1e-30]).fast);
+        assert!(!SlabRay::new([0.0; 3], [1.0, 1e-300, 0.0]).fast);
+        assert!(!SlabRay::new([0.0; 3], [1.0, 1e39, 0.0]).fast);
     }
 }
