@@ -16,9 +16,7 @@
 //! so it can only enter more boxes, never fewer.
 
 use super::{Hit, NextUp, Query, TraceScratch};
-use crate::blocks::bvh::{
-    f32_down, BvhNodeLanes, BvhTriangle, BVH_NODE_RECORD, BVH_NODE_SHIFT, BVH_TRIANGLE_RECORD, BVH_WIDTH,
-};
+use crate::blocks::bvh::{BvhNodeLanes, BvhTriangle, BVH_NODE_RECORD, BVH_NODE_SHIFT, BVH_TRIANGLE_RECORD, BVH_WIDTH};
 use crate::blocks::BlockError;
 use crate::view::SceneView;
 
@@ -41,101 +39,114 @@ const TINY: f32 = f32::from_bits(1);
 const FAST_ORIGIN: f64 = (1u128 << 100) as f64;
 const FAST_MIN_DIRECTION: f64 = 1.0 / (1u64 << 25) as f64;
 
-/// The ray as the slab test wants it.
+/// The smallest BVH walked with the f32 slab test (see [`SlabRay`]): one block of nodes.
+const NARROW_MIN_NODES: u32 = crate::blocks::bvh::BVH_NODES_PER_BLOCK as u32;
+
+/// The ray as the slab tests want it.
 ///
-/// The usual test runs in f32, four children in one SSE register, and is conservative
-/// against the f64 test on the same f32 bounds (the one the grid-exact result was
-/// argued on): every box that test enters, this one enters too, at a distance no
-/// greater. Per axis the origin is rounded to f32 in the direction that lowers the near
-/// distance (`o_near`) or raises the far one (`o_far`), so the origin's rounding only
-/// ever widens the slab; the remaining errors are relative (the f32 difference, the f32
-/// inverse, the product) and [`WIDEN`] covers them, applied once to the nearest far and
-/// farthest near over the axes (scaling by a positive constant keeps their order). A
-/// widened box can only add nodes to the walk, never drop one, and the hit kept (nearest,
-/// ties to the lower patch id) does not depend on the order nodes are visited in.
+/// The reference test runs in f64 on the f32 bounds ([`SlabRay::enter_f64`]). The walk's
+/// usual test runs in f32, four children in one SSE register ([`Narrow`]), and is
+/// conservative against the f64 one: every box that test enters, this one enters too, at
+/// a distance no greater. A widened box can only add nodes to the walk, never drop one,
+/// and the hit kept (nearest, ties to the lower patch id) does not depend on the order
+/// nodes are visited in.
 ///
-/// Rays outside the ranges where these bounds hold (an inverse direction component that
-/// is not a normal f32 or infinite, an origin beyond 2^100, a direction whose largest
-/// component is below 2^-25) take the f64 test instead.
+/// The f32 test's per-ray data costs as much as two or three node visits save, so a
+/// BVH of fewer than [`NARROW_MIN_NODES`] nodes (a scene of a few patches, whose rays
+/// visit a node or two) is walked with the f64 test. Rays outside the ranges where the
+/// f32 bounds hold take the f64 test too.
 struct SlabRay {
-    /// Whether the f32 test applies.
-    fast: bool,
-    o_near: [f32; 3],
-    o_far: [f32; 3],
-    inv32: [f32; 3],
     origin: [f64; 3],
     inv: [f64; 3],
     /// Per axis, whether the ray runs towards lower coordinates: then a box's near face
     /// on that axis is its `hi` and its far face its `lo`, for every box, so the slab
     /// test needs no comparison to order them.
     negative: [bool; 3],
+    /// The f32 test's data, `None` where it does not apply or is not worth it.
+    narrow: Option<Narrow>,
 }
 
-impl SlabRay {
-    fn new(origin: [f64; 3], direction: [f64; 3]) -> SlabRay {
-        let inv = direction.map(|d| 1.0 / d);
-        let negative = inv.map(f64::is_sign_negative);
+/// The f32 test's per-ray data. Per axis the origin is rounded to f32 in the direction
+/// that lowers the near distance (`o_near`) or raises the far one (`o_far`), so the
+/// origin's rounding only ever widens the slab; the remaining errors are relative (the
+/// f32 difference, the f32 inverse, the product) and [`WIDEN`] covers them, applied once
+/// to the nearest far and farthest near over the axes (scaling by a positive constant
+/// keeps their order), with [`TINY`] for products that underflowed.
+///
+/// Each value is kept four times over (`[v; 4]`, 16-byte aligned), the way the SSE2 test
+/// uses it, so that a node visit reads it straight from memory rather than spreading it
+/// across a register first.
+#[derive(Clone, Copy, Debug)]
+#[repr(C, align(16))]
+struct Narrow {
+    o_near: [[f32; 4]; 3],
+    o_far: [[f32; 4]; 3],
+    inv: [[f32; 4]; 3],
+    /// Per axis, the record rows (see [`SlabRay::negative`]) of the near and far faces.
+    rows: [(usize, usize); 3],
+}
+
+impl Narrow {
+    /// The f32 test's data for a ray, `None` when its bounds do not hold for it: an
+    /// inverse direction component that is neither a normal f32 nor infinite (in f64
+    /// too), an origin beyond 2^100, or a direction whose largest component is below
+    /// 2^-25.
+    fn of(origin: [f64; 3], direction: [f64; 3], inv: [f64; 3], negative: [bool; 3]) -> Option<Narrow> {
         let inv32 = inv.map(|i| i as f32);
-        // An f32 inverse is infinite only where the f64 one is (not by overflow), and
-        // otherwise normal (its relative error bounded).
         let bounded = |a: usize| inv32[a].is_normal() || (inv32[a].is_infinite() && inv[a].is_infinite());
         let largest = direction[0].abs().max(direction[1].abs()).max(direction[2].abs());
         let within = |o: f64| o.abs() <= FAST_ORIGIN;
         // (`&`, not `&&`: every check is cheap, and branches are not.)
-        let fast = bounded(0)
+        let fits = bounded(0)
             & bounded(1)
             & bounded(2)
             & within(origin[0])
             & within(origin[1])
             & within(origin[2])
             & (largest >= FAST_MIN_DIRECTION);
-        // A larger origin lowers (b - o) * inv when inv > 0 and raises it when inv < 0.
-        let o_near = std::array::from_fn(|a| if negative[a] { f32_below(origin[a]) } else { f32_above(origin[a]) });
-        let o_far = std::array::from_fn(|a| if negative[a] { f32_above(origin[a]) } else { f32_below(origin[a]) });
-        SlabRay { fast, o_near, o_far, inv32, origin, inv, negative }
-    }
-
-    /// Which of the child boxes of the node `record` the ray enters within `[t0, t1]`,
-    /// and at what distance (a lower bound, as an f32); `t0` and `t1` are given in f64
-    /// and rounded outward to f32 (`t0_32`, `t1_32`).
-    #[inline]
-    fn enter(&self, record: &[u8; BVH_NODE_RECORD], (t0, t0_32): (f64, f32), (t1, t1_32): (f64, f32)) -> Entered {
-        if self.fast {
-            self.enter_f32(record, t0_32, t1_32)
-        } else {
-            let e = self.enter_f64(record, t0, t1);
-            Entered { near: e.near.map(f32_down), mask: e.mask }
+        if !fits {
+            return None;
         }
+        // A larger origin lowers (b - o) * inv when inv > 0 and raises it when inv < 0.
+        let o_near =
+            std::array::from_fn(|a| [if negative[a] { f32_below(origin[a]) } else { f32_above(origin[a]) }; 4]);
+        let o_far = std::array::from_fn(|a| [if negative[a] { f32_above(origin[a]) } else { f32_below(origin[a]) }; 4]);
+        let rows = std::array::from_fn(|a| if negative[a] { (3 + a, a) } else { (a, 3 + a) });
+        Some(Narrow { o_near, o_far, inv: inv32.map(|i| [i; 4]), rows })
     }
 
-    /// The f32 test (see [`SlabRay`]), `t0` and `t1` rounded outward to f32.
+    /// Which of the child boxes of the node `record` the ray enters within `[t0, t1]`
+    /// (rounded outward to f32), and at what distance (a lower bound).
     #[cfg(target_arch = "x86_64")]
     #[inline]
-    fn enter_f32(&self, record: &[u8; BVH_NODE_RECORD], t0: f32, t1: f32) -> Entered {
+    fn enter(&self, record: &[u8; BVH_NODE_RECORD], t0: f32, t1: f32) -> Entered {
         // SAFETY: SSE2 is part of the x86_64 baseline, so every processor that runs this
         // build has it; the function reads nothing but its arguments.
-        unsafe { self.enter_f32_sse2(record, t0, t1) }
+        unsafe { self.enter_sse2(record, t0, t1) }
     }
 
-    /// [`SlabRay::enter_f32`] with SSE2, four children at once: the same operations on
-    /// the same values as [`SlabRay::enter_f32_scalar`], so the same bits (`max` and
-    /// `min` keep their second operand when either is NaN, as the scalar comparisons do).
+    /// [`Narrow::enter`] with SSE2, four children at once: the same operations on the
+    /// same values as [`Narrow::enter_scalar`], so the same bits (`max` and `min` keep
+    /// their second operand when either is NaN, as the scalar comparisons do).
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "sse2")]
-    fn enter_f32_sse2(&self, record: &[u8; BVH_NODE_RECORD], t0: f32, t1: f32) -> Entered {
+    fn enter_sse2(&self, record: &[u8; BVH_NODE_RECORD], t0: f32, t1: f32) -> Entered {
         use std::arch::x86_64::*;
         // Row r of the record's bounds (lo x, y, z, then hi x, y, z: four f32 each, little
         // endian like the processor).
         // SAFETY: r < 6, so the 16 bytes read, from byte 16 r, lie in the record's 128
         // (an unaligned load).
         let row = |r: usize| unsafe { _mm_loadu_ps(record.as_ptr().add(16 * r).cast::<f32>()) };
+        // SAFETY: `v` is four f32, 16-byte aligned (`Narrow` is `align(16)` and its fields
+        // are arrays of them).
+        let lanes = |v: &[f32; 4]| unsafe { _mm_load_ps(v.as_ptr()) };
         let mut near = _mm_set1_ps(f32::NEG_INFINITY);
         let mut far = _mm_set1_ps(f32::INFINITY);
         for a in 0..3 {
-            let (near_row, far_row) = if self.negative[a] { (3 + a, a) } else { (a, 3 + a) };
-            let inv = _mm_set1_ps(self.inv32[a]);
-            let n = _mm_mul_ps(_mm_sub_ps(row(near_row), _mm_set1_ps(self.o_near[a])), inv);
-            let f = _mm_mul_ps(_mm_sub_ps(row(far_row), _mm_set1_ps(self.o_far[a])), inv);
+            let (near_row, far_row) = self.rows[a];
+            let inv = lanes(&self.inv[a]);
+            let n = _mm_mul_ps(_mm_sub_ps(row(near_row), lanes(&self.o_near[a])), inv);
+            let f = _mm_mul_ps(_mm_sub_ps(row(far_row), lanes(&self.o_far[a])), inv);
             near = _mm_max_ps(n, near);
             far = _mm_min_ps(f, far);
         }
@@ -152,21 +163,21 @@ impl SlabRay {
         Entered { near: out, mask: _mm_movemask_ps(inside) as u32 }
     }
 
-    /// [`SlabRay::enter_f32`] one lane at a time (other processors; the SSE2 version's
-    /// oracle in the tests).
+    /// [`Narrow::enter`] one lane at a time (other processors; the SSE2 version's oracle
+    /// in the tests).
     #[cfg_attr(target_arch = "x86_64", allow(dead_code))]
     #[inline]
-    fn enter_f32_scalar(&self, record: &[u8; BVH_NODE_RECORD], t0: f32, t1: f32) -> Entered {
+    fn enter_scalar(&self, record: &[u8; BVH_NODE_RECORD], t0: f32, t1: f32) -> Entered {
         let node = &BvhNodeLanes::read(record);
         let mut near = [f32::NEG_INFINITY; BVH_WIDTH];
         let mut far = [f32::INFINITY; BVH_WIDTH];
         for a in 0..3 {
             let (near_face, far_face) =
-                if self.negative[a] { (&node.hi[a], &node.lo[a]) } else { (&node.lo[a], &node.hi[a]) };
-            let inv = self.inv32[a];
+                if self.rows[a].0 > a { (&node.hi[a], &node.lo[a]) } else { (&node.lo[a], &node.hi[a]) };
+            let (o_near, o_far, inv) = (self.o_near[a][0], self.o_far[a][0], self.inv[a][0]);
             for k in 0..BVH_WIDTH {
-                let tn = (near_face[k] - self.o_near[a]) * inv;
-                let tf = (far_face[k] - self.o_far[a]) * inv;
+                let tn = (near_face[k] - o_near) * inv;
+                let tf = (far_face[k] - o_far) * inv;
                 near[k] = if tn > near[k] { tn } else { near[k] };
                 far[k] = if tf < far[k] { tf } else { far[k] };
             }
@@ -182,18 +193,101 @@ impl SlabRay {
         Entered { near, mask }
     }
 
-    /// [`SlabRay::enter_f32`] on processors without SSE2 code here.
+    /// [`Narrow::enter`] on processors without SSE2 code here.
     #[cfg(not(target_arch = "x86_64"))]
     #[inline]
-    fn enter_f32(&self, record: &[u8; BVH_NODE_RECORD], t0: f32, t1: f32) -> Entered {
-        self.enter_f32_scalar(record, t0, t1)
+    fn enter(&self, record: &[u8; BVH_NODE_RECORD], t0: f32, t1: f32) -> Entered {
+        self.enter_scalar(record, t0, t1)
+    }
+}
+
+impl SlabRay {
+    /// The ray's slab data; with `narrow`, the f32 test's too (when it applies).
+    fn new(origin: [f64; 3], direction: [f64; 3], narrow: bool) -> SlabRay {
+        let inv = direction.map(|d| 1.0 / d);
+        let negative = inv.map(f64::is_sign_negative);
+        let narrow = if narrow { Narrow::of(origin, direction, inv, negative) } else { None };
+        SlabRay { origin, inv, negative, narrow }
+    }
+
+    /// Which of the child boxes of the node `record` the ray enters within `[t0, t1]`,
+    /// and at what distance (a lower bound, as an f32); `t0` and `t1` are given in f64
+    /// and rounded outward to f32 (`t0_32`, `t1_32`). The f32 test where it applies, the
+    /// f64 test otherwise (its distances rounded down to f32).
+    #[inline(always)]
+    fn enter(&self, record: &[u8; BVH_NODE_RECORD], t0: (f64, f32), t1: (f64, f32)) -> Entered {
+        match &self.narrow {
+            Some(n) => n.enter(record, t0.1, t1.1),
+            None => self.enter_wide(record, t0.0, t1.0),
+        }
+    }
+
+    /// [`SlabRay::enter`] by the f64 test. Its distances are never negative (at least
+    /// `t0`, itself at least 0), where `x (1 - 2^-23) - 2^-149` rounded to f32 is below
+    /// `x` (see [`f32_below`]).
+    #[inline(never)]
+    fn enter_wide(&self, record: &[u8; BVH_NODE_RECORD], t0: f64, t1: f64) -> Entered {
+        let e = self.enter_f64(record, t0, t1);
+        Entered { near: e.near.map(|x| (x * (1.0 - F32_UNIT) - F32_TINY) as f32), mask: e.mask }
     }
 
     /// The f64 test: the four boxes side by side, in f64 from the f32 bounds, the far
-    /// distance widened by [`FAR_SLACK`] (Ize 2013). Used for the rays the f32 test does
-    /// not take, and as its reference in the tests.
-    #[cold]
+    /// distance widened by [`FAR_SLACK`] (Ize 2013), two lanes at a time in SSE2
+    /// registers.
+    #[cfg(target_arch = "x86_64")]
+    #[inline]
     fn enter_f64(&self, record: &[u8; BVH_NODE_RECORD], t0: f64, t1: f64) -> Entered64 {
+        // SAFETY: SSE2 is part of the x86_64 baseline, so every processor that runs this
+        // build has it; the function reads nothing but its arguments.
+        unsafe { self.enter_f64_sse2(record, t0, t1) }
+    }
+
+    /// [`SlabRay::enter_f64`] with SSE2: the same operations on the same values, so the
+    /// same bits as [`SlabRay::enter_f64_scalar`] (`max` and `min` keep their second
+    /// operand when either is NaN, as the scalar comparisons do).
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "sse2")]
+    fn enter_f64_sse2(&self, record: &[u8; BVH_NODE_RECORD], t0: f64, t1: f64) -> Entered64 {
+        use std::arch::x86_64::*;
+        // Row r of the record's bounds (lo x, y, z, then hi x, y, z: four f32 each, little
+        // endian like the processor), children 0 and 1, and 2 and 3, widened to f64.
+        let row = |r: usize| {
+            // SAFETY: r < 6, so the 16 bytes read, from byte 16 r, lie in the record's 128
+            // (an unaligned load).
+            let v = unsafe { _mm_loadu_ps(record.as_ptr().add(16 * r).cast::<f32>()) };
+            (_mm_cvtps_pd(v), _mm_cvtps_pd(_mm_movehl_ps(v, v)))
+        };
+        let (mut near01, mut near23) = (_mm_set1_pd(t0), _mm_set1_pd(t0));
+        let (mut far01, mut far23) = (_mm_set1_pd(f64::INFINITY), _mm_set1_pd(f64::INFINITY));
+        for a in 0..3 {
+            let (near_row, far_row) = if self.negative[a] { (3 + a, a) } else { (a, 3 + a) };
+            let (o, inv) = (_mm_set1_pd(self.origin[a]), _mm_set1_pd(self.inv[a]));
+            let (n01, n23) = row(near_row);
+            let (f01, f23) = row(far_row);
+            near01 = _mm_max_pd(_mm_mul_pd(_mm_sub_pd(n01, o), inv), near01);
+            near23 = _mm_max_pd(_mm_mul_pd(_mm_sub_pd(n23, o), inv), near23);
+            far01 = _mm_min_pd(_mm_mul_pd(_mm_sub_pd(f01, o), inv), far01);
+            far23 = _mm_min_pd(_mm_mul_pd(_mm_sub_pd(f23, o), inv), far23);
+        }
+        let (slack, t1) = (_mm_set1_pd(FAR_SLACK), _mm_set1_pd(t1));
+        let far01 = _mm_min_pd(_mm_mul_pd(far01, slack), t1);
+        let far23 = _mm_min_pd(_mm_mul_pd(far23, slack), t1);
+        // Entered within the interval, and not only at infinity.
+        let inf = _mm_set1_pd(f64::INFINITY);
+        let in01 = _mm_and_pd(_mm_cmple_pd(near01, far01), _mm_cmplt_pd(near01, inf));
+        let in23 = _mm_and_pd(_mm_cmple_pd(near23, far23), _mm_cmplt_pd(near23, inf));
+        let mask = _mm_movemask_pd(in01) | (_mm_movemask_pd(in23) << 2);
+        let lanes = |v: __m128d| [_mm_cvtsd_f64(v), _mm_cvtsd_f64(_mm_unpackhi_pd(v, v))];
+        let [n0, n1] = lanes(near01);
+        let [n2, n3] = lanes(near23);
+        Entered64 { near: [n0, n1, n2, n3], mask: mask as u32 }
+    }
+
+    /// [`SlabRay::enter_f64`] one lane at a time (other processors; the SSE2 version's
+    /// oracle, and the f32 test's reference, in the tests).
+    #[cfg_attr(target_arch = "x86_64", allow(dead_code))]
+    #[inline]
+    fn enter_f64_scalar(&self, record: &[u8; BVH_NODE_RECORD], t0: f64, t1: f64) -> Entered64 {
         let node = &BvhNodeLanes::read(record);
         let mut near = [t0; BVH_WIDTH];
         let mut far = [f64::INFINITY; BVH_WIDTH];
@@ -217,6 +311,13 @@ impl SlabRay {
             m | ((near[k] <= f && near[k] < f64::INFINITY) as u32) << k
         });
         Entered64 { near, mask }
+    }
+
+    /// [`SlabRay::enter_f64`] on processors without SSE2 code here.
+    #[cfg(not(target_arch = "x86_64"))]
+    #[inline]
+    fn enter_f64(&self, record: &[u8; BVH_NODE_RECORD], t0: f64, t1: f64) -> Entered64 {
+        self.enter_f64_scalar(record, t0, t1)
     }
 }
 
@@ -274,7 +375,8 @@ pub(super) fn cast(view: &mut SceneView, scratch: &mut TraceScratch, q: &Query) 
     let (o, d) = (q.ray.origin, q.ray.direction);
     let t0 = q.tmin.max(0.0);
     let t0 = (t0, f32_below(t0));
-    let slab = SlabRay::new(o.to_array(), d.to_array());
+    let narrow = view.header.bvh.nodes >= NARROW_MIN_NODES;
+    let slab = SlabRay::new(o.to_array(), d.to_array(), narrow);
     let mut best: Option<Hit> = None;
     // The farthest distance still of use (the best hit's, or tmax), in f64 and rounded
     // up to f32, and the triangle test's upper limit (next above it, for ties); renewed
@@ -388,13 +490,13 @@ fn corrupt(bvh_base: u32, index: u32) -> BlockError {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::blocks::bvh::{f32_up, BvhNode, BVH_NO_CHILD};
+    use crate::blocks::bvh::{f32_down, f32_up, BvhNode, BVH_NO_CHILD};
     use crate::rng::Rng;
 
     /// A random node and ray, including the awkward ones: axis-parallel rays (infinite
     /// inverse), origins on a face (0 x inf = NaN), absent children, empty and
     /// degenerate boxes, boxes touching the origin, far and tiny scales.
-    fn case(rng: &mut Rng, case: usize) -> (BvhNodeLanes, SlabRay, f64, f64) {
+    fn case(rng: &mut Rng, case: usize) -> (BvhNodeLanes, SlabRay, Option<Narrow>, f64, f64) {
         let scale = match case % 11 {
             0 => 1e-30,
             1 => 1e25,
@@ -442,12 +544,13 @@ mod tests {
         if case % 17 == 0 {
             direction[(case + 1) % 3] *= 1e-30;
         }
-        let ray = SlabRay::new(origin, direction);
+        let ray = SlabRay::new(origin, direction, case % 2 == 0);
+        let narrow = Narrow::of(origin, direction, ray.inv, ray.negative);
         let (t0, t1) = (
             if case % 4 == 0 { 0.0 } else { rng.next_f64() * 0.1 * scale },
             if case % 3 == 0 { f64::INFINITY } else { rng.next_f64() * 5.0 * scale },
         );
-        (node, ray, t0, t1)
+        (node, ray, narrow, t0, t1)
     }
 
     fn record(node: &BvhNodeLanes) -> [u8; crate::blocks::BLOCK_SIZE] {
@@ -457,53 +560,65 @@ mod tests {
         block
     }
 
-    /// The SSE2 slab test answers as the scalar one, bit for bit.
+    /// The SSE2 slab tests answer as the scalar ones, bit for bit.
     #[test]
-    fn the_sse2_slab_test_gives_the_scalar_bits() {
+    fn the_sse2_slab_tests_give_the_scalar_bits() {
         let mut rng = Rng::from_words(&[7, 0x51ab]);
         for c in 0..20_000 {
-            let (node, ray, t0, t1) = case(&mut rng, c);
+            let (node, ray, narrow, t0, t1) = case(&mut rng, c);
             let block = record(&node);
             let r = crate::blocks::bvh::node_record(&block, 0);
-            let fast = ray.enter_f32(r, f32_below(t0), f32_above(t1));
-            let slow = ray.enter_f32_scalar(r, f32_below(t0), f32_above(t1));
-            let bits = |e: Entered| (e.near.map(f32::to_bits), e.mask);
-            assert_eq!(bits(fast), bits(slow), "case {c}: {node:?}");
+            let bits = |e: Entered64| (e.near.map(f64::to_bits), e.mask);
+            assert_eq!(bits(ray.enter_f64(r, t0, t1)), bits(ray.enter_f64_scalar(r, t0, t1)), "case {c}: {node:?}");
+            if let Some(n) = narrow {
+                let fast = n.enter(r, f32_below(t0), f32_above(t1));
+                let slow = n.enter_scalar(r, f32_below(t0), f32_above(t1));
+                let bits = |e: Entered| (e.near.map(f32::to_bits), e.mask);
+                assert_eq!(bits(fast), bits(slow), "case {c}: {node:?}");
+            }
         }
     }
 
     /// The f32 test enters every box the f64 test enters, at a distance no greater: so
     /// the walk visits every node it visited with the f64 test (and the hit is the same).
+    /// So does the walk's test with the f64 distances rounded down to f32.
     #[test]
     fn the_f32_slab_test_is_conservative_against_the_f64_one() {
         let mut rng = Rng::from_words(&[8, 0x51ab]);
-        let mut fast = 0;
+        let mut narrowed = 0;
         for c in 0..200_000 {
-            let (node, ray, t0, t1) = case(&mut rng, c);
+            let (node, ray, narrow, t0, t1) = case(&mut rng, c);
             let block = record(&node);
             let r = crate::blocks::bvh::node_record(&block, 0);
-            let wide = ray.enter(r, (t0, f32_below(t0)), (t1, f32_above(t1)));
-            let exact = ray.enter_f64(r, t0, t1);
-            fast += ray.fast as u32;
-            assert_eq!(wide.mask & exact.mask, exact.mask, "case {c}: {node:?}");
-            for k in 0..BVH_WIDTH {
-                if exact.mask >> k & 1 == 1 {
-                    assert!(wide.near[k] as f64 <= exact.near[k], "case {c}, child {k}: {node:?}");
+            let exact = ray.enter_f64_scalar(r, t0, t1);
+            let check = |wide: Entered, what: &str| {
+                assert_eq!(wide.mask & exact.mask, exact.mask, "{what}, case {c}: {node:?}");
+                for k in 0..BVH_WIDTH {
+                    if exact.mask >> k & 1 == 1 {
+                        assert!(wide.near[k] as f64 <= exact.near[k], "{what}, case {c}, child {k}: {node:?}");
+                    }
                 }
+            };
+            let (t0s, t1s) = ((t0, f32_below(t0)), (t1, f32_above(t1)));
+            check(ray.enter(r, t0s, t1s), "the walk's test");
+            if let Some(n) = narrow {
+                narrowed += 1;
+                check(n.enter(r, f32_below(t0), f32_above(t1)), "f32 test");
             }
         }
         // Most cases take the f32 test; the others check the fallback's answer.
-        assert!(fast > 150_000, "{fast}");
+        assert!(narrowed > 150_000, "{narrowed}");
     }
 
     /// Rays the f32 test cannot bound take the f64 one.
     #[test]
     fn extreme_rays_take_the_f64_test() {
-        assert!(SlabRay::new([0.0; 3], [1.0, 0.5, 0.0]).fast);
-        assert!(SlabRay::new([1e29, -1e29, 0.0], [0.0, -0.0, 1.0]).fast);
-        assert!(!SlabRay::new([1e31, 0.0, 0.0], [1.0, 0.0, 0.0]).fast);
-        assert!(!SlabRay::new([0.0; 3], [1e-30, 1e-30, 1e-30]).fast);
-        assert!(!SlabRay::new([0.0; 3], [1.0, 1e-300, 0.0]).fast);
-        assert!(!SlabRay::new([0.0; 3], [1.0, 1e39, 0.0]).fast);
+        let narrow = |o: [f64; 3], d: [f64; 3]| SlabRay::new(o, d, true).narrow.is_some();
+        assert!(narrow([0.0; 3], [1.0, 0.5, 0.0]));
+        assert!(narrow([1e29, -1e29, 0.0], [0.0, -0.0, 1.0]));
+        assert!(!narrow([1e31, 0.0, 0.0], [1.0, 0.0, 0.0]));
+        assert!(!narrow([0.0; 3], [1e-30, 1e-30, 1e-30]));
+        assert!(!narrow([0.0; 3], [1.0, 1e-300, 0.0]));
+        assert!(!narrow([0.0; 3], [1.0, 1e39, 0.0]));
     }
 }
