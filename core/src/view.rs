@@ -215,7 +215,7 @@ impl SceneView {
     /// The bytes of BVH node `n`'s record (node 0 is the root), to be read in place (the
     /// traversal loads its bounds straight into vector registers;
     /// [`crate::blocks::bvh::BvhNodeLanes::read`] decodes it).
-    #[inline]
+    #[inline(always)]
     pub fn bvh_node_record(&mut self, n: u32) -> Result<&[u8; BVH_NODE_RECORD], BlockError> {
         let bvh = self.header.bvh;
         if n >= bvh.nodes {
@@ -229,7 +229,7 @@ impl SceneView {
     /// The bytes of the `count` leaf-triangle records from address `first` (all in one
     /// block), to be read in place: [`bvh::BvhTriangle::parts`] gives a record's corner
     /// bytes and patch id, [`bvh::BvhTriangle::decode`] the decoded triangle.
-    #[inline]
+    #[inline(always)]
     pub fn bvh_leaf(&mut self, first: u32, count: u32) -> Result<&[u8], BlockError> {
         let bvh = self.header.bvh;
         let (block, slot) = (first >> BVH_TRIANGLE_SHIFT, (first & ((1 << BVH_TRIANGLE_SHIFT) - 1)) as usize);

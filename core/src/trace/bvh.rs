@@ -210,27 +210,6 @@ impl SlabRay {
         SlabRay { origin, inv, negative, narrow }
     }
 
-    /// Which of the child boxes of the node `record` the ray enters within `[t0, t1]`,
-    /// and at what distance (a lower bound, as an f32); `t0` and `t1` are given in f64
-    /// and rounded outward to f32 (`t0_32`, `t1_32`). The f32 test where it applies, the
-    /// f64 test otherwise (its distances rounded down to f32).
-    #[inline(always)]
-    fn enter(&self, record: &[u8; BVH_NODE_RECORD], t0: (f64, f32), t1: (f64, f32)) -> Entered {
-        match &self.narrow {
-            Some(n) => n.enter(record, t0.1, t1.1),
-            None => self.enter_wide(record, t0.0, t1.0),
-        }
-    }
-
-    /// [`SlabRay::enter`] by the f64 test. Its distances are never negative (at least
-    /// `t0`, itself at least 0), where `x (1 - 2^-23) - 2^-149` rounded to f32 is below
-    /// `x` (see [`f32_below`]).
-    #[inline(never)]
-    fn enter_wide(&self, record: &[u8; BVH_NODE_RECORD], t0: f64, t1: f64) -> Entered {
-        let e = self.enter_f64(record, t0, t1);
-        Entered { near: e.near.map(|x| (x * (1.0 - F32_UNIT) - F32_TINY) as f32), mask: e.mask }
-    }
-
     /// The f64 test: the four boxes side by side, in f64 from the f32 bounds, the far
     /// distance widened by [`FAR_SLACK`] (Ize 2013), two lanes at a time in SSE2
     /// registers.
@@ -369,32 +348,91 @@ struct Entered64 {
     mask: u32,
 }
 
-/// [`super::cast`] through the BVH.
+/// A slab test as the walk runs it: which children of a node the ray enters, and at
+/// what distance (a lower bound: a node is skipped only when it is entered beyond the
+/// best hit).
+trait BoxTest {
+    /// The far bound as the test takes it.
+    type Bound: Copy;
+    /// The far bound `t` (the best hit's distance, or the query's `tmax`).
+    fn bound(&self, t: f64) -> Self::Bound;
+    /// The children of node `record` entered within the query's `tmin` and `bound`.
+    fn enter(&self, record: &[u8; BVH_NODE_RECORD], bound: Self::Bound) -> Entered64;
+}
+
+/// The f64 test, from `t0`.
+struct Wide<'a>(&'a SlabRay, f64);
+
+impl BoxTest for Wide<'_> {
+    type Bound = f64;
+    #[inline(always)]
+    fn bound(&self, t: f64) -> f64 {
+        t
+    }
+    #[inline(always)]
+    fn enter(&self, record: &[u8; BVH_NODE_RECORD], bound: f64) -> Entered64 {
+        self.0.enter_f64(record, self.1, bound)
+    }
+}
+
+/// The f32 test, from `t0` rounded down.
+struct Narrowed<'a>(&'a Narrow, f32);
+
+impl BoxTest for Narrowed<'_> {
+    type Bound = f32;
+    #[inline(always)]
+    fn bound(&self, t: f64) -> f32 {
+        f32_above(t)
+    }
+    #[inline(always)]
+    fn enter(&self, record: &[u8; BVH_NODE_RECORD], bound: f32) -> Entered64 {
+        let e = self.0.enter(record, self.1, bound);
+        Entered64 { near: e.near.map(f64::from), mask: e.mask }
+    }
+}
+
+/// [`super::cast`] through the BVH: the f32 slab test where it applies and pays (see
+/// [`SlabRay`]), the f64 test otherwise; the walk is compiled for each.
 #[inline(never)]
 pub(super) fn cast(view: &mut SceneView, scratch: &mut TraceScratch, q: &Query) -> Result<Option<Hit>, BlockError> {
     let (o, d) = (q.ray.origin, q.ray.direction);
     let t0 = q.tmin.max(0.0);
-    let t0 = (t0, f32_below(t0));
     let narrow = view.header.bvh.nodes >= NARROW_MIN_NODES;
     let slab = SlabRay::new(o.to_array(), d.to_array(), narrow);
+    match &slab.narrow {
+        Some(n) => walk(view, scratch, q, t0, &Narrowed(n, f32_below(t0))),
+        None => walk(view, scratch, q, t0, &Wide(&slab, t0)),
+    }
+}
+
+/// The depth-first walk from the root, with the slab test `boxes` (a function of its own
+/// for each test, so that each keeps its own registers).
+#[inline(never)]
+fn walk<B: BoxTest>(
+    view: &mut SceneView,
+    scratch: &mut TraceScratch,
+    q: &Query,
+    t0: f64,
+    boxes: &B,
+) -> Result<Option<Hit>, BlockError> {
     let mut best: Option<Hit> = None;
-    // The farthest distance still of use (the best hit's, or tmax), in f64 and rounded
-    // up to f32, and the triangle test's upper limit (next above it, for ties); renewed
-    // when a leaf changes the best hit.
-    let mut bound = (q.tmax, f32_above(q.tmax));
+    // The farthest distance still of use (the best hit's, or tmax), as the walk and as
+    // the slab test take it, and the triangle test's upper limit (next above it, for
+    // ties); renewed when a leaf changes the best hit.
+    let mut bound = (q.tmax, boxes.bound(q.tmax));
     let mut upper = q.tmax.next_up_or(q.tmax);
     let (mut steps, mut tests) = (0u64, 0u64);
     let mut stack = std::mem::take(&mut scratch.stack);
     stack.clear();
     // (node index or first triangle address, leaf triangle count (0: a node), entry t):
     // the entry visited next (the nearer child of the last node), then the stack.
-    let mut next = Some((0, 0, t0.1));
+    let mut next = Some((0, 0, t0));
     let (max_steps, bvh_base) = (view.header.bvh.nodes as u64, view.header.layout.bvh_base);
     let result = 'walk: loop {
         let Some((index, count, near)) = next.take().or_else(|| stack.pop()) else {
             break Ok(best);
         };
-        if near as f64 > bound.0 {
+        if near > bound.0 {
             continue;
         }
         if count > 0 {
@@ -421,7 +459,7 @@ pub(super) fn cast(view: &mut SceneView, scratch: &mut TraceScratch, q: &Query) 
                 }
             }
             if let Some(b) = best.filter(|_| kept) {
-                bound = (b.t, f32_above(b.t));
+                bound = (b.t, boxes.bound(b.t));
             }
             continue;
         }
@@ -435,8 +473,8 @@ pub(super) fn cast(view: &mut SceneView, scratch: &mut TraceScratch, q: &Query) 
         }
         // The children entered, nearest first (ties in the node's order): the nearest
         // is visited next, the others stacked farthest first.
-        let Entered { near: t, mut mask } = slab.enter(record, t0, bound);
-        let mut entered = [(0.0f32, 0u32, 0u32); BVH_WIDTH];
+        let Entered64 { near: t, mut mask } = boxes.enter(record, bound.1);
+        let mut entered = [(0.0f64, 0u32, 0u32); BVH_WIDTH];
         let mut n = 0;
         while mask != 0 {
             let k = mask.trailing_zeros() as usize;
@@ -581,32 +619,28 @@ mod tests {
 
     /// The f32 test enters every box the f64 test enters, at a distance no greater: so
     /// the walk visits every node it visited with the f64 test (and the hit is the same).
-    /// So does the walk's test with the f64 distances rounded down to f32.
+    /// Checked as the walk runs it ([`Narrowed`], its far bound from [`BoxTest::bound`]).
     #[test]
     fn the_f32_slab_test_is_conservative_against_the_f64_one() {
         let mut rng = Rng::from_words(&[8, 0x51ab]);
         let mut narrowed = 0;
         for c in 0..200_000 {
             let (node, ray, narrow, t0, t1) = case(&mut rng, c);
+            let Some(n) = narrow else { continue };
+            narrowed += 1;
             let block = record(&node);
             let r = crate::blocks::bvh::node_record(&block, 0);
             let exact = ray.enter_f64_scalar(r, t0, t1);
-            let check = |wide: Entered, what: &str| {
-                assert_eq!(wide.mask & exact.mask, exact.mask, "{what}, case {c}: {node:?}");
-                for k in 0..BVH_WIDTH {
-                    if exact.mask >> k & 1 == 1 {
-                        assert!(wide.near[k] as f64 <= exact.near[k], "{what}, case {c}, child {k}: {node:?}");
-                    }
+            let boxes = Narrowed(&n, f32_below(t0));
+            let wide = boxes.enter(r, boxes.bound(t1));
+            assert_eq!(wide.mask & exact.mask, exact.mask, "case {c}: {node:?}");
+            for k in 0..BVH_WIDTH {
+                if exact.mask >> k & 1 == 1 {
+                    assert!(wide.near[k] <= exact.near[k], "case {c}, child {k}: {node:?}");
                 }
-            };
-            let (t0s, t1s) = ((t0, f32_below(t0)), (t1, f32_above(t1)));
-            check(ray.enter(r, t0s, t1s), "the walk's test");
-            if let Some(n) = narrow {
-                narrowed += 1;
-                check(n.enter(r, f32_below(t0), f32_above(t1)), "f32 test");
             }
         }
-        // Most cases take the f32 test; the others check the fallback's answer.
+        // Most cases take the f32 test (the others: see the next test).
         assert!(narrowed > 150_000, "{narrowed}");
     }
 

@@ -35,9 +35,8 @@ pub struct Hit {
 #[derive(Default)]
 pub struct TraceScratch {
     ids: Vec<u32>,
-    /// BVH traversal stack: (node index or triangle address, leaf count, entry distance
-    /// rounded down to f32).
-    stack: Vec<(u32, u32, f32)>,
+    /// BVH traversal stack: (node index or triangle address, leaf count, entry distance).
+    stack: Vec<(u32, u32, f64)>,
     recent: [u32; 16],
     recent_len: usize,
     recent_pos: usize,
@@ -113,7 +112,7 @@ impl Query<'_> {
     /// [`WatertightRay::intersect_record`]), against `upper`: the bound's
     /// [`NextUp::next_up_or`] (hits below it, so at the bound too, for ties), which the
     /// caller renews when the best hit changes. The same bits as [`Query::test`].
-    #[inline]
+    #[inline(always)]
     fn test_record(&self, record: &[u8; 72], pid: u32, upper: f64, best: &mut Option<Hit>) -> bool {
         let hit = self.wray.intersect_record(record, self.tmin, upper);
         Self::keep(hit, pid, best)
