@@ -152,7 +152,10 @@ fn chaos_run(dir: &Path, base: &Rendered, stem: &str, lrt_batches: usize, vrt_su
     assert!(taken_back, "{stem}: the dead node's pairs were not taken back: {forks_text}");
     if forks_too {
         // The forks that kept their energy replay only their pairs that deposited on
-        // fork 2 (and those out with nodes), not all of them.
+        // fork 2 and those out with nodes, not all of them. One of them may have had
+        // every pair out with nodes when fork 2 came back (a live node's batch can hold
+        // a whole fork's queue), so the check is that not both replayed everything.
+        let mut selective = false;
         for i in [0, 1] {
             let text = std::fs::read_to_string(dir.join(format!("{stem}-fork{i}.log"))).unwrap();
             let field = |line: &str, key: &str| -> Option<u64> {
@@ -164,9 +167,11 @@ fn chaos_run(dir: &Path, base: &Rendered, stem: &str, lrt_batches: usize, vrt_su
             let (Some(total), Some(replayed)) = (total, replayed) else {
                 panic!("{stem}: fork {i} logged no shard or no replay: {text}");
             };
-            assert!(replayed < total, "{stem}: fork {i} replayed {replayed} of its {total} pairs: {text}");
+            assert!(replayed <= total, "{stem}: fork {i} replayed {replayed} of its {total} pairs: {text}");
             eprintln!("{stem}: fork {i} replayed {replayed} of its {total} pairs");
+            selective |= replayed < total;
         }
+        assert!(selective, "{stem}: forks 0 and 1 both replayed all their pairs: {forks_text}");
     }
     assert_eq!(std::fs::read(&base.pfm).unwrap(), std::fs::read(&out.pfm).unwrap(), "{stem}: image differs");
     assert_eq!(std::fs::read(&base.energy).unwrap(), std::fs::read(&out.energy).unwrap(), "{stem}: energies differ");
