@@ -331,7 +331,7 @@ const F32_TINY: f64 = TINY as f64;
 /// What the slab test found for a node's children.
 #[derive(Clone, Copy, Debug, PartialEq)]
 struct Entered {
-    /// Distance at which the ray enters each child's box, rounded down to f32
+    /// Distance at which the ray enters each child's box, or an f32 below it
     /// (meaningful for those entered).
     near: [f32; BVH_WIDTH],
     /// Bit k set when the ray enters child k's box within the interval, at a finite
