@@ -240,3 +240,39 @@ fn a_bounded_cache_reads_bvh_blocks_like_any_other() {
     let g = with_accel(&s, Accel::Grid);
     assert_eq!((g.header.counts.bvh_blocks, g.header.grid.dims), (0, [4, 4, 4]));
 }
+
+/// A BVH node block whose node points back up the tree (a cycle) is an error of the
+/// cast, not a walk without end: for rays walked with the f32 slab test and for rays it
+/// refuses (a tiny largest direction component), which take the f64 test.
+#[test]
+fn a_bvh_node_pointing_back_up_the_tree_is_an_error_not_a_hang() {
+    use magg_core::blocks::bvh::{BvhNode, BVH_NODE_RECORD};
+    let p = with_accel(&tie_scene(1), Accel::Bvh);
+    assert!(p.header.bvh.nodes >= 16, "{} nodes", p.header.bvh.nodes);
+    let mut bad = p.clone();
+    let base = bad.header.layout.bvh_base as usize;
+    // Node 1's inner children all point at the root.
+    let at = BVH_NODE_RECORD;
+    let mut node = BvhNode::decode(&bad.blocks[base], at);
+    let mut inner = 0;
+    for c in node.children.iter_mut().filter(|c| c.count == 0 && c.index != u32::MAX) {
+        c.index = 0;
+        inner += 1;
+    }
+    assert!(inner > 0, "node 1 has no inner child: {node:?}");
+    node.encode(&mut bad.blocks[base], at);
+    let mut view = view_of(&bad);
+    let mut scratch = TraceScratch::default();
+    for (what, d) in [("f32 test", v(0.0, -1.0, 0.0)), ("f64 test", v(1e-30, -1e-30, 1e-31))] {
+        let mut errors = 0;
+        for i in 0..200 {
+            let o = v(-1.0 + 0.01 * i as f64, 2.5, 0.3 - 0.003 * i as f64);
+            let ray = Ray::new(o, d);
+            if let Err(e) = cast(&mut view, &mut scratch, &ray, 0.0, f64::INFINITY, NO_PATCH, false) {
+                assert!(e.to_string().contains("corrupt BVH node block"), "{what}, ray {i}: {e}");
+                errors += 1;
+            }
+        }
+        assert!(errors > 0, "{what}: no ray reached the corrupt node");
+    }
+}

@@ -479,13 +479,10 @@ fn walk<B: BoxTest>(
         while mask != 0 {
             let k = mask.trailing_zeros() as usize;
             mask &= mask - 1;
-            // Nodes are written depth first: an inner child's index is above its
-            // parent's, so a ray visits each node at most once. A block that says
-            // otherwise is corrupt (and would loop).
+            // Nodes are written depth first, so a ray visits each node at most once; a
+            // corrupt block whose child points back up the tree is caught by the step
+            // limit above (more visits than nodes), not by a check per child.
             let (child, count) = (child_index(record, k), child_count(record, k));
-            if count == 0 && child <= index {
-                break 'walk Err(corrupt(bvh_base, index));
-            }
             let mut i = n;
             while i > 0 && entered[i - 1].0 > t[k] {
                 entered[i] = entered[i - 1];
