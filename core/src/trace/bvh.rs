@@ -400,6 +400,8 @@ pub(super) fn cast(view: &mut SceneView, scratch: &mut TraceScratch, q: &Query) 
     let narrow = view.header.bvh.nodes >= NARROW_MIN_NODES;
     let slab = SlabRay::new(o.to_array(), d.to_array(), narrow);
     match &slab.narrow {
+        // A tmin beyond f32's range rounds to infinity, which no box is entered within:
+        // no hit of a ray the f32 test takes lies that far (see FAST_ORIGIN).
         Some(n) => walk(view, scratch, q, t0, &Narrowed(n, f32_below(t0))),
         None => walk(view, scratch, q, t0, &Wide(&slab, t0)),
     }
