@@ -119,7 +119,7 @@ impl Narrow {
     /// (rounded outward to f32), and at what distance (a lower bound).
     #[cfg(target_arch = "x86_64")]
     #[inline]
-    fn enter(&self, record: &[u8; BVH_NODE_RECORD], t0: f32, t1: f32) -> Entered {
+    fn enter(&self, record: &[u8; BVH_NODE_RECORD], t0: f32, t1: f32) -> Entered<f32> {
         // SAFETY: SSE2 is part of the x86_64 baseline, so every processor that runs this
         // build has it; the function reads nothing but its arguments.
         unsafe { self.enter_sse2(record, t0, t1) }
@@ -130,7 +130,7 @@ impl Narrow {
     /// their second operand when either is NaN, as the scalar comparisons do).
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "sse2")]
-    fn enter_sse2(&self, record: &[u8; BVH_NODE_RECORD], t0: f32, t1: f32) -> Entered {
+    fn enter_sse2(&self, record: &[u8; BVH_NODE_RECORD], t0: f32, t1: f32) -> Entered<f32> {
         use std::arch::x86_64::*;
         // Row r of the record's bounds (lo x, y, z, then hi x, y, z: four f32 each, little
         // endian like the processor).
@@ -167,7 +167,7 @@ impl Narrow {
     /// in the tests).
     #[cfg_attr(target_arch = "x86_64", allow(dead_code))]
     #[inline]
-    fn enter_scalar(&self, record: &[u8; BVH_NODE_RECORD], t0: f32, t1: f32) -> Entered {
+    fn enter_scalar(&self, record: &[u8; BVH_NODE_RECORD], t0: f32, t1: f32) -> Entered<f32> {
         let node = &BvhNodeLanes::read(record);
         let mut near = [f32::NEG_INFINITY; BVH_WIDTH];
         let mut far = [f32::INFINITY; BVH_WIDTH];
@@ -196,7 +196,7 @@ impl Narrow {
     /// [`Narrow::enter`] on processors without SSE2 code here.
     #[cfg(not(target_arch = "x86_64"))]
     #[inline]
-    fn enter(&self, record: &[u8; BVH_NODE_RECORD], t0: f32, t1: f32) -> Entered {
+    fn enter(&self, record: &[u8; BVH_NODE_RECORD], t0: f32, t1: f32) -> Entered<f32> {
         self.enter_scalar(record, t0, t1)
     }
 }
@@ -215,7 +215,7 @@ impl SlabRay {
     /// registers.
     #[cfg(target_arch = "x86_64")]
     #[inline]
-    fn enter_f64(&self, record: &[u8; BVH_NODE_RECORD], t0: f64, t1: f64) -> Entered64 {
+    fn enter_f64(&self, record: &[u8; BVH_NODE_RECORD], t0: f64, t1: f64) -> Entered<f64> {
         // SAFETY: SSE2 is part of the x86_64 baseline, so every processor that runs this
         // build has it; the function reads nothing but its arguments.
         unsafe { self.enter_f64_sse2(record, t0, t1) }
@@ -226,7 +226,7 @@ impl SlabRay {
     /// operand when either is NaN, as the scalar comparisons do).
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "sse2")]
-    fn enter_f64_sse2(&self, record: &[u8; BVH_NODE_RECORD], t0: f64, t1: f64) -> Entered64 {
+    fn enter_f64_sse2(&self, record: &[u8; BVH_NODE_RECORD], t0: f64, t1: f64) -> Entered<f64> {
         use std::arch::x86_64::*;
         // Row r of the record's bounds (lo x, y, z, then hi x, y, z: four f32 each, little
         // endian like the processor), children 0 and 1, and 2 and 3, widened to f64.
@@ -259,14 +259,14 @@ impl SlabRay {
         let lanes = |v: __m128d| [_mm_cvtsd_f64(v), _mm_cvtsd_f64(_mm_unpackhi_pd(v, v))];
         let [n0, n1] = lanes(near01);
         let [n2, n3] = lanes(near23);
-        Entered64 { near: [n0, n1, n2, n3], mask: mask as u32 }
+        Entered { near: [n0, n1, n2, n3], mask: mask as u32 }
     }
 
     /// [`SlabRay::enter_f64`] one lane at a time (other processors; the SSE2 version's
     /// oracle, and the f32 test's reference, in the tests).
     #[cfg_attr(target_arch = "x86_64", allow(dead_code))]
     #[inline]
-    fn enter_f64_scalar(&self, record: &[u8; BVH_NODE_RECORD], t0: f64, t1: f64) -> Entered64 {
+    fn enter_f64_scalar(&self, record: &[u8; BVH_NODE_RECORD], t0: f64, t1: f64) -> Entered<f64> {
         let node = &BvhNodeLanes::read(record);
         let mut near = [t0; BVH_WIDTH];
         let mut far = [f64::INFINITY; BVH_WIDTH];
@@ -289,13 +289,13 @@ impl SlabRay {
             let f = if f < t1 { f } else { t1 };
             m | ((near[k] <= f && near[k] < f64::INFINITY) as u32) << k
         });
-        Entered64 { near, mask }
+        Entered { near, mask }
     }
 
     /// [`SlabRay::enter_f64`] on processors without SSE2 code here.
     #[cfg(not(target_arch = "x86_64"))]
     #[inline]
-    fn enter_f64(&self, record: &[u8; BVH_NODE_RECORD], t0: f64, t1: f64) -> Entered64 {
+    fn enter_f64(&self, record: &[u8; BVH_NODE_RECORD], t0: f64, t1: f64) -> Entered<f64> {
         self.enter_f64_scalar(record, t0, t1)
     }
 }
@@ -328,23 +328,17 @@ const F32_UNIT: f64 = 1.0 / (1u32 << 23) as f64;
 /// 2^-149, the smallest positive f32, in f64.
 const F32_TINY: f64 = TINY as f64;
 
-/// What the slab test found for a node's children.
+/// What a slab test found for a node's children, its distances in `T` (f32 for the f32
+/// test, f64 for the f64 one).
 #[derive(Clone, Copy, Debug, PartialEq)]
-struct Entered {
-    /// Distance at which the ray enters each child's box, or an f32 below it
-    /// (meaningful for those entered).
-    near: [f32; BVH_WIDTH],
+struct Entered<T> {
+    /// Distance at which the ray enters each child's box, or one below it (meaningful
+    /// for those entered).
+    near: [T; BVH_WIDTH],
     /// Bit k set when the ray enters child k's box within the interval, at a finite
     /// distance. An absent child's box is empty (`lo` = +inf, `hi` = -inf), which every
     /// ray enters at +inf, so its bit is never set; a ray parallel to a slab and outside
     /// it enters at +inf too.
-    mask: u32,
-}
-
-/// [`Entered`] of the f64 test.
-#[derive(Clone, Copy, Debug, PartialEq)]
-struct Entered64 {
-    near: [f64; BVH_WIDTH],
     mask: u32,
 }
 
@@ -357,7 +351,7 @@ trait BoxTest {
     /// The far bound `t` (the best hit's distance, or the query's `tmax`).
     fn bound(&self, t: f64) -> Self::Bound;
     /// The children of node `record` entered within the query's `tmin` and `bound`.
-    fn enter(&self, record: &[u8; BVH_NODE_RECORD], bound: Self::Bound) -> Entered64;
+    fn enter(&self, record: &[u8; BVH_NODE_RECORD], bound: Self::Bound) -> Entered<f64>;
 }
 
 /// The f64 test, from `t0`.
@@ -370,7 +364,7 @@ impl BoxTest for Wide<'_> {
         t
     }
     #[inline(always)]
-    fn enter(&self, record: &[u8; BVH_NODE_RECORD], bound: f64) -> Entered64 {
+    fn enter(&self, record: &[u8; BVH_NODE_RECORD], bound: f64) -> Entered<f64> {
         self.0.enter_f64(record, self.1, bound)
     }
 }
@@ -385,9 +379,9 @@ impl BoxTest for Narrowed<'_> {
         f32_above(t)
     }
     #[inline(always)]
-    fn enter(&self, record: &[u8; BVH_NODE_RECORD], bound: f32) -> Entered64 {
+    fn enter(&self, record: &[u8; BVH_NODE_RECORD], bound: f32) -> Entered<f64> {
         let e = self.0.enter(record, self.1, bound);
-        Entered64 { near: e.near.map(f64::from), mask: e.mask }
+        Entered { near: e.near.map(f64::from), mask: e.mask }
     }
 }
 
@@ -475,7 +469,7 @@ fn walk<B: BoxTest>(
         }
         // The children entered, nearest first (ties in the node's order): the nearest
         // is visited next, the others stacked farthest first.
-        let Entered64 { near: t, mut mask } = boxes.enter(record, bound.1);
+        let Entered { near: t, mut mask } = boxes.enter(record, bound.1);
         let mut entered = [(0.0f64, 0u32, 0u32); BVH_WIDTH];
         let mut n = 0;
         while mask != 0 {
@@ -605,12 +599,12 @@ mod tests {
             let (node, ray, narrow, t0, t1) = case(&mut rng, c);
             let block = record(&node);
             let r = crate::blocks::bvh::node_record(&block, 0);
-            let bits = |e: Entered64| (e.near.map(f64::to_bits), e.mask);
+            let bits = |e: Entered<f64>| (e.near.map(f64::to_bits), e.mask);
             assert_eq!(bits(ray.enter_f64(r, t0, t1)), bits(ray.enter_f64_scalar(r, t0, t1)), "case {c}: {node:?}");
             if let Some(n) = narrow {
                 let fast = n.enter(r, f32_below(t0), f32_above(t1));
                 let slow = n.enter_scalar(r, f32_below(t0), f32_above(t1));
-                let bits = |e: Entered| (e.near.map(f32::to_bits), e.mask);
+                let bits = |e: Entered<f32>| (e.near.map(f32::to_bits), e.mask);
                 assert_eq!(bits(fast), bits(slow), "case {c}: {node:?}");
             }
         }
