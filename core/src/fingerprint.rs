@@ -81,6 +81,11 @@ impl Fnv64 {
     }
 }
 
+/// [`EnergyInputs::bounce_rays`] of files from before it: one bounce ray per light ray.
+fn one() -> u32 {
+    1
+}
+
 /// What the energies of a light pass depend on: component hashes and the settings in
 /// clear, so that a mismatch can be explained field by field.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -94,6 +99,10 @@ pub struct EnergyInputs {
     pub lights: u64,
     /// Light rays per pair.
     pub light_rays: u32,
+    /// Diffuse bounce rays per light ray of a bounce-only pair. Absent (1) in files from
+    /// before the setting existed.
+    #[serde(default = "one")]
+    pub bounce_rays: u32,
     /// Target element edge length.
     pub element_size: f64,
     /// Specular bounces of light rays.
@@ -175,6 +184,8 @@ impl EnergyInputs {
             materials: m.finish(),
             lights: l.finish(),
             light_rays: s.light_rays,
+            // Only pairs traced for their bounce alone use it: elsewhere it changes nothing.
+            bounce_rays: if h.plan.direct_vrt && h.plan.diffuse_bounces > 0 { s.bounce_rays } else { 1 },
             element_size: s.element_size,
             lrt_depth: s.lrt_depth,
             diffuse_bounces: s.diffuse_bounces,
@@ -208,6 +219,10 @@ impl EnergyInputs {
         if self.direct_vrt {
             d.bytes(b"direct light at VRT");
         }
+        if self.bounce_rays != 1 {
+            d.bytes(b"bounce rays");
+            d.u32(self.bounce_rays);
+        }
         d.finish()
     }
 
@@ -234,6 +249,7 @@ impl EnergyInputs {
             }
         };
         setting("light_rays", self.light_rays.to_string(), now.light_rays.to_string());
+        setting("bounce_rays", self.bounce_rays.to_string(), now.bounce_rays.to_string());
         setting("element_size", self.element_size.to_string(), now.element_size.to_string());
         setting("lrt_depth", self.lrt_depth.to_string(), now.lrt_depth.to_string());
         setting("diffuse_bounces", self.diffuse_bounces.to_string(), now.diffuse_bounces.to_string());
@@ -263,13 +279,14 @@ mod tests {
         assert_eq!(hash(b"foobar"), 0x85944171f73967e8);
     }
 
-    #[test]
-    fn differences_name_the_setting() {
-        let a = EnergyInputs {
+    /// Inputs of a small made-up light pass.
+    fn inputs() -> EnergyInputs {
+        EnergyInputs {
             geometry: 1,
             materials: 2,
             lights: 3,
             light_rays: 16,
+            bounce_rays: 1,
             element_size: 0.1,
             lrt_depth: 4,
             diffuse_bounces: 0,
@@ -278,11 +295,30 @@ mod tests {
             vertices: 12,
             direct_vrt: false,
             digest: 0,
-        };
+        }
+    }
+
+    #[test]
+    fn differences_name_the_setting() {
+        let a = inputs();
         let mut b = a.clone();
         b.light_rays = 32;
         b.lights = 4;
         assert_eq!(a.differences(&b), ["lights differ", "light_rays 16 (file) vs 32 (now)"]);
         assert!(a.differences(&a).is_empty());
+    }
+
+    #[test]
+    fn bounce_rays_change_the_digest_but_files_from_before_them_keep_theirs() {
+        let a = EnergyInputs { diffuse_bounces: 1, direct_vrt: true, ..inputs() }.sealed();
+        // A file written before the setting existed has no `bounce_rays`: it reads as 1,
+        // and its digest is the one it was written with.
+        let mut json = serde_json::to_value(&a).unwrap();
+        json.as_object_mut().unwrap().remove("bounce_rays");
+        let old: EnergyInputs = serde_json::from_value(json).unwrap();
+        assert_eq!(old, a);
+        let eight = EnergyInputs { bounce_rays: 8, ..a.clone() }.sealed();
+        assert_ne!(eight.digest, a.digest);
+        assert_eq!(a.differences(&eight), ["bounce_rays 1 (file) vs 8 (now)"]);
     }
 }

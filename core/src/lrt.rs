@@ -281,7 +281,7 @@ fn trace_into(
     let normal = triangle_normal(&prec.v);
     // Every ray from the point light reaches the element's plane from the same side.
     let on_back = material.is_some_and(|m| m.refuses(prec.v[0] - l.position, normal));
-    let n = rays_for(view, plan, material, own)?;
+    let (n, fan) = rays_for(view, plan, material, own)?;
     let seed = header.settings.seed;
     let mut rng = Rng::from_words(&[seed, 0x4c5254, light as u64, element as u64]);
     let (sx, sy) = (rng.next_f64(), rng.next_f64());
@@ -331,7 +331,7 @@ fn trace_into(
         // Shading normals bend specular directions and a texture colours what bounces
         // diffusely (deposits are flux, taken on the geometric surface).
         let (at, albedo) = arrive(view, &prec, p, w, normal, None)?;
-        let bounce = Some(halton35(k, bx, by));
+        let bounce = Some(Strata { first: k * fan, count: fan, offset: (bx, by) });
         let s = Surface { at, albedo, material: prec.material, patch: erec.patch };
         scatter(view, &mut rng, &mut stack, &mut tally, s, bounce, flux, 0, 0, floor);
         follow(view, scratch, &mut rng, &mut stack, &mut tally, sink)?;
@@ -340,25 +340,36 @@ fn trace_into(
 }
 
 /// Light rays of a point light's pair whose target is element record `own` (of
-/// `material`): the scene's `light_rays`, except for a pair traced only for the diffuse
-/// bounces its rays start (direct light at VRT, a target that neither mirrors nor
-/// transmits). Such a pair casts a quarter of the rays for each level of refinement
-/// that made its element (at least one): the bounce is sent from as many rays per unit
-/// area as before the split, for the same noise, not four times as many per level.
-/// Refinement sharpens where light lands, not where bounced light leaves from.
+/// `material`), and the diffuse bounce rays each sends: the scene's `light_rays` with
+/// one bounce each, except for a pair traced only for the diffuse bounces its rays
+/// start (direct light at VRT, a target that neither mirrors nor transmits).
+///
+/// Such a pair sends `light_rays` bounce rays, a quarter as many for each level of
+/// refinement that made its element (at least one): the bounce is sent from as many
+/// rays per unit area as before the split, for the same noise, not four times as many
+/// per level (refinement sharpens where light lands, not where bounced light leaves
+/// from). Its light rays only find where on the element the light arrives, which varies
+/// little across one element, so each sends `bounce_rays` of them: it casts that many
+/// times fewer light rays for the same bounce rays (docs/ACCURACY.md measures it).
 fn rays_for(
     view: &mut SceneView,
     plan: &crate::plan::EffectsPlan,
     material: Option<&crate::scene::Material>,
     own: crate::blocks::ElementRecord,
-) -> Result<u32, BlockError> {
-    let n = view.header.settings.light_rays.max(1);
+) -> Result<(u32, u32), BlockError> {
+    let settings = &view.header.settings;
+    let (n, fan) = (settings.light_rays.max(1), settings.bounce_rays.max(1));
     let bounce_only = !plan.deposits_direct(false) && material.is_none_or(|m| !m.is_specular());
-    if !bounce_only || own.parent().is_none() {
-        return Ok(n);
+    if !bounce_only {
+        return Ok((n, 1));
     }
-    let depth = view.element_depth(own)?;
-    Ok((n >> (2 * depth).min(31)).max(1))
+    let bounces = match own.parent() {
+        None => n,
+        Some(_) => (n >> (2 * view.element_depth(own)?).min(31)).max(1),
+    };
+    // (A pair with no bounce to send was not traced: `EffectsPlan::skips_diffuse_pairs`.)
+    let fan = fan.min(bounces);
+    Ok((bounces.div_ceil(fan), fan))
 }
 
 /// Follows the secondary rays on `stack` depth-first: each deposits on the element it
@@ -416,6 +427,16 @@ struct Surface {
     patch: u32,
 }
 
+/// Stratified samples of the diffuse bounce's direction for one primary light ray:
+/// `count` points of the pair's Halton (3, 5) sequence from index `first`, shifted by
+/// `offset` (Cranley-Patterson rotation), each sending an equal share of the flux.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Strata {
+    pub(crate) first: u32,
+    pub(crate) count: u32,
+    pub(crate) offset: (f64, f64),
+}
+
 /// Splits the flux arriving at a surface point into absorbed, diffusely ended and
 /// secondary rays, per the material and the effects plan. `bounce` is the stratified
 /// sample of the diffuse bounce's direction for a pair's primary ray (its rays bounce in
@@ -428,7 +449,7 @@ fn scatter(
     stack: &mut Vec<Pending>,
     tally: &mut LrtTally,
     surface: Surface,
-    bounce: Option<(f64, f64)>,
+    bounce: Option<Strata>,
     flux: Rgb,
     specular: u32,
     diffuse: u32,
@@ -487,9 +508,19 @@ fn scatter(
         return;
     }
     if diffuse < plan.diffuse_bounces {
-        let (u0, u1) = bounce.unwrap_or_else(|| (rng.next_f64(), rng.next_f64()));
-        let dir = cosine_hemisphere(at.normal, u0, u1);
-        push(tally, dir, diff_flux, specular, diffuse + 1);
+        match bounce {
+            Some(Strata { first, count, offset: (bx, by) }) => {
+                let share = if count == 1 { diff_flux } else { diff_flux.scale(1.0 / count as f64) };
+                for j in 0..count {
+                    let (u0, u1) = halton35(first + j, bx, by);
+                    push(tally, cosine_hemisphere(at.normal, u0, u1), share, specular, diffuse + 1);
+                }
+            }
+            None => {
+                let (u0, u1) = (rng.next_f64(), rng.next_f64());
+                push(tally, cosine_hemisphere(at.normal, u0, u1), diff_flux, specular, diffuse + 1);
+            }
+        }
     } else {
         tally.diffuse_end = tally.diffuse_end.add(diff_flux);
     }

@@ -121,6 +121,15 @@ impl EffectsPlan {
             });
         }
         let direct_vrt = direct_at_vrt(scene, any_light && lrt && any_diffuse, &mut reasons);
+        if direct_vrt && diffuse_bounces > 0 {
+            let fan = s.bounce_rays.clamp(1, s.light_rays.max(1));
+            reasons.push(format!(
+                "direct light at VRT: a diffuse element's light rays only start its bounce, so its pairs cast {} light \
+                 rays, each sending {fan} bounce ray(s) ({} per pair)",
+                s.light_rays.max(1).div_ceil(fan),
+                s.light_rays.max(1)
+            ));
+        }
         EffectsPlan {
             lrt,
             lrt_depth,

@@ -84,9 +84,12 @@ fn bounce_only_pairs_cast_as_many_rays_per_unit_area_after_a_split() {
     // Direct light at VRT, one diffuse bounce: a diffuse element's pair is traced only
     // for the bounce its rays start. A child of depth d casts 32 / 4^d rays, so splits
     // leave the rays (one bounce each, none escaping a floor under a closed lid) and the
-    // flux that bounces unchanged.
+    // flux that bounces unchanged. (With one bounce ray per light ray, so that the rays
+    // counted are twice the bounce rays; several per light ray round each pair's light
+    // rays up, checked below.)
     let mut s = floor_scene(false);
     s.settings.diffuse_bounces = 1;
+    s.settings.bounce_rays = 1;
     s.settings.direct = magg_core::scene::DirectLight::Vrt;
     // Deposits descend to the leaf under the hit when the scene refines.
     s.settings.refine = 2;
@@ -104,6 +107,16 @@ fn bounce_only_pairs_cast_as_many_rays_per_unit_area_after_a_split() {
     assert!(rays(&a) > 0);
     let (fa, fb) = (total_flux(&base, &a.element_flux), total_flux(&split, &b.element_flux));
     assert!((fa - fb).abs() <= 0.05 * fa, "bounced flux {fa} before the splits, {fb} after");
+    // Eight bounce rays per light ray: the same bounce rays from fewer light rays, and the
+    // same flux lands on the lid within the sampling noise.
+    for (scene, one) in [(&base, fa), (&split, fb)] {
+        let mut eight = scene.clone();
+        std::sync::Arc::make_mut(&mut eight.header).settings.bounce_rays = 8;
+        let o = run(&eight, 2, None);
+        let f = total_flux(&eight, &o.element_flux);
+        assert!((f - one).abs() <= 0.05 * one, "bounced flux {f} with eight bounce rays per light ray, {one} with one");
+        assert!(o.stats.work.light_rays < rays(&a), "fewer rays: {} against {}", o.stats.work.light_rays, rays(&a));
+    }
 }
 
 #[test]

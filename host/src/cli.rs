@@ -196,6 +196,10 @@ pub struct Knobs {
     /// Light rays per (light, element) pair.
     #[arg(long)]
     pub light_rays: Option<u32>,
+    /// Diffuse bounce rays per light ray of a pair traced only for its bounce (direct
+    /// light at VRT, a diffuse target): it casts light-rays / bounce-rays light rays.
+    #[arg(long)]
+    pub bounce_rays: Option<u32>,
     /// Target element edge length (patches with fixed subdivisions keep theirs).
     #[arg(long)]
     pub element_size: Option<f64>,
@@ -432,6 +436,9 @@ impl Knobs {
         }
         if let Some(v) = self.light_rays {
             s.light_rays = range("light-rays", v, 1, 1_000_000)?;
+        }
+        if let Some(v) = self.bounce_rays {
+            s.bounce_rays = range("bounce-rays", v, 1, magg_core::scene::MAX_BOUNCE_RAYS)?;
         }
         if let Some(v) = self.lrt_depth {
             s.lrt_depth = range("lrt-depth", v, 0, 32)?;

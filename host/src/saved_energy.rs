@@ -152,6 +152,7 @@ mod tests {
             materials: 2,
             lights: 3,
             light_rays,
+            bounce_rays: 1,
             element_size: 0.1,
             lrt_depth: 4,
             diffuse_bounces: 0,

@@ -23,7 +23,7 @@ use super::{follow, merged, scatter, PairResult, Pending, Sink, Surface, MIN_REL
 use crate::blocks::{BlockError, NO_BACK};
 use crate::geometry::{solid_angle, triangle_normal, Ray, SphericalTriangle};
 use crate::header::Emitter;
-use crate::rng::{halton35, hammersley, Rng};
+use crate::rng::{hammersley, Rng};
 use crate::scatter::{arrive, offset_scale};
 use crate::subdivision::element_triangle;
 use crate::trace::{occluded, TraceScratch};
@@ -151,7 +151,7 @@ pub(super) fn trace_emitter_pair(
             }
             let floor = flux.max_channel() * MIN_RELATIVE_FLUX;
             let (at, albedo) = arrive(view, &prec, ray.at(t_plane), w, normal, None)?;
-            let bounce = Some(halton35(first_ray + j, bx, by));
+            let bounce = Some(super::Strata { first: first_ray + j, count: 1, offset: (bx, by) });
             let s = Surface { at, albedo, material: prec.material, patch: erec.patch };
             scatter(view, &mut rng, &mut stack, &mut out.tally, s, bounce, flux, 0, 0, floor);
             follow(view, scratch, &mut rng, &mut stack, &mut out.tally, &mut sink)?;

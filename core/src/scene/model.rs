@@ -178,6 +178,9 @@ pub enum Exposure {
     Fixed(f64),
 }
 
+/// Most diffuse bounce rays per light ray (`[render] bounce_rays`).
+pub const MAX_BOUNCE_RAYS: u32 = 4096;
+
 /// Every accuracy knob and output setting of a render.
 #[derive(Clone, Debug, PartialEq)]
 pub struct RenderSettings {
@@ -192,6 +195,12 @@ pub struct RenderSettings {
     pub element_size: f64,
     /// Primary light rays per (light, element) pair.
     pub light_rays: u32,
+    /// Diffuse bounce rays sent from each light ray's hit by a pair traced only for its
+    /// bounce (direct light at VRT, a diffuse target): such a pair casts
+    /// `light_rays / bounce_rays` light rays (rounded up), each sending `bounce_rays`
+    /// stratified bounce directions with an equal share of its flux, so that it still
+    /// sends `light_rays` bounce rays for fewer light rays. 1 is one bounce per light ray.
+    pub bounce_rays: u32,
     /// Maximum specular bounces of light rays (mirror, refraction) after the first hit.
     pub lrt_depth: u32,
     /// Maximum specular bounces of viewing rays.
@@ -236,6 +245,7 @@ impl Default for RenderSettings {
             pixel_samples: 4,
             element_size: 0.1,
             light_rays: 64,
+            bounce_rays: 8,
             lrt_depth: 4,
             vrt_depth: 4,
             diffuse_bounces: 0,

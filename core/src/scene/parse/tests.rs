@@ -139,6 +139,16 @@ fn refinement_is_off_unless_the_scene_asks_for_levels() {
 }
 
 #[test]
+fn bounce_rays_default_to_eight_per_light_ray_and_are_range_checked() {
+    assert_eq!(parse(MINI).unwrap().settings.bounce_rays, 8);
+    assert_eq!(parse(&format!("{MINI}[render]\nbounce_rays = 1\n")).unwrap().settings.bounce_rays, 1);
+    for bad in ["0", "4097", "2.5"] {
+        let e = err(&format!("{MINI}[render]\nbounce_rays = {bad}\n"));
+        assert!(e.starts_with("t.toml:18: render.bounce_rays:"), "{bad}: {e}");
+    }
+}
+
+#[test]
 fn accel_is_bvh_unless_the_scene_asks_for_the_grid() {
     assert_eq!(parse(MINI).unwrap().settings.accel, Accel::Bvh);
     let grid = parse(&format!("{MINI}[render]\naccel = \"grid\"\n")).unwrap().settings;
