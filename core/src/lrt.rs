@@ -431,17 +431,18 @@ struct Surface {
 /// `count` points of the pair's Halton (3, 5) sequence from index `first`, shifted by
 /// `offset` (Cranley-Patterson rotation), each sending an equal share of the flux.
 #[derive(Clone, Copy, Debug)]
-pub(crate) struct Strata {
-    pub(crate) first: u32,
-    pub(crate) count: u32,
-    pub(crate) offset: (f64, f64),
+struct Strata {
+    first: u32,
+    count: u32,
+    offset: (f64, f64),
 }
 
 /// Splits the flux arriving at a surface point into absorbed, diffusely ended and
-/// secondary rays, per the material and the effects plan. `bounce` is the stratified
-/// sample of the diffuse bounce's direction for a pair's primary ray (its rays bounce in
-/// directions spread evenly over the hemisphere, so the light they carry on lands as
-/// evenly); deeper bounces draw theirs from `rng`.
+/// secondary rays, per the material and the effects plan. `bounce` holds the stratified
+/// samples of the diffuse bounce's directions for a pair's primary ray (its rays bounce
+/// in directions spread evenly over the hemisphere, so the light they carry on lands as
+/// evenly), among which the diffuse flux is shared; deeper bounces draw one direction
+/// from `rng`.
 #[allow(clippy::too_many_arguments)]
 fn scatter(
     view: &SceneView,
@@ -510,7 +511,8 @@ fn scatter(
     if diffuse < plan.diffuse_bounces {
         match bounce {
             Some(Strata { first, count, offset: (bx, by) }) => {
-                let share = if count == 1 { diff_flux } else { diff_flux.scale(1.0 / count as f64) };
+                // (One share of one is the whole flux, exactly: x * 1.0 == x.)
+                let share = diff_flux.scale(1.0 / count as f64);
                 for j in 0..count {
                     let (u0, u1) = halton35(first + j, bx, by);
                     push(tally, cosine_hemisphere(at.normal, u0, u1), share, specular, diffuse + 1);
