@@ -185,7 +185,7 @@ impl EnergyInputs {
             lights: l.finish(),
             light_rays: s.light_rays,
             // Only pairs traced for their bounce alone use it: elsewhere it changes nothing.
-            bounce_rays: if h.plan.direct_vrt && h.plan.diffuse_bounces > 0 { s.bounce_rays } else { 1 },
+            bounce_rays: if h.plan.splits_bounces() { s.bounce_rays } else { 1 },
             element_size: s.element_size,
             lrt_depth: s.lrt_depth,
             diffuse_bounces: s.diffuse_bounces,

@@ -358,7 +358,7 @@ fn rays_for(
     own: crate::blocks::ElementRecord,
 ) -> Result<(u32, u32), BlockError> {
     let settings = &view.header.settings;
-    let (n, fan) = (settings.light_rays.max(1), settings.bounce_rays.max(1));
+    let (n, fan) = (settings.light_rays.max(1), settings.bounce_rays);
     let bounce_only = !plan.deposits_direct(false) && material.is_none_or(|m| !m.is_specular());
     if !bounce_only {
         return Ok((n, 1));
@@ -368,8 +368,7 @@ fn rays_for(
         Some(_) => (n >> (2 * view.element_depth(own)?).min(31)).max(1),
     };
     // (A pair with no bounce to send was not traced: `EffectsPlan::skips_diffuse_pairs`.)
-    let fan = fan.min(bounces);
-    Ok((bounces.div_ceil(fan), fan))
+    Ok(crate::plan::bounce_split(bounces, fan))
 }
 
 /// Follows the secondary rays on `stack` depth-first: each deposits on the element it

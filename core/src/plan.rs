@@ -45,6 +45,15 @@ pub struct EffectsPlan {
     pub reasons: Vec<String>,
 }
 
+/// How a pair traced for its bounce alone sends `bounces` bounce rays: as (light rays,
+/// bounce rays per light ray), at most `bounce_rays` per light ray and never more than
+/// there are bounces, the light rays rounded up.
+pub fn bounce_split(bounces: u32, bounce_rays: u32) -> (u32, u32) {
+    let bounces = bounces.max(1);
+    let fan = bounce_rays.clamp(1, bounces);
+    (bounces.div_ceil(fan), fan)
+}
+
 impl EffectsPlan {
     /// Analyses `scene` and decides the passes.
     pub fn for_scene(scene: &Scene) -> EffectsPlan {
@@ -122,11 +131,10 @@ impl EffectsPlan {
         }
         let direct_vrt = direct_at_vrt(scene, any_light && lrt && any_diffuse, &mut reasons);
         if direct_vrt && diffuse_bounces > 0 {
-            let fan = s.bounce_rays.clamp(1, s.light_rays.max(1));
+            let (light, fan) = bounce_split(s.light_rays, s.bounce_rays);
             reasons.push(format!(
-                "direct light at VRT: a diffuse element's light rays only start its bounce, so its pairs cast {} light \
-                 rays, each sending {fan} bounce ray(s) ({} per pair)",
-                s.light_rays.max(1).div_ceil(fan),
+                "direct light at VRT: a diffuse element's light rays only start its bounce, so its pairs cast {light} \
+                 light rays, each sending {fan} bounce ray(s) ({} per pair)",
                 s.light_rays.max(1)
             ));
         }
@@ -158,6 +166,14 @@ impl EffectsPlan {
     /// deposit ([`EffectsPlan::deposits_direct`]).
     pub fn skips_diffuse_pairs(&self) -> bool {
         self.direct_vrt && self.diffuse_bounces == 0
+    }
+
+    /// True when the pairs of point and spot lights with elements of a material without
+    /// mirror or transmissive parts are traced for their diffuse bounce alone (direct
+    /// light at VRT, diffuse bounces on): their light rays then split the bounce
+    /// ([`bounce_split`], `[render] bounce_rays`).
+    pub fn splits_bounces(&self) -> bool {
+        self.direct_vrt && self.diffuse_bounces > 0
     }
 
     /// The plan with every optional effect forced on at the scene's settings: used to
@@ -249,5 +265,19 @@ impl std::fmt::Display for EffectsPlan {
             writeln!(f, "  - {r}")?;
         }
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::bounce_split;
+
+    #[test]
+    fn the_bounce_is_split_into_whole_light_rays_and_never_more_per_ray_than_bounces() {
+        assert_eq!(bounce_split(512, 8), (64, 8));
+        assert_eq!(bounce_split(16, 3), (6, 3)); // 18 bounce rays: the light rays round up
+        assert_eq!(bounce_split(2, 8), (1, 2)); // a refined element's two bounces
+        assert_eq!(bounce_split(16, 0), (16, 1));
+        assert_eq!(bounce_split(0, 8), (1, 1));
     }
 }
