@@ -88,12 +88,10 @@ fn lrt_batch(v: &mut SceneView, s: &mut TraceScratch, pairs: &[(u32, u32)]) -> u
 
 fn vrt_batch(v: &mut SceneView, s: &mut TraceScratch, rig: &CameraRig, x0: u32, y0: u32) -> u64 {
     let before = v.counters.view_rays;
-    for y in y0..y0 + PIXEL_BLOCK {
-        for x in x0..x0 + PIXEL_BLOCK {
-            let px = vrt::shade_pixel(v, s, rig, x, y).unwrap_or_else(|e| panic!("{e}"));
-            std::hint::black_box(px);
-        }
-    }
+    let mut px = Vec::with_capacity((PIXEL_BLOCK * PIXEL_BLOCK) as usize);
+    let block = vrt::Subscreen { x: x0, y: y0, w: PIXEL_BLOCK, h: PIXEL_BLOCK };
+    vrt::shade_pixels(v, s, rig, block, &mut px).unwrap_or_else(|e| panic!("{e}"));
+    std::hint::black_box(&px);
     v.counters.view_rays - before
 }
 

@@ -209,13 +209,10 @@ fn run_vrt(f: &Fixture, cache: Option<usize>, target_pixels: u64) -> Result<Meas
     let mut work = 0;
     let t = Instant::now();
     for tile in tiles.iter().step_by(keep_every as usize) {
-        for y in tile.y..tile.y + tile.h {
-            for x in tile.x..tile.x + tile.w {
-                let px = vrt::shade_pixel(&mut v, &mut scratch, &rig, x, y).map_err(|e| e.to_string())?;
-                std::hint::black_box(px);
-                work += 1;
-            }
-        }
+        let mut px = Vec::with_capacity(tile.pixels() as usize);
+        vrt::shade_pixels(&mut v, &mut scratch, &rig, *tile, &mut px).map_err(|e| e.to_string())?;
+        std::hint::black_box(&px);
+        work += tile.pixels();
     }
     Ok(measure(&v, t, v.counters.view_rays, work))
 }

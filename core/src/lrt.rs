@@ -34,6 +34,9 @@ use crate::view::SceneView;
 use glam::DVec3;
 
 mod area;
+mod waves;
+
+use waves::PairTrees;
 
 /// Secondary rays whose flux falls below this fraction of their primary ray's flux are
 /// cut off (and counted as such in the tally).
@@ -109,27 +112,23 @@ pub struct RawPair {
     pub tally: LrtTally,
 }
 
-/// Where [`trace_into`] puts a pair's deposits: binned to leaves at once, or raw.
-enum Sink {
-    Binned(Vec<(u32, Rgb)>),
-    Raw(Vec<RawDeposit>),
-}
-
-impl Sink {
-    fn on(&mut self, element: u32, flux: Rgb) {
-        match self {
-            Sink::Binned(d) => d.push((element, flux)),
-            Sink::Raw(d) => d.push(RawDeposit::On(element, flux)),
-        }
+/// A pair's deposits binned to leaf elements, in their order. The leaves are looked up
+/// in the order of their lattice elements, so that each element block the lookups read
+/// is read once, back to back, however the pair's rays spread their deposits.
+fn binned(view: &mut SceneView, raw: &[RawDeposit]) -> Result<Vec<(u32, Rgb)>, BlockError> {
+    let lattice = |d: &RawDeposit| match *d {
+        RawDeposit::On(e, _) | RawDeposit::Under { element: e, .. } => e,
+    };
+    let mut order: Vec<u32> = (0..raw.len() as u32).collect();
+    order.sort_by_key(|&i| lattice(&raw[i as usize]));
+    let mut deposits = vec![(0, Rgb::BLACK); raw.len()];
+    for i in order {
+        deposits[i as usize] = match raw[i as usize] {
+            RawDeposit::On(e, f) => (e, f),
+            RawDeposit::Under { element, w, flux } => (leaf_under(view, element, w)?, flux),
+        };
     }
-
-    fn under(&mut self, view: &mut SceneView, element: u32, w: [f64; 3], flux: Rgb) -> Result<(), BlockError> {
-        match self {
-            Sink::Binned(d) => d.push((leaf_under(view, element, w)?, flux)),
-            Sink::Raw(d) => d.push(RawDeposit::Under { element, w, flux }),
-        }
-        Ok(())
-    }
+    Ok(deposits)
 }
 
 /// The leaf element under local coordinates `w` of lattice element `element`.
@@ -188,13 +187,49 @@ struct Pending {
     floor: f64,
 }
 
-/// Traces the pair (`light`, `element`).
+/// Traces the pair (`light`, `element`) ([`trace_pairs`] of one pair).
 pub fn trace_pair(
     view: &mut SceneView,
     scratch: &mut TraceScratch,
     light: u32,
     element: u32,
 ) -> Result<PairResult, BlockError> {
+    let mut one = trace_pairs(view, scratch, &[(light, element)])?;
+    Ok(one.pop().unwrap_or_default())
+}
+
+/// Traces a batch of (light, element) pairs: for each, what [`trace_pair`] gives, in the
+/// batch's order. The leaves under the whole batch's deposits are looked up together,
+/// in the order of their lattice elements: pairs of neighbouring elements deposit on
+/// the same elements, whose blocks are then read once per batch, not once per pair.
+pub fn trace_pairs(
+    view: &mut SceneView,
+    scratch: &mut TraceScratch,
+    pairs: &[(u32, u32)],
+) -> Result<Vec<PairResult>, BlockError> {
+    let mut raw = Vec::new();
+    let mut traced = Vec::with_capacity(pairs.len());
+    for &(light, element) in pairs {
+        let pair = trace_pair_raw(view, scratch, light, element)?;
+        raw.extend_from_slice(&pair.deposits);
+        traced.push((pair.deposits.len(), pair.tally));
+    }
+    let mut leaves = binned(view, &raw)?.into_iter();
+    let quantum = view.header.energy_quantum;
+    Ok(traced
+        .into_iter()
+        .map(|(n, tally)| PairResult { deposits: merged(leaves.by_ref().take(n).collect(), quantum), tally })
+        .collect())
+}
+
+/// Traces the pair (`light`, `element`), its deposits raw: what [`bin`] turns into the
+/// pair's result under any later refinement of the other elements.
+pub fn trace_pair_raw(
+    view: &mut SceneView,
+    scratch: &mut TraceScratch,
+    light: u32,
+    element: u32,
+) -> Result<RawPair, BlockError> {
     if light as usize >= view.header.lights.len() {
         let header = &view.header;
         let emitter = (light as usize).checked_sub(header.lights.len()).and_then(|k| header.emitters.get(k)).copied();
@@ -203,23 +238,7 @@ pub fn trace_pair(
             None => Err(BlockError::BadId { kind: "light", id: light as u64, count: header.light_sources() as u64 }),
         };
     }
-    let mut sink = Sink::Binned(Vec::new());
-    let tally = trace_into(view, scratch, light, element, &mut sink)?;
-    let Sink::Binned(deposits) = sink else { unreachable!("a binned sink stays binned") };
-    Ok(PairResult { deposits: merged(deposits, view.header.energy_quantum), tally })
-}
-
-/// [`trace_pair`] of a point light's pair, its deposits raw: what [`bin`] turns into the
-/// pair's result under any later refinement of the other elements.
-pub fn trace_pair_raw(
-    view: &mut SceneView,
-    scratch: &mut TraceScratch,
-    light: u32,
-    element: u32,
-) -> Result<RawPair, BlockError> {
-    let mut sink = Sink::Raw(Vec::new());
-    let tally = trace_into(view, scratch, light, element, &mut sink)?;
-    let Sink::Raw(deposits) = sink else { unreachable!("a raw sink stays raw") };
+    let (deposits, tally) = trace_into(view, scratch, light, element)?;
     Ok(RawPair { deposits, tally })
 }
 
@@ -230,24 +249,18 @@ pub fn bin(view: &mut SceneView, element: u32, raw: &RawPair) -> Result<PairResu
     if view.element(element)?.child != 0 {
         return Ok(PairResult::default());
     }
-    let mut deposits = Vec::with_capacity(raw.deposits.len());
-    for d in &raw.deposits {
-        deposits.push(match *d {
-            RawDeposit::On(e, f) => (e, f),
-            RawDeposit::Under { element, w, flux } => (leaf_under(view, element, w)?, flux),
-        });
-    }
+    let deposits = binned(view, &raw.deposits)?;
     Ok(PairResult { deposits: merged(deposits, view.header.energy_quantum), tally: raw.tally })
 }
 
-/// Traces point light `light`'s pair with `element` into `sink`; returns its tally.
+/// Traces point light `light`'s pair with `element`: its raw deposits (in the order of
+/// its rays, each ray's secondary rays depth first) and its tally.
 fn trace_into(
     view: &mut SceneView,
     scratch: &mut TraceScratch,
     light: u32,
     element: u32,
-    sink: &mut Sink,
-) -> Result<LrtTally, BlockError> {
+) -> Result<(Vec<RawDeposit>, LrtTally), BlockError> {
     let header = view.header.clone();
     let Some(l) = header.lights.get(light as usize) else {
         return Err(BlockError::BadId { kind: "point light", id: light as u64, count: header.lights.len() as u64 });
@@ -255,28 +268,30 @@ fn trace_into(
     let plan = &header.plan;
     let mut tally = LrtTally::default();
     if !plan.lrt {
-        return Ok(tally);
+        return Ok((Vec::new(), tally));
     }
     let own = view.element(element)?;
     if own.child != 0 {
         // Refinement split it: its four children have pairs of their own.
-        return Ok(tally);
+        return Ok((Vec::new(), tally));
+    }
+    let material = header.materials.get(view.patch(own.patch)?.material as usize);
+    if plan.skips_diffuse_pairs() && material.is_none_or(|m| !m.is_specular()) {
+        // Its direct light is computed at VRT and nothing bounces on from it. (Decided
+        // before its geometry is read: most pairs end here, and a refined element's
+        // parents lie in blocks far from it.)
+        return Ok((Vec::new(), tally));
     }
     // The lattice element it lies in says its face; its own corners are its target.
     let (erec, prec, tri) = view.element_geometry(element, own)?;
-    let material = header.materials.get(prec.material as usize);
-    if plan.skips_diffuse_pairs() && material.is_none_or(|m| !m.is_specular()) {
-        // Its direct light is computed at VRT and nothing bounces on from it.
-        return Ok(tally);
-    }
     if !prec.receives_on(&erec, prec.v[0] - l.position) {
         // Every ray from the point light arrives on the other face of the patch, whose
         // element (front or back) has a pair of its own.
-        return Ok(tally);
+        return Ok((Vec::new(), tally));
     }
     let omega = solid_angle(l.position, &tri);
     if !(omega > 0.0) || outside_cone(l, &tri) {
-        return Ok(tally);
+        return Ok((Vec::new(), tally));
     }
     let normal = triangle_normal(&prec.v);
     // Every ray from the point light reaches the element's plane from the same side.
@@ -287,11 +302,11 @@ fn trace_into(
     let (sx, sy) = (rng.next_f64(), rng.next_f64());
     let (bx, by) = (rng.next_f64(), rng.next_f64());
     let per_ray = omega / n as f64;
-    let mut stack: Vec<Pending> = Vec::new();
+    let mut trees = PairTrees::default();
     let eps0 = offset_scale(l.position);
     // Every ray of the pair leaves the light towards the same element.
     let Some(seen) = SphericalTriangle::new(l.position, &tri) else {
-        return Ok(tally);
+        return Ok((Vec::new(), tally));
     };
 
     for k in 0..n {
@@ -324,19 +339,17 @@ fn trace_into(
             continue;
         }
         let p = ray.at(t_plane);
-        if plan.deposits_direct(false) {
-            sink.on(element, flux);
-        }
         let floor = flux.max_channel() * MIN_RELATIVE_FLUX;
         // Shading normals bend specular directions and a texture colours what bounces
         // diffusely (deposits are flux, taken on the geometric surface).
         let (at, albedo) = arrive(view, &prec, p, w, normal, None)?;
         let bounce = Some(Strata { first: k * fan, count: fan, offset: (bx, by) });
         let s = Surface { at, albedo, material: prec.material, patch: erec.patch };
-        scatter(view, &mut rng, &mut stack, &mut tally, s, bounce, flux, 0, 0, floor);
-        follow(view, scratch, &mut rng, &mut stack, &mut tally, sink)?;
+        scatter(view, &mut rng, &mut trees.spawned, &mut tally, s, bounce, flux, 0, 0, floor);
+        trees.root(plan.deposits_direct(false).then_some(RawDeposit::On(element, flux)));
     }
-    Ok(tally)
+    let deposits = trees.trace(view, scratch, &mut rng, &mut tally)?;
+    Ok((deposits, tally))
 }
 
 /// Light rays of a point light's pair whose target is element record `own` (of
@@ -371,36 +384,34 @@ fn rays_for(
     Ok(crate::plan::bounce_split(bounces, fan))
 }
 
-/// Follows the secondary rays on `stack` depth-first: each deposits on the element it
-/// reaches and scatters on from there.
-fn follow(
+/// Follows secondary ray `s`: returns what it deposits where it arrives (raw: under the
+/// lattice element it reached), and pushes the rays it spawns there onto `spawned`.
+fn follow_one(
     view: &mut SceneView,
     scratch: &mut TraceScratch,
     rng: &mut Rng,
-    stack: &mut Vec<Pending>,
+    spawned: &mut Vec<Pending>,
     tally: &mut LrtTally,
-    sink: &mut Sink,
-) -> Result<(), BlockError> {
-    while let Some(s) = stack.pop() {
-        view.counters.light_rays += 1;
-        let tmin = offset_scale(s.ray.origin);
-        let Some(hit) = cast(view, scratch, &s.ray, tmin, f64::INFINITY, s.from_patch, false)? else {
-            tally.escaped = tally.escaped.add(s.flux);
-            continue;
-        };
-        let hp = view.patch(hit.patch)?;
-        let hn = triangle_normal(&hp.v);
-        if view.header.materials.get(hp.material as usize).is_some_and(|m| m.refuses(s.ray.direction, hn)) {
-            tally.absorbed = tally.absorbed.add(s.flux);
-            continue;
-        }
-        let (local, w) = locate(hp.subdivisions, hit.bary);
-        sink.under(view, hp.element_on_face(local, s.ray.direction), w, s.flux)?;
-        let (at, albedo) = arrive(view, &hp, s.ray.at(hit.t), s.ray.direction, hn, Some(hit.bary))?;
-        let surface = Surface { at, albedo, material: hp.material, patch: hit.patch };
-        scatter(view, rng, stack, tally, surface, None, s.flux, s.specular, s.diffuse, s.floor);
+    s: Pending,
+) -> Result<Option<RawDeposit>, BlockError> {
+    view.counters.light_rays += 1;
+    let tmin = offset_scale(s.ray.origin);
+    let Some(hit) = cast(view, scratch, &s.ray, tmin, f64::INFINITY, s.from_patch, false)? else {
+        tally.escaped = tally.escaped.add(s.flux);
+        return Ok(None);
+    };
+    let hp = view.patch(hit.patch)?;
+    let hn = triangle_normal(&hp.v);
+    if view.header.materials.get(hp.material as usize).is_some_and(|m| m.refuses(s.ray.direction, hn)) {
+        tally.absorbed = tally.absorbed.add(s.flux);
+        return Ok(None);
     }
-    Ok(())
+    let (local, w) = locate(hp.subdivisions, hit.bary);
+    let deposit = RawDeposit::Under { element: hp.element_on_face(local, s.ray.direction), w, flux: s.flux };
+    let (at, albedo) = arrive(view, &hp, s.ray.at(hit.t), s.ray.direction, hn, Some(hit.bary))?;
+    let surface = Surface { at, albedo, material: hp.material, patch: hit.patch };
+    scatter(view, rng, spawned, tally, surface, None, s.flux, s.specular, s.diffuse, s.floor);
+    Ok(Some(deposit))
 }
 
 /// One entry per element, sorted by element, each summed in generation order

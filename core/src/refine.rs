@@ -67,8 +67,8 @@ pub fn prepare(scene: &Scene, plan: EffectsPlan) -> Result<PreparedScene, Render
             if !pilot.header.plan.lrt {
                 break;
             }
-            let trace = |view: &mut SceneView, scratch: &mut TraceScratch, light: u32, element: u32| {
-                pairs.trace(view, scratch, light, element)
+            let trace = |view: &mut SceneView, scratch: &mut TraceScratch, batch: &[(u32, u32)]| {
+                batch.iter().map(|&(light, element)| pairs.trace(view, scratch, light, element)).collect()
             };
             let light = EmbeddedMachine::new(&pilot, &RenderOptions::default()).light_pass_with(&trace, &NoProgress)?;
             let room = scene.settings.max_elements.saturating_sub(pilot.elements.len() as u64) / 4;

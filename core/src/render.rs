@@ -15,7 +15,7 @@ use crate::camera::CameraRig;
 use crate::color::Rgb;
 use crate::energy::{vertex_energy_blocks, Fixed};
 use crate::frame::Frame;
-use crate::lrt::{trace_pair, LrtTally, PairResult};
+use crate::lrt::{trace_pairs, LrtTally, PairResult};
 use crate::machine::{
     self, FrameSink, Machine, MachineFigures, PhaseTimes, RenderError, RenderOutput, Sequence, ViewPass, ViewedFrame,
 };
@@ -26,7 +26,7 @@ use crate::scene::Camera;
 use crate::stats::{NodeStats, Stages, Traffic};
 use crate::trace::TraceScratch;
 use crate::view::SceneView;
-use crate::vrt::{shade_pixel, Subscreen};
+use crate::vrt::{shade_pixels, Subscreen};
 use std::sync::atomic::{AtomicI64, AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::Instant;
@@ -79,10 +79,11 @@ struct LightPass {
 
 /// LRT: nodes pull (light, element) pairs from a shared counter (lights: the point
 /// lights, then the emitting elements).
-/// What traces a pair in [`EmbeddedMachine::light_pass_with`]: [`trace_pair`], or a
-/// stand-in that gives the same results (refinement's pilots reuse a pair's rays).
+/// What traces a batch of (light, element) pairs in [`EmbeddedMachine::light_pass_with`]:
+/// [`trace_pairs`], or a stand-in that gives the same results (refinement's pilots reuse
+/// a pair's rays).
 pub type PairTracer<'a> =
-    dyn Fn(&mut SceneView, &mut TraceScratch, u32, u32) -> Result<PairResult, BlockError> + Sync + 'a;
+    dyn Fn(&mut SceneView, &mut TraceScratch, &[(u32, u32)]) -> Result<Vec<PairResult>, BlockError> + Sync + 'a;
 
 fn light_pass(
     views: &mut [SceneView],
@@ -115,9 +116,9 @@ fn light_pass(
                             break;
                         }
                         let end = (start + PAIR_BATCH).min(total_pairs);
-                        for k in start..end {
-                            let (light, element) = ((k / n_el as u64) as u32, (k % n_el as u64) as u32);
-                            let r = trace(view, &mut scratch, light, element)?;
+                        let batch: Vec<(u32, u32)> =
+                            (start..end).map(|k| ((k / n_el as u64) as u32, (k % n_el as u64) as u32)).collect();
+                        for r in trace(view, &mut scratch, &batch)? {
                             for (e, f) in r.deposits {
                                 if let Some(slot) = flux.get(e as usize) {
                                     for c in 0..3 {
@@ -194,11 +195,7 @@ fn view_pass(
                         };
                         let Some(t) = tile else { break };
                         px.clear();
-                        for y in t.y..t.y + t.h {
-                            for x in t.x..t.x + t.w {
-                                px.push(shade_pixel(view, &mut scratch, rig, x, y)?);
-                            }
-                        }
+                        shade_pixels(view, &mut scratch, rig, t, &mut px)?;
                         progress.subscreen_done(node as u32, t, &px);
                         progress.advance(t.pixels());
                         let mut f = frame.lock().unwrap_or_else(|p| p.into_inner());
@@ -279,7 +276,7 @@ impl EmbeddedMachine {
 
 impl EmbeddedMachine {
     /// The light pass with pairs traced by `trace` ([`Machine::light_pass`] uses
-    /// [`trace_pair`]).
+    /// [`trace_pairs`]).
     pub fn light_pass_with(
         &mut self,
         trace: &PairTracer,
@@ -294,7 +291,7 @@ impl EmbeddedMachine {
 
 impl Machine for EmbeddedMachine {
     fn light_pass(&mut self, progress: &dyn Progress) -> Result<machine::LightPass, RenderError> {
-        self.light_pass_with(&trace_pair, progress)
+        self.light_pass_with(&trace_pairs, progress)
     }
 
     fn publish_vertex_energies(&mut self, vertex_irradiance: &[Rgb]) -> Result<(), RenderError> {

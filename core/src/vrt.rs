@@ -9,16 +9,20 @@
 //! which node traced which subscreen.
 
 use crate::blocks::BlockError;
+use crate::blocks::PatchRecord;
 use crate::camera::CameraRig;
 use crate::color::Rgb;
-use crate::direct;
 use crate::geometry::{triangle_normal, Ray};
 use crate::rng::{hammersley, Rng};
-use crate::scatter::{arrive, offset_scale, Dielectric};
+use crate::scatter::{arrive, offset_scale, Arrival, Dielectric};
 use crate::subdivision::locate;
 use crate::trace::{cast, TraceScratch, NO_PATCH};
 use crate::view::SceneView;
 use std::f64::consts::PI;
+
+mod waves;
+
+pub use waves::shade_pixels;
 
 /// A rectangle of pixels: the paper's subscreen.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -40,7 +44,8 @@ impl Subscreen {
     }
 }
 
-/// Linear radiance of pixel (x, y): the mean of its viewing rays.
+/// Linear radiance of pixel (x, y): the mean of its viewing rays ([`shade_pixels`] of
+/// one pixel).
 pub fn shade_pixel(
     view: &mut SceneView,
     scratch: &mut TraceScratch,
@@ -48,93 +53,173 @@ pub fn shade_pixel(
     x: u32,
     y: u32,
 ) -> Result<Rgb, BlockError> {
-    // Only copies out of the header: a clone of the shared `Arc` per pixel or ray would
-    // bounce its reference count between the cores of every node thread.
-    let (n, seed) = (view.header.plan.pixel_samples.max(1), view.header.settings.seed);
+    let mut out = Vec::with_capacity(1);
+    shade_pixels(view, scratch, rig, Subscreen { x, y, w: 1, h: 1 }, &mut out)?;
+    Ok(out[0])
+}
+
+/// The viewing rays of pixel (x, y): `n` stratified samples, seeded from (scene seed,
+/// pixel), in sample order.
+fn pixel_rays(seed: u64, n: u32, rig: &CameraRig, x: u32, y: u32) -> impl Iterator<Item = Ray> + '_ {
     let (sx, sy) = if n > 1 {
         let mut rng = Rng::from_words(&[seed, 0x565254, x as u64, y as u64]);
         (rng.next_f64(), rng.next_f64())
     } else {
         (0.0, 0.0)
     };
-    let mut sum = Rgb::BLACK;
-    for i in 0..n {
+    (0..n).map(move |i| {
         let (u, v) = if n > 1 { hammersley(i, n, sx, sy) } else { (0.5, 0.5) };
-        let ray = rig.ray(x as f64 + u, y as f64 + v);
-        sum = sum.add(radiance(view, scratch, &ray, 0, NO_PATCH)?);
-    }
-    Ok(sum.scale(1.0 / n as f64))
+        rig.ray(x as f64 + u, y as f64 + v)
+    })
 }
 
-/// Radiance arriving along `ray`.
-fn radiance(
+/// What a viewing ray found where it arrived: the radiance leaving the hit towards it,
+/// without what the rays it spawned bring ([`Join`] adds that).
+struct Shaded {
+    local: Rgb,
+    join: Join,
+    /// The patch hit (the spawned rays start on it).
+    patch: u32,
+}
+
+/// How the radiance of the rays spawned at a hit joins the hit's own: none spawned, or
+/// a mirror's reflected ray (`mirror`, first) and a dielectric's reflected and refracted
+/// rays (`transmit`, then; the Fresnel reflectance when both were spawned, `None` for
+/// total internal reflection).
+#[derive(Clone, Copy)]
+enum Join {
+    None,
+    Specular { mirror: Option<Rgb>, transmit: Option<(Rgb, Option<f64>)> },
+}
+
+impl Join {
+    /// The radiance along the ray: `local` plus the spawned rays' radiance `spawned`
+    /// (in the order they were spawned), weighted.
+    fn radiance(self, local: Rgb, spawned: &[Rgb]) -> Rgb {
+        let Join::Specular { mirror, transmit } = self else { return local };
+        let mut l = local;
+        let mut rest = spawned.iter().copied();
+        let mut next = || rest.next().unwrap_or(Rgb::BLACK);
+        if let Some(m) = mirror {
+            l = l.add(m.mul(next()));
+        }
+        if let Some((t, split)) = transmit {
+            let reflected = next();
+            l = match split {
+                Some(fresnel) => l.add(t.mul(reflected.scale(fresnel).add(next().scale(1.0 - fresnel)))),
+                None => l.add(t.mul(reflected)),
+            };
+        }
+        l
+    }
+}
+
+/// A viewing ray arrived at a surface that takes or passes light on: what its shading
+/// stages ([`interpolated`], [`crate::direct::irradiance`], [`Arrived::finish`]) need.
+struct Arrived {
+    at: Arrival,
+    bary: [f64; 3],
+    patch: u32,
+    prec: PatchRecord,
+    m: Surface,
+    /// The diffuse reflectance there (textured or not).
+    diffuse: Rgb,
+    depth: u32,
+}
+
+impl Arrived {
+    /// Shades where this ray arrived: reflects `irr` (the irradiance there, when the
+    /// surface is diffuse), adds what the surface emits and the ambient term, and
+    /// pushes the specular rays it spawns onto `spawned` (mirror reflection, then a
+    /// dielectric's reflection and refraction).
+    fn finish(&self, irr: Rgb, spawned: &mut Vec<Ray>) -> Shaded {
+        let (m, at) = (&self.m, &self.at);
+        let mut l = Rgb::BLACK;
+        if at.front && !m.emit.is_black() {
+            // An area light's front: its radiance, plus what it reflects.
+            l = m.emit;
+        }
+        if !m.diffuse.is_black() {
+            l = l.add(self.diffuse.mul(irr).scale(1.0 / PI));
+            if let Some(ambient) = m.ambient {
+                l = l.add(self.diffuse.mul(ambient));
+            }
+        }
+        if self.depth >= m.vrt_depth || (!m.is_specular()) {
+            return Shaded { local: l, join: Join::None, patch: self.patch };
+        }
+        let mut mirror = None;
+        if m.is_mirror() {
+            spawned.push(at.spawn(at.reflected()));
+            mirror = Some(m.mirror);
+        }
+        let mut transmit = None;
+        if m.is_transmissive() {
+            spawned.push(at.spawn(at.reflected()));
+            transmit = Some(match at.dielectric(m.ior, m.refraction) {
+                Dielectric::Split { fresnel, refracted } => {
+                    spawned.push(at.spawn(refracted));
+                    (m.transmit, Some(fresnel))
+                }
+                Dielectric::Reflected => (m.transmit, None),
+            });
+        }
+        Shaded { local: l, join: Join::Specular { mirror, transmit }, patch: self.patch }
+    }
+}
+
+/// Traces viewing ray `ray` (of recursion depth `depth`, leaving patch `exclude` or the
+/// eye) to the surface it arrives at; `Err` holds the whole radiance along a ray that
+/// ends there (the background, or a surface that takes no light).
+fn arrive_at(
     view: &mut SceneView,
     scratch: &mut TraceScratch,
     ray: &Ray,
     depth: u32,
     exclude: u32,
-) -> Result<Rgb, BlockError> {
+) -> Result<Result<Arrived, Rgb>, BlockError> {
     view.counters.view_rays += 1;
     let tmin = if exclude == NO_PATCH { 0.0 } else { offset_scale(ray.origin) };
     let Some(hit) = cast(view, scratch, ray, tmin, f64::INFINITY, exclude, false)? else {
-        return Ok(view.header.settings.background);
+        return Ok(Err(view.header.settings.background));
     };
     let prec = view.patch(hit.patch)?;
     let Some(m) = Surface::of(view, prec.material) else {
-        return Ok(Rgb::BLACK);
+        return Ok(Err(Rgb::BLACK));
     };
     let normal = triangle_normal(&prec.v);
     if m.one_sided && ray.direction.dot(normal) > 0.0 {
         // The back of a one-sided patch takes no light and reflects none.
-        return Ok(Rgb::BLACK);
+        return Ok(Err(Rgb::BLACK));
     }
     let (at, albedo) = arrive(view, &prec, ray.at(hit.t), ray.direction, normal, Some(hit.bary))?;
     // A texture multiplies the diffuse reflectance.
     let diffuse = albedo.map_or(m.diffuse, |a| m.diffuse.mul(a));
-    let mut l = Rgb::BLACK;
-    if at.front && !m.emit.is_black() {
-        // An area light's front: its radiance, plus what it reflects.
-        l = m.emit;
+    Ok(Ok(Arrived { at, bary: hit.bary, patch: hit.patch, prec, m, diffuse, depth }))
+}
+
+impl Arrived {
+    /// The element of its patch's lattice, on the face the ray arrived on, that the ray
+    /// hit; with the hit's local coordinates in it.
+    fn lattice_element(&self) -> (u32, [f64; 3]) {
+        let (local, w) = locate(self.prec.subdivisions, self.bary);
+        (self.prec.element_on_face(local, self.at.d), w)
     }
-    if !m.diffuse.is_black() {
-        view.counters.shades += 1;
-        let (local, w) = locate(prec.subdivisions, hit.bary);
-        // The element of the face the viewing ray arrived on.
-        let id = prec.element_on_face(local, ray.direction);
-        let rec = view.element(id)?;
-        // Refinement may have split it: the leaf under the hit holds the light.
-        let (_, e, w) = view.leaf_element(id, rec, w)?;
-        let mut irr = Rgb::BLACK;
-        for k in 0..3 {
-            irr = irr.add(view.vertex_energy(e.vertices[k])?.scale(w[k]));
-        }
-        if m.direct_vrt {
-            irr = irr.add(direct::irradiance(view, scratch, &at, hit.patch)?);
-        }
-        l = l.add(diffuse.mul(irr).scale(1.0 / PI));
-        if let Some(ambient) = m.ambient {
-            l = l.add(diffuse.mul(ambient));
-        }
+}
+
+/// The irradiance the elements hold where `a` arrived on a diffuse surface: the hit
+/// element's (its leaf's, when refinement split it) vertex energies, interpolated.
+fn interpolated(view: &mut SceneView, a: &Arrived) -> Result<Rgb, BlockError> {
+    view.counters.shades += 1;
+    let (id, w) = a.lattice_element();
+    let rec = view.element(id)?;
+    // Refinement may have split it: the leaf under the hit holds the light.
+    let (_, e, w) = view.leaf_element(id, rec, w)?;
+    let mut irr = Rgb::BLACK;
+    for k in 0..3 {
+        irr = irr.add(view.vertex_energy(e.vertices[k])?.scale(w[k]));
     }
-    if depth >= m.vrt_depth || (!m.is_specular()) {
-        return Ok(l);
-    }
-    if m.is_mirror() {
-        let r = radiance(view, scratch, &at.spawn(at.reflected()), depth + 1, hit.patch)?;
-        l = l.add(m.mirror.mul(r));
-    }
-    if m.is_transmissive() {
-        let split = at.dielectric(m.ior, m.refraction);
-        let reflected = radiance(view, scratch, &at.spawn(at.reflected()), depth + 1, hit.patch)?;
-        match split {
-            Dielectric::Split { fresnel, refracted } => {
-                let through = radiance(view, scratch, &at.spawn(refracted), depth + 1, hit.patch)?;
-                l = l.add(m.transmit.mul(reflected.scale(fresnel).add(through.scale(1.0 - fresnel))));
-            }
-            Dielectric::Reflected => l = l.add(m.transmit.mul(reflected)),
-        }
-    }
-    Ok(l)
+    Ok(irr)
 }
 
 /// What shading needs of a hit's material and of the plan, copied out of the header so

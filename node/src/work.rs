@@ -10,10 +10,10 @@ use crate::timing::PassTimes;
 use crate::NodeError;
 use magg_core::camera::CameraRig;
 use magg_core::cluster::PairLease;
-use magg_core::lrt::trace_pair;
+use magg_core::lrt::trace_pairs;
 use magg_core::trace::TraceScratch;
 use magg_core::view::SceneView;
-use magg_core::vrt::shade_pixel;
+use magg_core::vrt::{shade_pixels, Subscreen};
 use magg_plumbing::auth::Authed;
 use magg_plumbing::retry::retry;
 use magg_plumbing::retry::Backoff;
@@ -33,6 +33,11 @@ use tokio::task::JoinHandle;
 /// Longest pause between work requests of an idle node (the host's `wait_ms` is capped
 /// to it).
 pub const MAX_WAIT_MS: u32 = 1000;
+
+/// Rows of a subscreen traced together ([`shade_pixels`]): neighbouring rows' rays read
+/// the same blocks, so a bounded cache misses less the more rows go together; the host
+/// can take back a subscreen's unstarted rows only between bands.
+pub const BAND_ROWS: u32 = 4;
 
 /// Longest time a node keeps finished rows before sending them to the host.
 pub const ROW_REPORT: Duration = Duration::from_millis(5);
@@ -284,13 +289,16 @@ impl Worker {
             tracing::debug!(node = self.node, pairs = got.pairs.len(), "tracing a batch of pairs");
             // Split by fork in two rounds (see crate::route).
             let mut rounds = Rounds::new(self.forks.len(), got.epoch);
+            let mut leased = Vec::with_capacity(got.pairs.len());
             for &pair in &got.pairs {
                 if pair >= total || elements == 0 {
                     return Err(NodeError::Convert(format!("pair {pair} out of range ({total} pairs)")));
                 }
-                let (light, element) = ((pair / elements) as u32, (pair % elements) as u32);
-                let r = trace_pair(&mut self.view, &mut scratch, light, element)?;
-                self.compute();
+                leased.push(((pair / elements) as u32, (pair % elements) as u32));
+            }
+            let results = trace_pairs(&mut self.view, &mut scratch, &leased)?;
+            self.compute();
+            for ((&pair, &(_, element)), r) in got.pairs.iter().zip(&leased).zip(results) {
                 if !self.pair_delay.is_zero() {
                     std::thread::sleep(self.pair_delay);
                 }
@@ -349,6 +357,7 @@ impl Worker {
         };
         let rig = CameraRig::new(&camera, w, hgt);
         let mut scratch = TraceScratch::default();
+        let mut pixels = Vec::with_capacity((s.w * BAND_ROWS) as usize);
         let mut end = s.y + s.h;
         let mut y = s.y;
         // Rows go to the host in batches: at least every ROW_REPORT of work, so that the
@@ -357,19 +366,24 @@ impl Worker {
         let mut since = Instant::now();
         let mut t = since;
         while y < end {
-            let mut rgb = Vec::with_capacity(12 * s.w as usize);
-            for x in s.x..s.x + s.w {
-                let c = shade_pixel(&mut self.view, &mut scratch, &rig, x, y)?;
-                for v in c.0 {
-                    rgb.extend_from_slice(&(v as f32).to_le_bytes());
+            // A band of rows at a time: its pixels' rays are traced together.
+            let band = Subscreen { x: s.x, y, w: s.w, h: BAND_ROWS.min(end - y) };
+            pixels.clear();
+            shade_pixels(&mut self.view, &mut scratch, &rig, band, &mut pixels)?;
+            for row in pixels.chunks(s.w as usize) {
+                let mut rgb = Vec::with_capacity(12 * s.w as usize);
+                for c in row {
+                    for v in c.0 {
+                        rgb.extend_from_slice(&(v as f32).to_le_bytes());
+                    }
                 }
+                self.compute();
+                if !self.row_delay.is_zero() {
+                    std::thread::sleep(self.row_delay);
+                }
+                rows.push(Row { y, rgb: rgb.into() });
+                y += 1;
             }
-            self.compute();
-            if !self.row_delay.is_zero() {
-                std::thread::sleep(self.row_delay);
-            }
-            rows.push(Row { y, rgb: rgb.into() });
-            y += 1;
             if y < end && since.elapsed() < ROW_REPORT {
                 continue;
             }

@@ -19,7 +19,7 @@
 //! the emitter's plane, or a one-sided receiver whose front faces away from the whole
 //! emitter.
 
-use super::{follow, merged, scatter, PairResult, Pending, Sink, Surface, MIN_RELATIVE_FLUX};
+use super::{scatter, PairTrees, RawDeposit, RawPair, Surface, MIN_RELATIVE_FLUX};
 use crate::blocks::{BlockError, NO_BACK};
 use crate::geometry::{solid_angle, triangle_normal, Ray, SphericalTriangle};
 use crate::header::Emitter;
@@ -44,17 +44,18 @@ fn split(n: u32) -> (u32, impl Fn(u32) -> u32) {
     (a, move |i| n / a + u32::from(i < n % a))
 }
 
-/// Traces the pair of `emitter` (light index `light`) and `element`.
+/// Traces the pair of `emitter` (light index `light`) and `element`: its raw deposits
+/// and tally.
 pub(super) fn trace_emitter_pair(
     view: &mut SceneView,
     scratch: &mut TraceScratch,
     light: u32,
     emitter: Emitter,
     element: u32,
-) -> Result<PairResult, BlockError> {
+) -> Result<RawPair, BlockError> {
     let header = view.header.clone();
     let plan = &header.plan;
-    let mut out = PairResult::default();
+    let mut out = RawPair::default();
     if !plan.lrt || emitter.element == element || emitter.power.is_black() {
         return Ok(out);
     }
@@ -97,8 +98,7 @@ pub(super) fn trace_emitter_pair(
     // Index among the pair's n rays of the first ray from the current point (for the
     // rays' bounce samples).
     let mut first_ray = 0u32;
-    let mut sink = Sink::Binned(Vec::new());
-    let mut stack: Vec<Pending> = Vec::new();
+    let mut trees = PairTrees::default();
 
     for i in 0..points {
         let (u0, u1) = hammersley(i, points, sx, sy);
@@ -146,19 +146,15 @@ pub(super) fn trace_emitter_pair(
                 out.tally.absorbed = out.tally.absorbed.add(flux);
                 continue;
             }
-            if plan.deposits_direct(true) {
-                sink.on(element, flux);
-            }
             let floor = flux.max_channel() * MIN_RELATIVE_FLUX;
             let (at, albedo) = arrive(view, &prec, ray.at(t_plane), w, normal, None)?;
             let bounce = Some(super::Strata { first: first_ray + j, count: 1, offset: (bx, by) });
             let s = Surface { at, albedo, material: prec.material, patch: erec.patch };
-            scatter(view, &mut rng, &mut stack, &mut out.tally, s, bounce, flux, 0, 0, floor);
-            follow(view, scratch, &mut rng, &mut stack, &mut out.tally, &mut sink)?;
+            scatter(view, &mut rng, &mut trees.spawned, &mut out.tally, s, bounce, flux, 0, 0, floor);
+            trees.root(plan.deposits_direct(true).then_some(RawDeposit::On(element, flux)));
         }
     }
-    let Sink::Binned(deposits) = sink else { unreachable!("a binned sink stays binned") };
-    out.deposits = merged(deposits, header.energy_quantum);
+    out.deposits = trees.trace(view, scratch, &mut rng, &mut out.tally)?;
     Ok(out)
 }
 

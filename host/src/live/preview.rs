@@ -26,7 +26,7 @@ use magg_core::preprocess::PreparedScene;
 use magg_core::scene::Camera;
 use magg_core::trace::TraceScratch;
 use magg_core::view::SceneView;
-use magg_core::vrt::shade_pixel;
+use magg_core::vrt::{shade_pixels, Subscreen};
 use std::collections::HashMap;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Condvar, Mutex};
@@ -109,10 +109,11 @@ impl Previewer {
         let mut view = SceneView::new(self.header.clone(), BlockCache::new(Arc::new(blocks), None));
         let mut scratch = TraceScratch::default();
         let mut rgb = Vec::with_capacity(3 * (self.width * self.height) as usize);
+        let mut row = Vec::with_capacity(self.width as usize);
         for y in 0..self.height {
-            for x in 0..self.width {
-                rgb.extend(shade_pixel(&mut view, &mut scratch, &self.rig, x, y)?.0.map(|v| v as f32));
-            }
+            row.clear();
+            shade_pixels(&mut view, &mut scratch, &self.rig, Subscreen { x: 0, y, w: self.width, h: 1 }, &mut row)?;
+            rgb.extend(row.iter().flat_map(|c| c.0.map(|v| v as f32)));
         }
         Ok(PreviewImage { width: self.width, height: self.height, rgb })
     }

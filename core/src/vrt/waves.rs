@@ -1,0 +1,139 @@
+//! A subscreen's pixels traced a generation of viewing rays at a time (a wave): every
+//! sample's primary ray, then every ray those spawned, the rays of one kind of path
+//! (reflected off the glass, refracted into it and out again, ...) side by side.
+//!
+//! Why waves: neighbouring pixels' rays read the same blocks (BVH nodes, leaf
+//! triangles, the patch, its shading and element records, vertex energies), but a
+//! pixel's own ray tree through a glass sphere reads blocks all over the scene. Traced
+//! one pixel's tree after another, each pixel cycles through every branch's blocks, and
+//! when they add up to more than a bounded node cache holds, LRU evicts each block just
+//! before it is wanted again. Traced a generation at a time, sorted by the branches
+//! taken, the rays of one branch read their blocks back to back.
+//!
+//! The radiance is unchanged, bit for bit: each ray's tree is kept (a node per ray, its
+//! local radiance and how its children's join it), and evaluated from the leaves up
+//! with the same arithmetic, in the same order, as a depth-first recursion would.
+
+use super::{arrive_at, interpolated, pixel_rays, Arrived, Join};
+use crate::blocks::BlockError;
+use crate::camera::CameraRig;
+use crate::color::Rgb;
+use crate::direct;
+use crate::geometry::Ray;
+use crate::trace::{TraceScratch, NO_PATCH};
+use crate::view::SceneView;
+use crate::vrt::Subscreen;
+
+/// One viewing ray of a row's trees.
+struct Node {
+    local: Rgb,
+    join: Join,
+    /// Its children: node ids `first..first + count`, in the order they were spawned.
+    first: u32,
+    count: u32,
+}
+
+/// A ray waiting for its wave: its node, the branches its path took (rays of equal
+/// `path` are traced side by side), its depth and the patch it leaves.
+struct Queued {
+    node: u32,
+    path: u64,
+    ray: Ray,
+    depth: u32,
+    exclude: u32,
+}
+
+/// Linear radiance of the pixels of subscreen `s`, appended to `out` row by row: for
+/// each, the mean of its viewing rays (as [`super::shade_pixel`] gives it, bit for bit).
+/// The pixels' rays are traced in Morton order (neighbours in the image, whose rays read
+/// the same blocks, come one after another in both directions).
+pub fn shade_pixels(
+    view: &mut SceneView,
+    scratch: &mut TraceScratch,
+    rig: &CameraRig,
+    s: Subscreen,
+    out: &mut Vec<Rgb>,
+) -> Result<(), BlockError> {
+    let (n, seed) = (view.header.plan.pixel_samples.max(1), view.header.settings.seed);
+    let leaf = Node { local: Rgb::BLACK, join: Join::None, first: 0, count: 0 };
+    let mut order: Vec<(u32, u32)> = (0..s.h).flat_map(|dy| (0..s.w).map(move |dx| (dx, dy))).collect();
+    order.sort_unstable_by_key(|&(dx, dy)| morton(dx, dy));
+    // The primary rays are nodes 0.., pixel by pixel in that order, sample by sample.
+    let mut nodes: Vec<Node> = Vec::new();
+    let mut wave: Vec<Queued> = Vec::new();
+    for &(dx, dy) in &order {
+        for ray in pixel_rays(seed, n, rig, s.x + dx, s.y + dy) {
+            let node = nodes.len() as u32;
+            nodes.push(Node { ..leaf });
+            wave.push(Queued { node, path: 0, ray, depth: 0, exclude: NO_PATCH });
+        }
+    }
+    let mut spawned: Vec<Ray> = Vec::new();
+    let mut next: Vec<Queued> = Vec::new();
+    let mut arrived: Vec<(Queued, Arrived, Rgb)> = Vec::new();
+    while !wave.is_empty() {
+        // Node ids grow with the pixel and the sample: ties keep that order.
+        wave.sort_unstable_by_key(|q| (q.path, q.node));
+        // In stages, each over the whole wave, so that each stage's blocks are read back
+        // to back: the hits (BVH, leaf triangles, patches, shading), the elements'
+        // light (element records, vertex energies), then the shadow rays (the BVH
+        // again, towards the lights).
+        for q in wave.drain(..) {
+            match arrive_at(view, scratch, &q.ray, q.depth, q.exclude)? {
+                Ok(a) => arrived.push((q, a, Rgb::BLACK)),
+                Err(local) => nodes[q.node as usize].local = local,
+            }
+        }
+        // The elements in the order of their ids: neighbours share element and
+        // vertex-energy blocks.
+        let mut diffuse: Vec<usize> = (0..arrived.len()).filter(|&i| !arrived[i].1.m.diffuse.is_black()).collect();
+        diffuse.sort_by_cached_key(|&i| arrived[i].1.lattice_element().0);
+        for i in diffuse {
+            arrived[i].2 = interpolated(view, &arrived[i].1)?;
+        }
+        for (_, a, irr) in arrived.iter_mut().filter(|(_, a, _)| a.m.direct_vrt && !a.m.diffuse.is_black()) {
+            *irr = irr.add(direct::irradiance(view, scratch, &a.at, a.patch)?);
+        }
+        for (q, a, irr) in arrived.drain(..) {
+            let shaded = a.finish(irr, &mut spawned);
+            let first = nodes.len() as u32;
+            let count = spawned.len() as u32;
+            nodes[q.node as usize] = Node { local: shaded.local, join: shaded.join, first, count };
+            for (k, ray) in spawned.drain(..).enumerate() {
+                let node = nodes.len() as u32;
+                nodes.push(Node { ..leaf });
+                // The branch taken, one base-4 digit per generation.
+                let path = q.path.wrapping_mul(4).wrapping_add(k as u64 + 1);
+                next.push(Queued { node, path, ray, depth: q.depth + 1, exclude: shaded.patch });
+            }
+        }
+        std::mem::swap(&mut wave, &mut next);
+    }
+    // Children come after their parents: from the last node back, each joins its own.
+    let mut radiance = vec![Rgb::BLACK; nodes.len()];
+    for (id, node) in nodes.iter().enumerate().rev() {
+        let kids = node.first as usize..(node.first + node.count) as usize;
+        let joined = node.join.radiance(node.local, &radiance[kids]);
+        radiance[id] = joined;
+    }
+    let start = out.len();
+    out.resize(start + order.len(), Rgb::BLACK);
+    for (&(dx, dy), pixel) in order.iter().zip(radiance.chunks(n as usize)) {
+        let sum = pixel.iter().fold(Rgb::BLACK, |s, &r| s.add(r));
+        out[start + (dy * s.w + dx) as usize] = sum.scale(1.0 / n as f64);
+    }
+    Ok(())
+}
+
+/// The Morton code of (x, y): their bits interleaved.
+fn morton(x: u32, y: u32) -> u64 {
+    let spread = |v: u32| {
+        let mut v = v as u64;
+        v = (v | (v << 16)) & 0x0000_ffff_0000_ffff;
+        v = (v | (v << 8)) & 0x00ff_00ff_00ff_00ff;
+        v = (v | (v << 4)) & 0x0f0f_0f0f_0f0f_0f0f;
+        v = (v | (v << 2)) & 0x3333_3333_3333_3333;
+        (v | (v << 1)) & 0x5555_5555_5555_5555
+    };
+    spread(x) | (spread(y) << 1)
+}
