@@ -1,0 +1,127 @@
+//! Rays traced together give, bit for bit, what each traced alone gives, and read far
+//! fewer blocks through a small node cache: a pair's light rays a generation at a time,
+//! a batch's deposits binned together, a subscreen's viewing rays in waves and stages.
+//! (scenes/cornell.toml: a glass sphere and a mirror block, three levels of refinement.)
+
+use magg_core::blocks::{BlockCache, MemStore};
+use magg_core::camera::CameraRig;
+use magg_core::color::Rgb;
+use magg_core::energy::vertex_energy_blocks;
+use magg_core::lrt::{trace_pair, trace_pairs};
+use magg_core::preprocess::{prepare, PreparedScene};
+use magg_core::scene::parse_scene_with_path;
+use magg_core::trace::TraceScratch;
+use magg_core::view::SceneView;
+use magg_core::vrt::{shade_pixel, shade_pixels, Subscreen};
+use std::path::Path;
+use std::sync::Arc;
+
+/// scenes/cornell.toml at 64 x 64, 8 light rays a pair, with made-up vertex energies
+/// (so that the elements' light shows in every pixel).
+fn cornell() -> PreparedScene {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/cornell.toml");
+    let text = std::fs::read_to_string(&path).unwrap();
+    let (mut s, _) = parse_scene_with_path("cornell.toml", &text, path.parent().unwrap(), &|p: &Path| std::fs::read(p))
+        .unwrap_or_else(|e| panic!("{e}"));
+    (s.settings.width, s.settings.height, s.settings.light_rays) = (64, 64, 8);
+    let mut p = prepare(&s).unwrap();
+    let n = p.vertex_positions.len();
+    let irr: Vec<Rgb> = (0..n).map(|i| Rgb([(i % 7) as f64, (i % 11) as f64 * 0.5, 1.0 + (i % 3) as f64])).collect();
+    for (id, block) in vertex_energy_blocks(&irr, &p.header.layout) {
+        p.blocks[id as usize] = block;
+    }
+    p
+}
+
+fn view(p: &PreparedScene, cache: Option<usize>) -> SceneView {
+    SceneView::new(p.header.clone(), BlockCache::new(Arc::new(MemStore::new(p.blocks.clone())), cache))
+}
+
+/// The pairs of the scene's light with its mirror's and its glass's elements (the ones
+/// a light pass traces when direct light is computed at VRT), and some others.
+fn specular_pairs(p: &PreparedScene) -> Vec<(u32, u32)> {
+    let mut v = view(p, None);
+    let specular = |v: &mut SceneView, e: u32| {
+        let patch = v.element(e).unwrap().patch;
+        let m = v.patch(patch).unwrap().material;
+        v.header.materials[m as usize].is_specular()
+    };
+    let all = p.elements.len() as u32;
+    let mut pairs: Vec<(u32, u32)> = (0..all).filter(|&e| specular(&mut v, e)).step_by(3).map(|e| (0, e)).collect();
+    assert!(pairs.len() > 100, "{} specular pairs", pairs.len());
+    pairs.extend((0..all).step_by(997).map(|e| (0, e)));
+    pairs
+}
+
+#[test]
+fn a_batch_of_pairs_deposits_what_each_pair_deposits_alone() {
+    let p = cornell();
+    let pairs = specular_pairs(&p);
+    let mut scratch = TraceScratch::default();
+    let mut v = view(&p, None);
+    let alone: Vec<_> = pairs.iter().map(|&(l, e)| trace_pair(&mut v, &mut scratch, l, e).unwrap()).collect();
+    assert!(alone.iter().filter(|r| r.deposits.len() > 3).count() > 50, "the pairs deposit little");
+    for batch in [1, 7, 64, pairs.len()] {
+        let mut v = view(&p, Some(40));
+        let together: Vec<_> =
+            pairs.chunks(batch).flat_map(|c| trace_pairs(&mut v, &mut scratch, c).unwrap()).collect();
+        assert_eq!(together, alone, "batches of {batch}");
+    }
+}
+
+#[test]
+fn a_batch_of_pairs_misses_a_small_cache_far_less_than_its_pairs_one_by_one() {
+    let p = cornell();
+    let pairs = specular_pairs(&p);
+    let mut scratch = TraceScratch::default();
+    let mut one = view(&p, Some(40));
+    for &(l, e) in &pairs {
+        trace_pair(&mut one, &mut scratch, l, e).unwrap();
+    }
+    let mut batched = view(&p, Some(40));
+    for c in pairs.chunks(256) {
+        trace_pairs(&mut batched, &mut scratch, c).unwrap();
+    }
+    let (one, batched) = (one.cache_stats().misses, batched.cache_stats().misses);
+    assert!(batched * 3 < one * 2, "{batched} misses in batches against {one} one by one");
+}
+
+#[test]
+fn a_subscreen_shaded_together_is_each_pixel_shaded_alone() {
+    let p = cornell();
+    let rig = CameraRig::new(&p.header.camera, 64, 64);
+    let mut scratch = TraceScratch::default();
+    let mut v = view(&p, Some(40));
+    // The glass sphere and the mirror block are in the image's lower half.
+    for s in [Subscreen { x: 8, y: 30, w: 48, h: 30 }, Subscreen { x: 3, y: 5, w: 1, h: 7 }] {
+        let mut together = Vec::new();
+        shade_pixels(&mut v, &mut scratch, &rig, s, &mut together).unwrap();
+        let mut alone = Vec::new();
+        for y in s.y..s.y + s.h {
+            for x in s.x..s.x + s.w {
+                alone.push(shade_pixel(&mut v, &mut scratch, &rig, x, y).unwrap());
+            }
+        }
+        assert_eq!(together, alone, "subscreen {s:?}");
+    }
+}
+
+#[test]
+fn a_subscreen_shaded_together_misses_a_small_cache_far_less_than_pixel_by_pixel() {
+    let p = cornell();
+    let rig = CameraRig::new(&p.header.camera, 64, 64);
+    let mut scratch = TraceScratch::default();
+    let s = Subscreen { x: 0, y: 0, w: 64, h: 64 };
+    let mut one = view(&p, Some(40));
+    for y in 0..64 {
+        for x in 0..64 {
+            shade_pixel(&mut one, &mut scratch, &rig, x, y).unwrap();
+        }
+    }
+    let mut together = view(&p, Some(40));
+    for band in (0..64).step_by(4) {
+        shade_pixels(&mut together, &mut scratch, &rig, Subscreen { y: band, h: 4, ..s }, &mut Vec::new()).unwrap();
+    }
+    let (one, together) = (one.cache_stats().misses, together.cache_stats().misses);
+    assert!(together * 2 < one, "{together} misses in bands against {one} pixel by pixel");
+}
