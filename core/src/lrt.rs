@@ -18,8 +18,9 @@
 //! lights: light index `lights + k` is emitting element k, so their pairs are numbered,
 //! leased and deposited exactly like the point lights' ([`area`]).
 //!
-//! Every random choice is seeded from (scene seed, light, element), so a pair re-run on
-//! another node deposits exactly the same values.
+//! Every random choice is seeded from (scene seed, light, element), and a secondary
+//! ray's from its place in the pair's ray trees too, so a pair re-run on another node,
+//! or traced in another order ([`waves`]), deposits exactly the same values.
 
 use crate::blocks::BlockError;
 use crate::color::Rgb;
@@ -112,21 +113,29 @@ pub struct RawPair {
     pub tally: LrtTally,
 }
 
-/// A pair's deposits binned to leaf elements, in their order. The leaves are looked up
-/// in the order of their lattice elements, so that each element block the lookups read
-/// is read once, back to back, however the pair's rays spread their deposits.
+/// A pair's deposits binned to leaf elements, in their order. Through a bounded cache
+/// the leaves are looked up in the order of their lattice elements, so that each
+/// element block the lookups read is read once, back to back, however the pair's rays
+/// spread their deposits.
 fn binned(view: &mut SceneView, raw: &[RawDeposit]) -> Result<Vec<(u32, Rgb)>, BlockError> {
+    let leaf = |view: &mut SceneView, d: &RawDeposit| match *d {
+        RawDeposit::On(e, f) => Ok((e, f)),
+        RawDeposit::Under { element, w, flux } => Ok((leaf_under(view, element, w)?, flux)),
+    };
+    if view.header.settings.refine == 0 || !view.cache_is_bounded() {
+        // Every lattice element is a leaf (nothing to look up), or every block is at
+        // hand (the order of the lookups costs nothing).
+        return raw.iter().map(|d| leaf(view, d)).collect();
+    }
     let lattice = |d: &RawDeposit| match *d {
         RawDeposit::On(e, _) | RawDeposit::Under { element: e, .. } => e,
     };
-    let mut order: Vec<u32> = (0..raw.len() as u32).collect();
-    order.sort_by_key(|&i| lattice(&raw[i as usize]));
+    let mut order: Vec<u64> = raw.iter().enumerate().map(|(i, d)| (lattice(d) as u64) << 32 | i as u64).collect();
+    order.sort_unstable();
     let mut deposits = vec![(0, Rgb::BLACK); raw.len()];
-    for i in order {
-        deposits[i as usize] = match raw[i as usize] {
-            RawDeposit::On(e, f) => (e, f),
-            RawDeposit::Under { element, w, flux } => (leaf_under(view, element, w)?, flux),
-        };
+    for k in order {
+        let i = k as u32 as usize;
+        deposits[i] = leaf(view, &raw[i])?;
     }
     Ok(deposits)
 }
@@ -178,6 +187,7 @@ fn outside_cone(light: &Light, tri: &[DVec3; 3]) -> bool {
     angle - spread > s.half_angle_deg + s.falloff_deg
 }
 
+/// A secondary light ray waiting to be followed.
 struct Pending {
     ray: Ray,
     flux: Rgb,
@@ -185,6 +195,58 @@ struct Pending {
     specular: u32,
     diffuse: u32,
     floor: f64,
+    /// How it left the surface that spawned it.
+    branch: Branch,
+    /// Who it is in its pair.
+    id: RayId,
+}
+
+/// Who a light ray is within its pair: the pair's seed, and the ray's place in the
+/// pair's ray trees (its primary ray, then the rays spawned on the way). A ray's random
+/// choices (the direction of a diffuse bounce off a secondary hit) are drawn from it,
+/// so they do not depend on the order in which the pair's rays are traced.
+/// (Its path is hashed only when it is wanted: most rays spawn nothing and draw
+/// nothing.)
+#[derive(Clone, Copy, Debug)]
+struct RayId {
+    pair: u64,
+    /// The path of the ray that spawned it (the primary ray's index for a primary
+    /// ray), and its place among the rays spawned there.
+    parent: u64,
+    j: u64,
+}
+
+impl RayId {
+    /// The `k`-th primary ray of the pair (`light`, `element`) under scene seed `seed`.
+    fn primary(seed: u64, light: u32, element: u32, k: u32) -> RayId {
+        let pair = crate::rng::seed_of(&[seed, 0x424f554e, light as u64, element as u64]);
+        RayId { pair, parent: k as u64, j: u64::MAX }
+    }
+
+    /// Its path: a hash of its place in the pair's trees.
+    fn path(self) -> u64 {
+        crate::rng::seed_of(&[self.parent, self.j])
+    }
+
+    /// The `j`-th ray spawned by the ray of path `path` (of this pair).
+    fn child(self, path: u64, j: usize) -> RayId {
+        RayId { pair: self.pair, parent: path, j: j as u64 }
+    }
+
+    /// Its generator.
+    fn rng(self) -> Rng {
+        Rng::from_words(&[self.pair, self.path()])
+    }
+}
+
+/// How a secondary light ray left a surface: rays that took the same branches travel
+/// together ([`waves`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Branch {
+    Mirror = 1,
+    Reflected = 2,
+    Refracted = 3,
+    Diffuse = 4,
 }
 
 /// Traces the pair (`light`, `element`) ([`trace_pairs`] of one pair).
@@ -207,19 +269,32 @@ pub fn trace_pairs(
     scratch: &mut TraceScratch,
     pairs: &[(u32, u32)],
 ) -> Result<Vec<PairResult>, BlockError> {
-    let mut raw = Vec::new();
-    let mut traced = Vec::with_capacity(pairs.len());
-    for &(light, element) in pairs {
-        let pair = trace_pair_raw(view, scratch, light, element)?;
-        raw.extend_from_slice(&pair.deposits);
-        traced.push((pair.deposits.len(), pair.tally));
-    }
-    let mut leaves = binned(view, &raw)?.into_iter();
+    let (mut raw, mut trees) = (Vec::new(), PairTrees::default());
+    let mut results = Vec::with_capacity(pairs.len());
     let quantum = view.header.energy_quantum;
-    Ok(traced
-        .into_iter()
-        .map(|(n, tally)| PairResult { deposits: merged(leaves.by_ref().take(n).collect(), quantum), tally })
-        .collect())
+    // With every block resident, each pair is binned on its own (its raw deposits are
+    // not kept for the batch).
+    let together = if view.cache_is_bounded() { pairs.len().max(1) } else { 1 };
+    for group in pairs.chunks(together) {
+        raw.clear();
+        let mut traced = Vec::with_capacity(group.len());
+        for &(light, element) in group {
+            let before = raw.len();
+            let tally = trace_raw_into(view, scratch, &mut trees, light, element, &mut raw)?;
+            traced.push((raw.len() - before, tally));
+        }
+        if let [(_, tally)] = traced[..] {
+            results.push(PairResult { deposits: merged(binned(view, &raw)?, quantum), tally });
+            continue;
+        }
+        let mut leaves = binned(view, &raw)?.into_iter();
+        results.extend(
+            traced
+                .into_iter()
+                .map(|(n, tally)| PairResult { deposits: merged(leaves.by_ref().take(n).collect(), quantum), tally }),
+        );
+    }
+    Ok(results)
 }
 
 /// Traces the pair (`light`, `element`), its deposits raw: what [`bin`] turns into the
@@ -230,16 +305,31 @@ pub fn trace_pair_raw(
     light: u32,
     element: u32,
 ) -> Result<RawPair, BlockError> {
+    let mut deposits = Vec::new();
+    let tally = trace_raw_into(view, scratch, &mut PairTrees::default(), light, element, &mut deposits)?;
+    Ok(RawPair { deposits, tally })
+}
+
+/// Traces the pair (`light`, `element`) with `trees` (whatever they held before),
+/// appending its raw deposits to `out`; returns its tally.
+fn trace_raw_into(
+    view: &mut SceneView,
+    scratch: &mut TraceScratch,
+    trees: &mut PairTrees,
+    light: u32,
+    element: u32,
+    out: &mut Vec<RawDeposit>,
+) -> Result<LrtTally, BlockError> {
+    trees.clear(view.cache_is_bounded());
     if light as usize >= view.header.lights.len() {
         let header = &view.header;
         let emitter = (light as usize).checked_sub(header.lights.len()).and_then(|k| header.emitters.get(k)).copied();
         return match emitter {
-            Some(e) => area::trace_emitter_pair(view, scratch, light, e, element),
+            Some(e) => area::trace_emitter_pair(view, scratch, trees, light, e, element, out),
             None => Err(BlockError::BadId { kind: "light", id: light as u64, count: header.light_sources() as u64 }),
         };
     }
-    let (deposits, tally) = trace_into(view, scratch, light, element)?;
-    Ok(RawPair { deposits, tally })
+    trace_into(view, scratch, trees, light, element, out)
 }
 
 /// The result of pair (`_`, `element`) from its raw deposits, binned to the leaves of
@@ -253,14 +343,17 @@ pub fn bin(view: &mut SceneView, element: u32, raw: &RawPair) -> Result<PairResu
     Ok(PairResult { deposits: merged(deposits, view.header.energy_quantum), tally: raw.tally })
 }
 
-/// Traces point light `light`'s pair with `element`: its raw deposits (in the order of
-/// its rays, each ray's secondary rays depth first) and its tally.
+/// Traces point light `light`'s pair with `element` with `trees` (cleared): appends its
+/// raw deposits to `out` (in the order of its rays, each ray's secondary rays depth
+/// first) and returns its tally.
 fn trace_into(
     view: &mut SceneView,
     scratch: &mut TraceScratch,
+    trees: &mut PairTrees,
     light: u32,
     element: u32,
-) -> Result<(Vec<RawDeposit>, LrtTally), BlockError> {
+    out: &mut Vec<RawDeposit>,
+) -> Result<LrtTally, BlockError> {
     let header = view.header.clone();
     let Some(l) = header.lights.get(light as usize) else {
         return Err(BlockError::BadId { kind: "point light", id: light as u64, count: header.lights.len() as u64 });
@@ -268,30 +361,30 @@ fn trace_into(
     let plan = &header.plan;
     let mut tally = LrtTally::default();
     if !plan.lrt {
-        return Ok((Vec::new(), tally));
+        return Ok(tally);
     }
     let own = view.element(element)?;
     if own.child != 0 {
         // Refinement split it: its four children have pairs of their own.
-        return Ok((Vec::new(), tally));
+        return Ok(tally);
     }
     let material = header.materials.get(view.patch(own.patch)?.material as usize);
     if plan.skips_diffuse_pairs() && material.is_none_or(|m| !m.is_specular()) {
         // Its direct light is computed at VRT and nothing bounces on from it. (Decided
         // before its geometry is read: most pairs end here, and a refined element's
         // parents lie in blocks far from it.)
-        return Ok((Vec::new(), tally));
+        return Ok(tally);
     }
     // The lattice element it lies in says its face; its own corners are its target.
     let (erec, prec, tri) = view.element_geometry(element, own)?;
     if !prec.receives_on(&erec, prec.v[0] - l.position) {
         // Every ray from the point light arrives on the other face of the patch, whose
         // element (front or back) has a pair of its own.
-        return Ok((Vec::new(), tally));
+        return Ok(tally);
     }
     let omega = solid_angle(l.position, &tri);
     if !(omega > 0.0) || outside_cone(l, &tri) {
-        return Ok((Vec::new(), tally));
+        return Ok(tally);
     }
     let normal = triangle_normal(&prec.v);
     // Every ray from the point light reaches the element's plane from the same side.
@@ -302,11 +395,10 @@ fn trace_into(
     let (sx, sy) = (rng.next_f64(), rng.next_f64());
     let (bx, by) = (rng.next_f64(), rng.next_f64());
     let per_ray = omega / n as f64;
-    let mut trees = PairTrees::default();
     let eps0 = offset_scale(l.position);
     // Every ray of the pair leaves the light towards the same element.
     let Some(seen) = SphericalTriangle::new(l.position, &tri) else {
-        return Ok((Vec::new(), tally));
+        return Ok(tally);
     };
 
     for k in 0..n {
@@ -345,11 +437,13 @@ fn trace_into(
         let (at, albedo) = arrive(view, &prec, p, w, normal, None)?;
         let bounce = Some(Strata { first: k * fan, count: fan, offset: (bx, by) });
         let s = Surface { at, albedo, material: prec.material, patch: erec.patch };
-        scatter(view, &mut rng, &mut trees.spawned, &mut tally, s, bounce, flux, 0, 0, floor);
-        trees.root(plan.deposits_direct(false).then_some(RawDeposit::On(element, flux)));
+        let id = RayId::primary(seed, light, element, k);
+        scatter(view, id, &mut trees.spawned, &mut tally, s, bounce, flux, 0, 0, floor);
+        let deposit = plan.deposits_direct(false).then_some(RawDeposit::On(element, flux));
+        trees.root(view, scratch, &mut tally, deposit, out)?;
     }
-    let deposits = trees.trace(view, scratch, &mut rng, &mut tally)?;
-    Ok((deposits, tally))
+    trees.trace(view, scratch, &mut tally, out)?;
+    Ok(tally)
 }
 
 /// Light rays of a point light's pair whose target is element record `own` (of
@@ -389,10 +483,9 @@ fn rays_for(
 fn follow_one(
     view: &mut SceneView,
     scratch: &mut TraceScratch,
-    rng: &mut Rng,
     spawned: &mut Vec<Pending>,
     tally: &mut LrtTally,
-    s: Pending,
+    s: &Pending,
 ) -> Result<Option<RawDeposit>, BlockError> {
     view.counters.light_rays += 1;
     let tmin = offset_scale(s.ray.origin);
@@ -410,7 +503,7 @@ fn follow_one(
     let deposit = RawDeposit::Under { element: hp.element_on_face(local, s.ray.direction), w, flux: s.flux };
     let (at, albedo) = arrive(view, &hp, s.ray.at(hit.t), s.ray.direction, hn, Some(hit.bary))?;
     let surface = Surface { at, albedo, material: hp.material, patch: hit.patch };
-    scatter(view, rng, spawned, tally, surface, None, s.flux, s.specular, s.diffuse, s.floor);
+    scatter(view, s.id, spawned, tally, surface, None, s.flux, s.specular, s.diffuse, s.floor);
     Ok(Some(deposit))
 }
 
@@ -452,11 +545,11 @@ struct Strata {
 /// samples of the diffuse bounce's directions for a pair's primary ray (its rays bounce
 /// in directions spread evenly over the hemisphere, so the light they carry on lands as
 /// evenly), among which the diffuse flux is shared; deeper bounces draw one direction
-/// from `rng`.
+/// from the generator of `from`, the ray that arrived.
 #[allow(clippy::too_many_arguments)]
 fn scatter(
     view: &SceneView,
-    rng: &mut Rng,
+    from: RayId,
     stack: &mut Vec<Pending>,
     tally: &mut LrtTally,
     surface: Surface,
@@ -482,7 +575,8 @@ fn scatter(
     ]);
     tally.absorbed = tally.absorbed.add(flux.mul(absorbed));
 
-    let mut push = |tally: &mut LrtTally, dir: DVec3, f: Rgb, spec: u32, diff: u32| {
+    let (base, mut path) = (stack.len(), None);
+    let mut push = |tally: &mut LrtTally, branch: Branch, dir: DVec3, f: Rgb, spec: u32, diff: u32| {
         if f.is_black() {
             return;
         }
@@ -490,7 +584,9 @@ fn scatter(
             tally.cut = tally.cut.add(f);
             return;
         }
-        stack.push(Pending { ray: at.spawn(dir), flux: f, from_patch: patch, specular: spec, diffuse: diff, floor });
+        let path = *path.get_or_insert_with(|| from.path());
+        let (ray, id) = (at.spawn(dir), from.child(path, stack.len() - base));
+        stack.push(Pending { ray, flux: f, from_patch: patch, specular: spec, diffuse: diff, floor, branch, id });
     };
 
     // Specular parts.
@@ -498,15 +594,19 @@ fn scatter(
     let spec_flux_transmit = flux.mul(m.transmit);
     if specular < plan.lrt_depth {
         if !spec_flux_mirror.is_black() {
-            push(tally, at.reflected(), spec_flux_mirror, specular + 1, diffuse);
+            push(tally, Branch::Mirror, at.reflected(), spec_flux_mirror, specular + 1, diffuse);
         }
         if !spec_flux_transmit.is_black() {
             match at.dielectric(m.ior, plan.refraction) {
                 Dielectric::Split { fresnel, refracted } => {
-                    push(tally, at.reflected(), spec_flux_transmit.scale(fresnel), specular + 1, diffuse);
-                    push(tally, refracted, spec_flux_transmit.scale(1.0 - fresnel), specular + 1, diffuse);
+                    let (reflected, through) =
+                        (spec_flux_transmit.scale(fresnel), spec_flux_transmit.scale(1.0 - fresnel));
+                    push(tally, Branch::Reflected, at.reflected(), reflected, specular + 1, diffuse);
+                    push(tally, Branch::Refracted, refracted, through, specular + 1, diffuse);
                 }
-                Dielectric::Reflected => push(tally, at.reflected(), spec_flux_transmit, specular + 1, diffuse),
+                Dielectric::Reflected => {
+                    push(tally, Branch::Reflected, at.reflected(), spec_flux_transmit, specular + 1, diffuse)
+                }
             }
         }
     } else {
@@ -525,12 +625,13 @@ fn scatter(
                 let share = diff_flux.scale(1.0 / count as f64);
                 for j in 0..count {
                     let (u0, u1) = halton35(first + j, bx, by);
-                    push(tally, cosine_hemisphere(at.normal, u0, u1), share, specular, diffuse + 1);
+                    push(tally, Branch::Diffuse, cosine_hemisphere(at.normal, u0, u1), share, specular, diffuse + 1);
                 }
             }
             None => {
+                let mut rng = from.rng();
                 let (u0, u1) = (rng.next_f64(), rng.next_f64());
-                push(tally, cosine_hemisphere(at.normal, u0, u1), diff_flux, specular, diffuse + 1);
+                push(tally, Branch::Diffuse, cosine_hemisphere(at.normal, u0, u1), diff_flux, specular, diffuse + 1);
             }
         }
     } else {

@@ -78,6 +78,13 @@ impl SceneView {
         self.cache.stats()
     }
 
+    /// True when the view reads through a cache that may evict blocks: the kernels
+    /// then trace rays that read the same blocks together (docs/ARCHITECTURE.md, "Rays
+    /// kept together"); with every block resident they trace the cheapest way.
+    pub fn cache_is_bounded(&self) -> bool {
+        self.cache.is_bounded()
+    }
+
     /// Forgets cached vertex-energy blocks (they are rewritten after interpolation).
     pub fn invalidate_vertex_energy(&mut self) {
         let l = self.header.layout;

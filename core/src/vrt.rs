@@ -9,7 +9,6 @@
 //! which node traced which subscreen.
 
 use crate::blocks::BlockError;
-use crate::blocks::PatchRecord;
 use crate::camera::CameraRig;
 use crate::color::Rgb;
 use crate::geometry::{triangle_normal, Ray};
@@ -118,12 +117,18 @@ impl Join {
 /// stages ([`interpolated`], [`crate::direct::irradiance`], [`Arrived::finish`]) need.
 struct Arrived {
     at: Arrival,
-    bary: [f64; 3],
     patch: u32,
-    prec: PatchRecord,
     m: Surface,
+    /// The element of the patch's lattice hit, on the face arrived on, and the hit's
+    /// local coordinates in it.
+    element: u32,
+    w: [f64; 3],
     /// The diffuse reflectance there (textured or not).
     diffuse: Rgb,
+    /// The surface reflects diffusely (its elements' light shows), and takes direct
+    /// light through shadow rays.
+    shaded: bool,
+    direct: bool,
     depth: u32,
 }
 
@@ -132,6 +137,7 @@ impl Arrived {
     /// surface is diffuse), adds what the surface emits and the ambient term, and
     /// pushes the specular rays it spawns onto `spawned` (mirror reflection, then a
     /// dielectric's reflection and refraction).
+    #[inline]
     fn finish(&self, irr: Rgb, spawned: &mut Vec<Ray>) -> Shaded {
         let (m, at) = (&self.m, &self.at);
         let mut l = Rgb::BLACK;
@@ -171,6 +177,7 @@ impl Arrived {
 /// Traces viewing ray `ray` (of recursion depth `depth`, leaving patch `exclude` or the
 /// eye) to the surface it arrives at; `Err` holds the whole radiance along a ray that
 /// ends there (the background, or a surface that takes no light).
+#[inline]
 fn arrive_at(
     view: &mut SceneView,
     scratch: &mut TraceScratch,
@@ -195,23 +202,18 @@ fn arrive_at(
     let (at, albedo) = arrive(view, &prec, ray.at(hit.t), ray.direction, normal, Some(hit.bary))?;
     // A texture multiplies the diffuse reflectance.
     let diffuse = albedo.map_or(m.diffuse, |a| m.diffuse.mul(a));
-    Ok(Ok(Arrived { at, bary: hit.bary, patch: hit.patch, prec, m, diffuse, depth }))
-}
-
-impl Arrived {
-    /// The element of its patch's lattice, on the face the ray arrived on, that the ray
-    /// hit; with the hit's local coordinates in it.
-    fn lattice_element(&self) -> (u32, [f64; 3]) {
-        let (local, w) = locate(self.prec.subdivisions, self.bary);
-        (self.prec.element_on_face(local, self.at.d), w)
-    }
+    let (local, w) = locate(prec.subdivisions, hit.bary);
+    let element = prec.element_on_face(local, ray.direction);
+    let (shaded, direct) = (!m.diffuse.is_black(), m.direct_vrt && !m.diffuse.is_black());
+    Ok(Ok(Arrived { at, patch: hit.patch, m, element, w, diffuse, shaded, direct, depth }))
 }
 
 /// The irradiance the elements hold where `a` arrived on a diffuse surface: the hit
 /// element's (its leaf's, when refinement split it) vertex energies, interpolated.
+#[inline]
 fn interpolated(view: &mut SceneView, a: &Arrived) -> Result<Rgb, BlockError> {
     view.counters.shades += 1;
-    let (id, w) = a.lattice_element();
+    let (id, w) = (a.element, a.w);
     let rec = view.element(id)?;
     // Refinement may have split it: the leaf under the hit holds the light.
     let (_, e, w) = view.leaf_element(id, rec, w)?;

@@ -342,6 +342,11 @@ impl BlockCache {
         }
     }
 
+    /// True for a cache of a bounded number of blocks (one that may evict).
+    pub fn is_bounded(&self) -> bool {
+        matches!(self.slots, Slots::Bounded(_))
+    }
+
     /// Hits and misses so far.
     pub fn stats(&self) -> CacheStats {
         self.stats

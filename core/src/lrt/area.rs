@@ -19,7 +19,7 @@
 //! the emitter's plane, or a one-sided receiver whose front faces away from the whole
 //! emitter.
 
-use super::{scatter, PairTrees, RawDeposit, RawPair, Surface, MIN_RELATIVE_FLUX};
+use super::{scatter, LrtTally, PairTrees, RawDeposit, RayId, Surface, MIN_RELATIVE_FLUX};
 use crate::blocks::{BlockError, NO_BACK};
 use crate::geometry::{solid_angle, triangle_normal, Ray, SphericalTriangle};
 use crate::header::Emitter;
@@ -44,20 +44,22 @@ fn split(n: u32) -> (u32, impl Fn(u32) -> u32) {
     (a, move |i| n / a + u32::from(i < n % a))
 }
 
-/// Traces the pair of `emitter` (light index `light`) and `element`: its raw deposits
-/// and tally.
+/// Traces the pair of `emitter` (light index `light`) and `element` with `trees`
+/// (cleared): appends its raw deposits to `out` and returns its tally.
 pub(super) fn trace_emitter_pair(
     view: &mut SceneView,
     scratch: &mut TraceScratch,
+    trees: &mut PairTrees,
     light: u32,
     emitter: Emitter,
     element: u32,
-) -> Result<RawPair, BlockError> {
+    out: &mut Vec<RawDeposit>,
+) -> Result<LrtTally, BlockError> {
     let header = view.header.clone();
     let plan = &header.plan;
-    let mut out = RawPair::default();
+    let mut tally = LrtTally::default();
     if !plan.lrt || emitter.element == element || emitter.power.is_black() {
-        return Ok(out);
+        return Ok(tally);
     }
     let src = view.element(emitter.element)?;
     let sp = view.patch(src.patch)?;
@@ -66,18 +68,18 @@ pub(super) fn trace_emitter_pair(
     let own = view.element(element)?;
     if own.child != 0 {
         // Refinement split it: its four children have pairs of their own.
-        return Ok(out);
+        return Ok(tally);
     }
     let (erec, prec, tri) = view.element_geometry(element, own)?;
     let material = header.materials.get(prec.material as usize);
     let normal = triangle_normal(&prec.v);
     if tri.iter().all(|v| en.dot(*v - etri[0]) <= 0.0) {
         // On or behind the emitter's plane: its front sends nothing there.
-        return Ok(out);
+        return Ok(tally);
     }
     if material.is_some_and(|m| m.one_sided) && etri.iter().all(|v| normal.dot(*v - tri[0]) <= 0.0) {
         // Every ray would arrive on the back of a one-sided receiver.
-        return Ok(out);
+        return Ok(tally);
     }
     if prec.back_element != NO_BACK {
         // An emitter wholly on one side of the receiver's plane sends every ray to one
@@ -85,7 +87,7 @@ pub(super) fn trace_emitter_pair(
         let side = |v: &DVec3| normal.dot(*v - tri[0]);
         let behind = etri.iter().all(|v| side(v) <= 0.0);
         if (behind || etri.iter().all(|v| side(v) >= 0.0)) && behind != erec.is_back(prec.subdivisions) {
-            return Ok(out);
+            return Ok(tally);
         }
     }
     // emit * A_e, per channel.
@@ -98,7 +100,6 @@ pub(super) fn trace_emitter_pair(
     // Index among the pair's n rays of the first ray from the current point (for the
     // rays' bounce samples).
     let mut first_ray = 0u32;
-    let mut trees = PairTrees::default();
 
     for i in 0..points {
         let (u0, u1) = hammersley(i, points, sx, sy);
@@ -138,24 +139,26 @@ pub(super) fn trace_emitter_pair(
             }
             let ray = Ray::new(p, w);
             if occluded(view, scratch, &ray, eps0, t_plane * (1.0 - 1e-9), erec.patch)? {
-                out.tally.occluded = out.tally.occluded.add(flux);
+                tally.occluded = tally.occluded.add(flux);
                 continue;
             }
-            out.tally.reached = out.tally.reached.add(flux);
+            tally.reached = tally.reached.add(flux);
             if material.is_some_and(|m| m.refuses(w, normal)) {
-                out.tally.absorbed = out.tally.absorbed.add(flux);
+                tally.absorbed = tally.absorbed.add(flux);
                 continue;
             }
             let floor = flux.max_channel() * MIN_RELATIVE_FLUX;
             let (at, albedo) = arrive(view, &prec, ray.at(t_plane), w, normal, None)?;
             let bounce = Some(super::Strata { first: first_ray + j, count: 1, offset: (bx, by) });
             let s = Surface { at, albedo, material: prec.material, patch: erec.patch };
-            scatter(view, &mut rng, &mut trees.spawned, &mut out.tally, s, bounce, flux, 0, 0, floor);
-            trees.root(plan.deposits_direct(true).then_some(RawDeposit::On(element, flux)));
+            let id = RayId::primary(header.settings.seed, light, element, first_ray + j);
+            scatter(view, id, &mut trees.spawned, &mut tally, s, bounce, flux, 0, 0, floor);
+            let deposit = plan.deposits_direct(true).then_some(RawDeposit::On(element, flux));
+            trees.root(view, scratch, &mut tally, deposit, out)?;
         }
     }
-    out.deposits = trees.trace(view, scratch, &mut rng, &mut out.tally)?;
-    Ok(out)
+    trees.trace(view, scratch, &mut tally, out)?;
+    Ok(tally)
 }
 
 #[cfg(test)]

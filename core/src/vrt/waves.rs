@@ -12,7 +12,8 @@
 //!
 //! The radiance is unchanged, bit for bit: each ray's tree is kept (a node per ray, its
 //! local radiance and how its children's join it), and evaluated from the leaves up
-//! with the same arithmetic, in the same order, as a depth-first recursion would.
+//! with the same arithmetic, in the same order, as the depth-first recursion that
+//! traces pixels when every block is resident (where waves would only add bookkeeping).
 
 use super::{arrive_at, interpolated, pixel_rays, Arrived, Join};
 use crate::blocks::BlockError;
@@ -55,9 +56,25 @@ pub fn shade_pixels(
     out: &mut Vec<Rgb>,
 ) -> Result<(), BlockError> {
     let (n, seed) = (view.header.plan.pixel_samples.max(1), view.header.settings.seed);
+    if !view.cache_is_bounded() {
+        // Every block resident: pixel by pixel, each ray's tree depth first, with no
+        // bookkeeping (the same bits).
+        for y in s.y..s.y + s.h {
+            for x in s.x..s.x + s.w {
+                let mut sum = Rgb::BLACK;
+                for ray in pixel_rays(seed, n, rig, x, y) {
+                    sum = sum.add(radiance(view, scratch, &ray, 0, NO_PATCH)?);
+                }
+                out.push(sum.scale(1.0 / n as f64));
+            }
+        }
+        return Ok(());
+    }
     let leaf = Node { local: Rgb::BLACK, join: Join::None, first: 0, count: 0 };
-    let mut order: Vec<(u32, u32)> = (0..s.h).flat_map(|dy| (0..s.w).map(move |dx| (dx, dy))).collect();
-    order.sort_unstable_by_key(|&(dx, dy)| morton(dx, dy));
+    let mut coded: Vec<(u64, u32, u32)> =
+        (0..s.h).flat_map(|dy| (0..s.w).map(move |dx| (morton(dx, dy), dx, dy))).collect();
+    coded.sort_unstable();
+    let order: Vec<(u32, u32)> = coded.into_iter().map(|(_, dx, dy)| (dx, dy)).collect();
     // The primary rays are nodes 0.., pixel by pixel in that order, sample by sample.
     let mut nodes: Vec<Node> = Vec::new();
     let mut wave: Vec<Queued> = Vec::new();
@@ -70,32 +87,40 @@ pub fn shade_pixels(
     }
     let mut spawned: Vec<Ray> = Vec::new();
     let mut next: Vec<Queued> = Vec::new();
-    let mut arrived: Vec<(Queued, Arrived, Rgb)> = Vec::new();
+    let mut arrived: Vec<(u32, Arrived, Rgb)> = Vec::new();
+    let mut by_element: Vec<(u32, u32)> = Vec::new();
     while !wave.is_empty() {
         // Node ids grow with the pixel and the sample: ties keep that order.
-        wave.sort_unstable_by_key(|q| (q.path, q.node));
+        if !wave.is_sorted_by_key(|q| (q.path, q.node)) {
+            wave.sort_unstable_by_key(|q| (q.path, q.node));
+        }
         // In stages, each over the whole wave, so that each stage's blocks are read back
         // to back: the hits (BVH, leaf triangles, patches, shading), the elements'
         // light (element records, vertex energies), then the shadow rays (the BVH
         // again, towards the lights).
-        for q in wave.drain(..) {
+        for (i, q) in wave.iter().enumerate() {
             match arrive_at(view, scratch, &q.ray, q.depth, q.exclude)? {
-                Ok(a) => arrived.push((q, a, Rgb::BLACK)),
+                Ok(a) => arrived.push((i as u32, a, Rgb::BLACK)),
                 Err(local) => nodes[q.node as usize].local = local,
             }
         }
         // The elements in the order of their ids: neighbours share element and
         // vertex-energy blocks.
-        let mut diffuse: Vec<usize> = (0..arrived.len()).filter(|&i| !arrived[i].1.m.diffuse.is_black()).collect();
-        diffuse.sort_by_cached_key(|&i| arrived[i].1.lattice_element().0);
-        for i in diffuse {
-            arrived[i].2 = interpolated(view, &arrived[i].1)?;
+        by_element.clear();
+        by_element.extend(arrived.iter().enumerate().filter(|(_, a)| a.1.shaded).map(|(i, a)| (a.1.element, i as u32)));
+        if !by_element.is_sorted() {
+            by_element.sort_unstable();
         }
-        for (_, a, irr) in arrived.iter_mut().filter(|(_, a, _)| a.m.direct_vrt && !a.m.diffuse.is_black()) {
+        for &(_, i) in &by_element {
+            let (_, a, irr) = &mut arrived[i as usize];
+            *irr = interpolated(view, a)?;
+        }
+        for (_, a, irr) in arrived.iter_mut().filter(|(_, a, _)| a.direct) {
             *irr = irr.add(direct::irradiance(view, scratch, &a.at, a.patch)?);
         }
-        for (q, a, irr) in arrived.drain(..) {
-            let shaded = a.finish(irr, &mut spawned);
+        for (i, a, irr) in &arrived {
+            let q = &wave[*i as usize];
+            let shaded = a.finish(*irr, &mut spawned);
             let first = nodes.len() as u32;
             let count = spawned.len() as u32;
             nodes[q.node as usize] = Node { local: shaded.local, join: shaded.join, first, count };
@@ -107,6 +132,8 @@ pub fn shade_pixels(
                 next.push(Queued { node, path, ray, depth: q.depth + 1, exclude: shaded.patch });
             }
         }
+        arrived.clear();
+        wave.clear();
         std::mem::swap(&mut wave, &mut next);
     }
     // Children come after their parents: from the last node back, each joins its own.
@@ -123,6 +150,35 @@ pub fn shade_pixels(
         out[start + (dy * s.w + dx) as usize] = sum.scale(1.0 / n as f64);
     }
     Ok(())
+}
+
+/// Radiance arriving along `ray` (of recursion depth `depth`, leaving patch `exclude` or
+/// the eye), its spawned rays followed depth first.
+fn radiance(
+    view: &mut SceneView,
+    scratch: &mut TraceScratch,
+    ray: &Ray,
+    depth: u32,
+    exclude: u32,
+) -> Result<Rgb, BlockError> {
+    let a = match arrive_at(view, scratch, ray, depth, exclude)? {
+        Ok(a) => a,
+        Err(whole) => return Ok(whole),
+    };
+    let mut irr = Rgb::BLACK;
+    if a.shaded {
+        irr = interpolated(view, &a)?;
+    }
+    if a.direct {
+        irr = irr.add(direct::irradiance(view, scratch, &a.at, a.patch)?);
+    }
+    let mut spawned = Vec::new();
+    let shaded = a.finish(irr, &mut spawned);
+    let mut joined = [Rgb::BLACK; 3];
+    for (r, ray) in joined.iter_mut().zip(&spawned) {
+        *r = radiance(view, scratch, ray, depth + 1, shaded.patch)?;
+    }
+    Ok(shaded.join.radiance(shaded.local, &joined[..spawned.len()]))
 }
 
 /// The Morton code of (x, y): their bits interleaved.
