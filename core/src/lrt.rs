@@ -269,8 +269,21 @@ pub fn trace_pairs(
     scratch: &mut TraceScratch,
     pairs: &[(u32, u32)],
 ) -> Result<Vec<PairResult>, BlockError> {
-    let (mut raw, mut trees) = (Vec::new(), PairTrees::default());
     let mut results = Vec::with_capacity(pairs.len());
+    trace_pairs_each(view, scratch, pairs, |r| results.push(r))?;
+    Ok(results)
+}
+
+/// [`trace_pairs`], each pair's result handed to `each` in the batch's order: as soon
+/// as the pair is traced when every block is resident, after the whole batch through a
+/// bounded cache (whose leaves are looked up together).
+pub fn trace_pairs_each(
+    view: &mut SceneView,
+    scratch: &mut TraceScratch,
+    pairs: &[(u32, u32)],
+    mut each: impl FnMut(PairResult),
+) -> Result<(), BlockError> {
+    let (mut raw, mut trees) = (Vec::new(), PairTrees::default());
     let quantum = view.header.energy_quantum;
     // With every block resident, each pair is binned on its own (its raw deposits are
     // not kept for the batch).
@@ -284,17 +297,15 @@ pub fn trace_pairs(
             traced.push((raw.len() - before, tally));
         }
         if let [(_, tally)] = traced[..] {
-            results.push(PairResult { deposits: merged(binned(view, &raw)?, quantum), tally });
+            each(PairResult { deposits: merged(binned(view, &raw)?, quantum), tally });
             continue;
         }
         let mut leaves = binned(view, &raw)?.into_iter();
-        results.extend(
-            traced
-                .into_iter()
-                .map(|(n, tally)| PairResult { deposits: merged(leaves.by_ref().take(n).collect(), quantum), tally }),
-        );
+        for (n, tally) in traced {
+            each(PairResult { deposits: merged(leaves.by_ref().take(n).collect(), quantum), tally });
+        }
     }
-    Ok(results)
+    Ok(())
 }
 
 /// Traces the pair (`light`, `element`), its deposits raw: what [`bin`] turns into the

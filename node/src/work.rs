@@ -10,7 +10,7 @@ use crate::timing::PassTimes;
 use crate::NodeError;
 use magg_core::camera::CameraRig;
 use magg_core::cluster::PairLease;
-use magg_core::lrt::trace_pairs;
+use magg_core::lrt::trace_pairs_each;
 use magg_core::trace::TraceScratch;
 use magg_core::view::SceneView;
 use magg_core::vrt::{shade_pixels, Subscreen};
@@ -212,10 +212,6 @@ impl Worker {
         }
     }
 
-    fn owner_of(&self, element: u32) -> usize {
-        element_owner(&self.view.header.layout, self.forks.len(), element)
-    }
-
     /// Pulls pairs from the home fork until no fork has any left. Communication overlaps
     /// computation, as the paper's higher-priority communication process did: the next
     /// batch of pairs is requested while this one is traced, and a batch's deposits are
@@ -296,17 +292,22 @@ impl Worker {
                 }
                 leased.push(((pair / elements) as u32, (pair % elements) as u32));
             }
-            let results = trace_pairs(&mut self.view, &mut scratch, &leased)?;
-            self.compute();
-            for ((&pair, &(_, element)), r) in got.pairs.iter().zip(&leased).zip(results) {
-                if !self.pair_delay.is_zero() {
-                    std::thread::sleep(self.pair_delay);
+            // Each pair's deposits are routed as it comes back (while they are hot).
+            let (layout, forks) = (self.view.header.layout, self.forks.len());
+            let owner_of = |e: u32| element_owner(&layout, forks, e);
+            let (delay, mine) = (self.pair_delay, &mut self.mine);
+            let mut next_pair = got.pairs.iter().zip(&leased);
+            trace_pairs_each(&mut self.view, &mut scratch, &leased, |r| {
+                let Some((&pair, &(_, element))) = next_pair.next() else { return };
+                if !delay.is_zero() {
+                    std::thread::sleep(delay);
                 }
-                self.mine.pairs += 1;
-                self.mine.tally = self.mine.tally.add(r.tally);
+                mine.pairs += 1;
+                mine.tally = mine.tally.add(r.tally);
                 (traced, deposited) = (traced + 1, deposited + r.deposits.len() as u64);
-                rounds.add(pair, self.owner_of(element), r.deposits, |e| self.owner_of(e));
-            }
+                rounds.add(pair, owner_of(element), r.deposits, owner_of);
+            })?;
+            self.compute();
             let (round1, round2) = rounds.into_writers();
             let t = PassTimes::lap(&mut times.tracing, t);
             let max = batch(traced, deposited);
