@@ -79,6 +79,8 @@ struct Shaded {
     join: Join,
     /// The patch hit (the spawned rays start on it).
     patch: u32,
+    /// How many rays it spawned.
+    spawned: usize,
 }
 
 /// How the radiance of the rays spawned at a hit joins the hit's own: none spawned, or
@@ -135,10 +137,10 @@ struct Arrived {
 impl Arrived {
     /// Shades where this ray arrived: reflects `irr` (the irradiance there, when the
     /// surface is diffuse), adds what the surface emits and the ambient term, and
-    /// pushes the specular rays it spawns onto `spawned` (mirror reflection, then a
-    /// dielectric's reflection and refraction).
+    /// puts the specular rays it spawns in `spawned` (mirror reflection, then a
+    /// dielectric's reflection and refraction; [`Shaded::spawned`] says how many).
     #[inline]
-    fn finish(&self, irr: Rgb, spawned: &mut Vec<Ray>) -> Shaded {
+    fn finish(&self, irr: Rgb, spawned: &mut [Ray; 3]) -> Shaded {
         let (m, at) = (&self.m, &self.at);
         let mut l = Rgb::BLACK;
         if at.front && !m.emit.is_black() {
@@ -152,25 +154,30 @@ impl Arrived {
             }
         }
         if self.depth >= m.vrt_depth || (!m.is_specular()) {
-            return Shaded { local: l, join: Join::None, patch: self.patch };
+            return Shaded { local: l, join: Join::None, patch: self.patch, spawned: 0 };
         }
+        let mut n = 0;
+        let mut spawn = |ray: Ray| {
+            spawned[n] = ray;
+            n += 1;
+        };
         let mut mirror = None;
         if m.is_mirror() {
-            spawned.push(at.spawn(at.reflected()));
+            spawn(at.spawn(at.reflected()));
             mirror = Some(m.mirror);
         }
         let mut transmit = None;
         if m.is_transmissive() {
-            spawned.push(at.spawn(at.reflected()));
+            spawn(at.spawn(at.reflected()));
             transmit = Some(match at.dielectric(m.ior, m.refraction) {
                 Dielectric::Split { fresnel, refracted } => {
-                    spawned.push(at.spawn(refracted));
+                    spawn(at.spawn(refracted));
                     (m.transmit, Some(fresnel))
                 }
                 Dielectric::Reflected => (m.transmit, None),
             });
         }
-        Shaded { local: l, join: Join::Specular { mirror, transmit }, patch: self.patch }
+        Shaded { local: l, join: Join::Specular { mirror, transmit }, patch: self.patch, spawned: n }
     }
 }
 
@@ -202,9 +209,15 @@ fn arrive_at(
     let (at, albedo) = arrive(view, &prec, ray.at(hit.t), ray.direction, normal, Some(hit.bary))?;
     // A texture multiplies the diffuse reflectance.
     let diffuse = albedo.map_or(m.diffuse, |a| m.diffuse.mul(a));
-    let (local, w) = locate(prec.subdivisions, hit.bary);
-    let element = prec.element_on_face(local, ray.direction);
     let (shaded, direct) = (!m.diffuse.is_black(), m.direct_vrt && !m.diffuse.is_black());
+    // The element hit matters only where the elements' light shows.
+    let (element, w) = match shaded {
+        true => {
+            let (local, w) = locate(prec.subdivisions, hit.bary);
+            (prec.element_on_face(local, ray.direction), w)
+        }
+        false => (0, [0.0; 3]),
+    };
     Ok(Ok(Arrived { at, patch: hit.patch, m, element, w, diffuse, shaded, direct, depth }))
 }
 

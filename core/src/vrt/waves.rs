@@ -24,6 +24,7 @@ use crate::geometry::Ray;
 use crate::trace::{TraceScratch, NO_PATCH};
 use crate::view::SceneView;
 use crate::vrt::Subscreen;
+use glam::DVec3;
 
 /// One viewing ray of a row's trees.
 struct Node {
@@ -85,7 +86,7 @@ pub fn shade_pixels(
             wave.push(Queued { node, path: 0, ray, depth: 0, exclude: NO_PATCH });
         }
     }
-    let mut spawned: Vec<Ray> = Vec::new();
+    let mut spawned = [Ray::new(DVec3::ZERO, DVec3::Z); 3];
     let mut next: Vec<Queued> = Vec::new();
     let mut arrived: Vec<(u32, Arrived, Rgb)> = Vec::new();
     let mut by_element: Vec<(u32, u32)> = Vec::new();
@@ -122,9 +123,9 @@ pub fn shade_pixels(
             let q = &wave[*i as usize];
             let shaded = a.finish(*irr, &mut spawned);
             let first = nodes.len() as u32;
-            let count = spawned.len() as u32;
+            let count = shaded.spawned as u32;
             nodes[q.node as usize] = Node { local: shaded.local, join: shaded.join, first, count };
-            for (k, ray) in spawned.drain(..).enumerate() {
+            for (k, &ray) in spawned[..shaded.spawned].iter().enumerate() {
                 let node = nodes.len() as u32;
                 nodes.push(Node { ..leaf });
                 // The branch taken, one base-4 digit per generation.
@@ -172,13 +173,13 @@ fn radiance(
     if a.direct {
         irr = irr.add(direct::irradiance(view, scratch, &a.at, a.patch)?);
     }
-    let mut spawned = Vec::new();
+    let mut spawned = [Ray::new(DVec3::ZERO, DVec3::Z); 3];
     let shaded = a.finish(irr, &mut spawned);
     let mut joined = [Rgb::BLACK; 3];
-    for (r, ray) in joined.iter_mut().zip(&spawned) {
+    for (r, ray) in joined.iter_mut().zip(&spawned[..shaded.spawned]) {
         *r = radiance(view, scratch, ray, depth + 1, shaded.patch)?;
     }
-    Ok(shaded.join.radiance(shaded.local, &joined[..spawned.len()]))
+    Ok(shaded.join.radiance(shaded.local, &joined[..shaded.spawned]))
 }
 
 /// The Morton code of (x, y): their bits interleaved.
