@@ -224,24 +224,26 @@ pub fn trace_pairs(
     pairs: &[(u32, u32)],
 ) -> Result<Vec<PairResult>, BlockError> {
     let mut results = Vec::with_capacity(pairs.len());
-    trace_pairs_each(view, scratch, pairs, |r| results.push(r))?;
+    trace_pairs_each(view, scratch, pairs, |_, r| results.push(r))?;
     Ok(results)
 }
 
-/// [`trace_pairs`], each pair's result handed to `each` in the batch's order: as soon
-/// as the pair is traced when every block is resident, after the whole batch through a
-/// bounded cache (whose leaves are looked up together).
+/// [`trace_pairs`], each pair's result handed to `each` with the pair's index in the
+/// batch, in the batch's order: as soon as the pair is traced when every block is
+/// resident, after the whole batch through a bounded cache (whose leaves are looked up
+/// together).
 pub fn trace_pairs_each(
     view: &mut SceneView,
     scratch: &mut TraceScratch,
     pairs: &[(u32, u32)],
-    mut each: impl FnMut(PairResult),
+    mut each: impl FnMut(usize, PairResult),
 ) -> Result<(), BlockError> {
     let (mut raw, mut trees) = (Vec::new(), PairTrees::default());
     let quantum = view.header.energy_quantum;
     // With every block resident, each pair is binned on its own (its raw deposits are
     // not kept for the batch).
     let together = if view.cache_is_bounded() { pairs.len().max(1) } else { 1 };
+    let mut index = 0..pairs.len();
     for group in pairs.chunks(together) {
         raw.clear();
         let mut traced = Vec::with_capacity(group.len());
@@ -250,13 +252,9 @@ pub fn trace_pairs_each(
             let tally = trace_raw_into(view, scratch, &mut trees, light, element, &mut raw)?;
             traced.push((raw.len() - before, tally));
         }
-        if let [(_, tally)] = traced[..] {
-            each(PairResult { deposits: merged(binned(view, &raw)?, quantum), tally });
-            continue;
-        }
         let mut leaves = binned(view, &raw)?.into_iter();
-        for (n, tally) in traced {
-            each(PairResult { deposits: merged(leaves.by_ref().take(n).collect(), quantum), tally });
+        for ((n, tally), i) in traced.into_iter().zip(index.by_ref()) {
+            each(i, PairResult { deposits: merged(leaves.by_ref().take(n).collect(), quantum), tally });
         }
     }
     Ok(())

@@ -296,9 +296,8 @@ impl Worker {
             let (layout, forks) = (self.view.header.layout, self.forks.len());
             let owner_of = |e: u32| element_owner(&layout, forks, e);
             let (delay, mine) = (self.pair_delay, &mut self.mine);
-            let mut next_pair = got.pairs.iter().zip(&leased);
-            trace_pairs_each(&mut self.view, &mut scratch, &leased, |r| {
-                let Some((&pair, &(_, element))) = next_pair.next() else { return };
+            trace_pairs_each(&mut self.view, &mut scratch, &leased, |i, r| {
+                let (pair, (_, element)) = (got.pairs[i], leased[i]);
                 if !delay.is_zero() {
                     std::thread::sleep(delay);
                 }
