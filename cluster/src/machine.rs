@@ -251,9 +251,9 @@ impl Machine for ClusterMachine {
         rt.block_on(self.trace_light(progress)).map_err(failed)
     }
 
-    fn publish_vertex_energies(&mut self, vertex_irradiance: &[Rgb]) -> Result<(), RenderError> {
+    fn publish_vertex_energies(&mut self, vertex_irradiance: &[Rgb], gather: &[bool]) -> Result<(), RenderError> {
         let rt = self.rt.clone();
-        rt.block_on(self.put_vertex_energies(vertex_irradiance)).map_err(failed)
+        rt.block_on(self.put_vertex_energies(vertex_irradiance, gather)).map_err(failed)
     }
 
     fn view_pass(&mut self, pass: ViewPass<'_>, progress: &dyn Progress) -> Result<ViewedFrame, RenderError> {

@@ -155,12 +155,16 @@ impl ClusterMachine {
     }
 
     /// Sends every fork the vertex-energy blocks it owns.
-    pub(super) async fn put_vertex_energies(&mut self, vertex_irradiance: &[Rgb]) -> Result<(), ClusterError> {
+    pub(super) async fn put_vertex_energies(
+        &mut self,
+        vertex_irradiance: &[Rgb],
+        gather: &[bool],
+    ) -> Result<(), ClusterError> {
         // Given energies skip the light pass: the nodes wait meanwhile.
         self.service.set_phase(Phase::Interp);
         let f = self.forks.len();
         let mut per_fork: Vec<Vec<v1::Block>> = vec![Vec::new(); f];
-        for (id, block) in vertex_energy_blocks(vertex_irradiance, &self.prepared.header.layout) {
+        for (id, block) in vertex_energy_blocks(vertex_irradiance, gather, &self.prepared.header.layout) {
             per_fork[fork_of_block(id, f as u32) as usize].push(block_to_wire(id, &block));
         }
         mark(self.opts.started, "light pass done, energies gathered and interpolated");

@@ -54,7 +54,7 @@ fn fixture(name: &'static str, rel: &str) -> Fixture {
     let prepared = prepare(&sc).unwrap_or_else(|e| panic!("{rel}: {e}"));
     let out = render(&prepared, &RenderOptions::default(), &NoProgress).unwrap_or_else(|e| panic!("{rel}: {e}"));
     let store = Arc::new(MemStore::new(prepared.blocks.clone()));
-    for (id, block) in vertex_energy_blocks(&out.vertex_irradiance, &prepared.header.layout) {
+    for (id, block) in vertex_energy_blocks(&out.vertex_irradiance, &[], &prepared.header.layout) {
         store.replace(id, block).unwrap_or_else(|e| panic!("{rel}: {e}"));
     }
     Fixture { name, prepared, store }

@@ -108,7 +108,7 @@ fn load(path: &Path, accel: Option<scene::Accel>) -> Result<Fixture, String> {
     // One full render on all cores, only for the vertex energies VRT reads.
     let out = render(&prepared, &RenderOptions::default(), &NoProgress).map_err(|e| e.to_string())?;
     let store = Arc::new(MemStore::new(prepared.blocks.clone()));
-    for (id, block) in vertex_energy_blocks(&out.vertex_irradiance, &prepared.header.layout) {
+    for (id, block) in vertex_energy_blocks(&out.vertex_irradiance, &[], &prepared.header.layout) {
         store.replace(id, block).map_err(|e| e.to_string())?;
     }
     let name = path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or(label);

@@ -94,6 +94,40 @@ pub fn interpolate(
     irradiance
 }
 
+/// The vertices around the elements that received no light at all: for each vertex,
+/// whether it belongs to a leaf element that shares a vertex with an unlit leaf element
+/// (one of area > 0 whose flux is zero, e.g. the floor under a box), or to an unlit one.
+///
+/// Where such elements meet lit ones, interpolation cannot be right: an element partly
+/// covered by another surface has its flux spread over its whole area, and a vertex on
+/// the boundary averages in the dark ones, so the light fades a whole element before a
+/// contact (the floor along a box's base). Shading gathers the light there instead
+/// ([`crate::vrt`]); two rings of elements around the unlit ones are marked, so that
+/// no pixel left to interpolation reads a vertex that averages a covered element.
+/// Deterministic: it depends only on which elements hold zero flux.
+pub fn gather_vertices(elements: &[ElementInfo], flux: &[Fixed], vertices: usize) -> Vec<bool> {
+    let leaves = || elements.iter().zip(flux).filter(|(e, _)| e.is_leaf() && e.area > 0.0);
+    let mut dark = vec![false; vertices];
+    for (e, _) in leaves().filter(|(_, f)| **f == [0; 3]) {
+        for &v in &e.vertices {
+            if let Some(d) = dark.get_mut(v as usize) {
+                *d = true;
+            }
+        }
+    }
+    let mut gather = vec![false; vertices];
+    for (e, _) in leaves() {
+        if e.vertices.iter().any(|&v| dark.get(v as usize) == Some(&true)) {
+            for &v in &e.vertices {
+                if let Some(g) = gather.get_mut(v as usize) {
+                    *g = true;
+                }
+            }
+        }
+    }
+    gather
+}
+
 /// Irradiance of every element (flux / area).
 pub fn element_irradiance(elements: &[ElementInfo], flux: &[Fixed], quantum: f64) -> Vec<Rgb> {
     elements
@@ -103,14 +137,17 @@ pub fn element_irradiance(elements: &[ElementInfo], flux: &[Fixed], quantum: f64
         .collect()
 }
 
-/// Packs vertex irradiances into vertex-energy blocks: `(block id, block)` pairs.
-pub fn vertex_energy_blocks(irradiance: &[Rgb], layout: &BlockLayout) -> Vec<(u32, Box<Block>)> {
+/// Packs vertex irradiances into vertex-energy blocks: `(block id, block)` pairs; a
+/// vertex marked in `gather` ([`gather_vertices`]; empty: none) carries its mark in the
+/// record ([`encode_vertex_energy`]).
+pub fn vertex_energy_blocks(irradiance: &[Rgb], gather: &[bool], layout: &BlockLayout) -> Vec<(u32, Box<Block>)> {
     let n = layout.vertex_blocks() as usize;
     (0..n)
         .map(|k| {
             let mut b = Box::new([0u8; BLOCK_SIZE]);
             for (i, e) in irradiance.iter().skip(k * VERTICES_PER_BLOCK).take(VERTICES_PER_BLOCK).enumerate() {
-                encode_vertex_energy(&mut b, i * 12, *e);
+                let marked = gather.get(k * VERTICES_PER_BLOCK + i) == Some(&true);
+                encode_vertex_energy(&mut b, i * 12, *e, marked);
             }
             (layout.vertex_base + k as u32, b)
         })
@@ -149,5 +186,28 @@ mod tests {
         assert_eq!(v[0].0[0], 10.0);
         assert_eq!(v[3].0[0], 20.0);
         assert_eq!(v[1].0[0], 70.0 / 4.0);
+    }
+
+    #[test]
+    fn gather_marks_two_rings_around_unlit_elements() {
+        let e = |v: [u32; 3]| ElementInfo {
+            patch: 0,
+            vertices: v,
+            area: 1.0,
+            centroid: DVec3::ZERO,
+            face: crate::preprocess::Face::Both,
+            parent: crate::preprocess::NO_PARENT,
+            child: 0,
+        };
+        // A strip of elements 0-1-2-3 sharing vertices in a row: [0,1,2], [1,2,3], ...
+        let elements: Vec<_> = (0..6).map(|i| e([i, i + 1, i + 2])).collect();
+        let mut flux = vec![[5, 5, 5]; 6];
+        flux[0] = [0; 3];
+        let g = gather_vertices(&elements, &flux, 8);
+        // Element 0 is unlit (vertices 0-2); elements 1 and 2 share a vertex with it, so
+        // their vertices (up to 4) are marked; the rest are not.
+        assert_eq!(g, [true, true, true, true, true, false, false, false]);
+        // Every element lit: nothing marked.
+        assert!(!gather_vertices(&elements, &[[1, 0, 0]; 6], 8).iter().any(|&m| m));
     }
 }

@@ -218,8 +218,9 @@ pub trait Machine {
     /// Traces every (light, element) pair of the scene and returns the summed flux.
     fn light_pass(&mut self, progress: &dyn crate::progress::Progress) -> Result<LightPass, RenderError>;
     /// Makes the interpolated vertex irradiance readable by the viewing pass (the
-    /// vertex-energy blocks of every node's store).
-    fn publish_vertex_energies(&mut self, vertex_irradiance: &[Rgb]) -> Result<(), RenderError>;
+    /// vertex-energy blocks of every node's store), with the vertices marked for
+    /// gathering (`gather`, [`crate::energy::gather_vertices`]; empty: none).
+    fn publish_vertex_energies(&mut self, vertex_irradiance: &[Rgb], gather: &[bool]) -> Result<(), RenderError>;
     /// Traces one frame.
     fn view_pass(
         &mut self,

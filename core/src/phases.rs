@@ -8,7 +8,7 @@
 //! second light pass) is added to [`run`] and to the trait; adaptive refinement runs its
 //! pilot passes while preparing the scene ([`crate::refine`]), before any machine.
 
-use crate::energy::interpolate;
+use crate::energy::{gather_vertices, interpolate, Fixed};
 use crate::machine::{FrameSink, Machine, PhaseTimes, RenderError, RenderOutput, Sequence, ViewPass};
 use crate::preprocess::PreparedScene;
 use crate::progress::Progress;
@@ -71,7 +71,8 @@ pub fn run(
         Some(e) => {
             e.check(header)?;
             let t_interp = Instant::now();
-            machine.publish_vertex_energies(&e.vertex_irradiance)?;
+            let gather = gather_marks(prepared, &e.element_flux);
+            machine.publish_vertex_energies(&e.vertex_irradiance, &gather)?;
             times.interp_s = t_interp.elapsed().as_secs_f64();
             (e.element_flux.clone(), e.vertex_irradiance.clone(), 0)
         }
@@ -88,7 +89,8 @@ pub fn run(
                 header.counts.vertices as usize,
                 header.energy_quantum,
             );
-            machine.publish_vertex_energies(&vertex)?;
+            let gather = gather_marks(prepared, &light.element_flux);
+            machine.publish_vertex_energies(&vertex, &gather)?;
             times.interp_s = light.collect_s + t_interp.elapsed().as_secs_f64();
             (light.element_flux, vertex, light.pairs)
         }
@@ -134,4 +136,14 @@ pub fn run(
         emulation: m.emulation,
     };
     Ok(RenderOutput { frame, element_flux, vertex_irradiance, stats })
+}
+
+/// The vertices whose elements' hits gather the bounced light, where the plan gathers
+/// ([`crate::plan::EffectsPlan::gathers`]); none otherwise.
+fn gather_marks(prepared: &PreparedScene, element_flux: &[Fixed]) -> Vec<bool> {
+    let h = &prepared.header;
+    if !h.plan.gathers(h.settings.gather_rays, &h.materials) {
+        return Vec::new();
+    }
+    gather_vertices(&prepared.elements, element_flux, h.counts.vertices as usize)
 }

@@ -138,7 +138,7 @@ impl EffectsPlan {
                 s.light_rays.max(1)
             ));
         }
-        EffectsPlan {
+        let mut plan = EffectsPlan {
             lrt,
             lrt_depth,
             refraction,
@@ -149,7 +149,28 @@ impl EffectsPlan {
             direct_vrt,
             area_lights: emitting > 0,
             reasons,
+        };
+        if plan.gathers(s.gather_rays, &scene.materials) {
+            plan.reasons.push(format!(
+                "the elements hold one diffuse bounce alone: beside elements that receive no light (contacts), \
+                 a diffuse hit gathers the bounce with {} ray(s) instead of interpolating",
+                s.gather_rays
+            ));
         }
+        plan
+    }
+
+    /// True when a diffuse hit beside elements that received no light gathers the bounced
+    /// light with `gather_rays` rays instead of interpolating the elements' (see
+    /// [`crate::energy::gather_vertices`]): the elements must hold exactly what a gather
+    /// finds, one diffuse bounce of the point and spot lights' direct light (direct light
+    /// at VRT, one diffuse bounce, no light carried via mirrors or glass, no area light).
+    /// Light via mirrors or glass needs both secondary light rays and a specular material
+    /// among `materials`, so forcing secondary light rays on in a scene without one
+    /// (`--all-effects`) changes nothing.
+    pub fn gathers(&self, gather_rays: u32, materials: &[crate::scene::Material]) -> bool {
+        let no_specular_light = self.lrt_depth == 0 || !materials.iter().any(|m| m.is_specular());
+        gather_rays > 0 && self.direct_vrt && self.diffuse_bounces == 1 && no_specular_light && !self.area_lights
     }
 
     /// True when the primary light rays of a pair deposit what they carry on the element

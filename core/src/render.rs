@@ -294,8 +294,8 @@ impl Machine for EmbeddedMachine {
         self.light_pass_with(&trace_pairs, progress)
     }
 
-    fn publish_vertex_energies(&mut self, vertex_irradiance: &[Rgb]) -> Result<(), RenderError> {
-        for (id, block) in vertex_energy_blocks(vertex_irradiance, &self.header.layout) {
+    fn publish_vertex_energies(&mut self, vertex_irradiance: &[Rgb], gather: &[bool]) -> Result<(), RenderError> {
+        for (id, block) in vertex_energy_blocks(vertex_irradiance, gather, &self.header.layout) {
             self.store.replace(id, block)?;
         }
         for v in self.views.iter_mut() {

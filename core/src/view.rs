@@ -219,6 +219,18 @@ impl SceneView {
         Ok(decode_vertex_energy(self.cache.get(b)?, at))
     }
 
+    /// Vertex `id`'s irradiance, and whether it is marked for gathering
+    /// ([`crate::energy::gather_vertices`]).
+    pub fn vertex_light(&mut self, id: u32) -> Result<(Rgb, bool), BlockError> {
+        let count = self.header.counts.vertices;
+        if id >= count {
+            return Err(BlockError::BadId { kind: "vertex", id: id as u64, count: count as u64 });
+        }
+        let (b, at) = self.header.layout.vertex_slot(id);
+        let block = self.cache.get(b)?;
+        Ok((decode_vertex_energy(block, at), decode_vertex_gather(block, at)))
+    }
+
     /// The bytes of BVH node `n`'s record (node 0 is the root), to be read in place (the
     /// traversal loads its bounds straight into vector registers;
     /// [`crate::blocks::bvh::BvhNodeLanes::read`] decodes it).

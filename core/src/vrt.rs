@@ -11,7 +11,7 @@
 use crate::blocks::BlockError;
 use crate::camera::CameraRig;
 use crate::color::Rgb;
-use crate::geometry::{triangle_normal, Ray};
+use crate::geometry::{cosine_hemisphere, triangle_normal, Ray};
 use crate::rng::{hammersley, Rng};
 use crate::scatter::{arrive, offset_scale, Arrival, Dielectric};
 use crate::subdivision::locate;
@@ -222,19 +222,76 @@ fn arrive_at(
 }
 
 /// The irradiance the elements hold where `a` arrived on a diffuse surface: the hit
-/// element's (its leaf's, when refinement split it) vertex energies, interpolated.
+/// element's (its leaf's, when refinement split it) vertex energies, interpolated; or,
+/// where a vertex of that element is marked for it and the plan gathers, the bounced
+/// light gathered there ([`gathered`]).
 #[inline]
-fn interpolated(view: &mut SceneView, a: &Arrived) -> Result<Rgb, BlockError> {
+fn interpolated(view: &mut SceneView, scratch: &mut TraceScratch, a: &Arrived) -> Result<Rgb, BlockError> {
     view.counters.shades += 1;
     let (id, w) = (a.element, a.w);
     let rec = view.element(id)?;
     // Refinement may have split it: the leaf under the hit holds the light.
     let (_, e, w) = view.leaf_element(id, rec, w)?;
     let mut irr = Rgb::BLACK;
+    let mut gather = false;
     for k in 0..3 {
-        irr = irr.add(view.vertex_energy(e.vertices[k])?.scale(w[k]));
+        let (v, marked) = view.vertex_light(e.vertices[k])?;
+        irr = irr.add(v.scale(w[k]));
+        gather |= marked;
+    }
+    let n = view.header.settings.gather_rays;
+    if gather && view.header.plan.gathers(n, &view.header.materials) {
+        return gathered(view, scratch, &a.at, a.patch, n);
     }
     Ok(irr)
+}
+
+/// The bounced light arriving at `at` on patch `patch` (irradiance), gathered with `n` rays: directions
+/// over the hemisphere of the side arrived on, cosine-weighted and stratified
+/// (Hammersley, rotated by a seed of the point and the incoming direction, so that the
+/// result depends on the ray alone, not on the node or the order of tracing). Each
+/// ray's hit reflects `rho E`: its diffuse reflectance (textured) times the direct
+/// irradiance the lights give it there ([`crate::direct::irradiance`], on the side the
+/// gather ray arrived on), which is exactly the light that the elements' one diffuse
+/// bounce carries; the mean of `rho E` over cosine-weighted directions is the
+/// irradiance.
+///
+/// Used where the elements cannot hold that light: beside elements that received none
+/// ([`crate::energy::gather_vertices`]), i.e. along a contact with another surface,
+/// where an element partly covered spreads its flux over its whole area and a vertex
+/// averages in covered ones.
+pub fn gathered(
+    view: &mut SceneView,
+    scratch: &mut TraceScratch,
+    at: &Arrival,
+    patch: u32,
+    n: u32,
+) -> Result<Rgb, BlockError> {
+    let bits = |v: glam::DVec3| [v.x.to_bits(), v.y.to_bits(), v.z.to_bits()];
+    let ([px, py, pz], [dx, dy, dz]) = (bits(at.p), bits(at.d));
+    let mut rng = Rng::from_words(&[view.header.settings.seed, 0x474154, px, py, pz, dx, dy, dz]);
+    let (sx, sy) = (rng.next_f64(), rng.next_f64());
+    let mut sum = Rgb::BLACK;
+    for j in 0..n {
+        let (u0, u1) = hammersley(j, n, sx, sy);
+        let dir = cosine_hemisphere(at.normal, u0, u1);
+        let ray = at.spawn(dir);
+        view.counters.view_rays += 1;
+        let Some(hit) = cast(view, scratch, &ray, offset_scale(ray.origin), f64::INFINITY, patch, false)? else {
+            continue;
+        };
+        let prec = view.patch(hit.patch)?;
+        let normal = triangle_normal(&prec.v);
+        let Some(m) = view.header.materials.get(prec.material as usize) else { continue };
+        if m.refuses(dir, normal) || m.diffuse.is_black() {
+            continue;
+        }
+        let diffuse = m.diffuse;
+        let (q, albedo) = arrive(view, &prec, ray.at(hit.t), dir, normal, Some(hit.bary))?;
+        let rho = albedo.map_or(diffuse, |t| diffuse.mul(t));
+        sum = sum.add(rho.mul(crate::direct::irradiance(view, scratch, &q, hit.patch)?));
+    }
+    Ok(sum.scale(1.0 / n.max(1) as f64))
 }
 
 /// What shading needs of a hit's material and of the plan, copied out of the header so

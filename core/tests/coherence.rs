@@ -27,7 +27,7 @@ fn cornell() -> PreparedScene {
     let mut p = prepare(&s).unwrap();
     let n = p.vertex_positions.len();
     let irr: Vec<Rgb> = (0..n).map(|i| Rgb([(i % 7) as f64, (i % 11) as f64 * 0.5, 1.0 + (i % 3) as f64])).collect();
-    for (id, block) in vertex_energy_blocks(&irr, &p.header.layout) {
+    for (id, block) in vertex_energy_blocks(&irr, &[], &p.header.layout) {
         p.blocks[id as usize] = block;
     }
     p

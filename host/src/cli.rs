@@ -200,6 +200,11 @@ pub struct Knobs {
     /// light at VRT, a diffuse target): it casts light-rays / bounce-rays light rays.
     #[arg(long)]
     pub bounce_rays: Option<u32>,
+    /// Gather rays per viewing ray where the elements cannot hold the bounced light
+    /// (beside elements that received none, e.g. where a box stands on the floor); 0
+    /// interpolates everywhere.
+    #[arg(long)]
+    pub gather_rays: Option<u32>,
     /// Target element edge length (patches with fixed subdivisions keep theirs).
     #[arg(long)]
     pub element_size: Option<f64>,
@@ -439,6 +444,9 @@ impl Knobs {
         }
         if let Some(v) = self.bounce_rays {
             s.bounce_rays = range("bounce-rays", v, 1, magg_core::scene::MAX_BOUNCE_RAYS)?;
+        }
+        if let Some(v) = self.gather_rays {
+            s.gather_rays = range("gather-rays", v, 0, magg_core::scene::MAX_GATHER_RAYS)?;
         }
         if let Some(v) = self.lrt_depth {
             s.lrt_depth = range("lrt-depth", v, 0, 32)?;

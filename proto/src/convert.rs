@@ -300,6 +300,7 @@ fn settings_to_wire(s: &RenderSettings) -> v1::RenderSettings {
         element_size: s.element_size,
         light_rays: s.light_rays,
         bounce_rays: s.bounce_rays,
+        gather_rays: s.gather_rays,
         lrt_depth: s.lrt_depth,
         vrt_depth: s.vrt_depth,
         diffuse_bounces: s.diffuse_bounces,
@@ -336,6 +337,7 @@ fn settings_from_wire(s: v1::RenderSettings) -> Result<RenderSettings, ConvertEr
     let pixel_samples = in_range(s.pixel_samples, 1, 4096, "settings.pixel_samples")?;
     let light_rays = in_range(s.light_rays, 1, 1_000_000, "settings.light_rays")?;
     let bounce_rays = in_range(s.bounce_rays, 1, magg_core::scene::MAX_BOUNCE_RAYS, "settings.bounce_rays")?;
+    let gather_rays = in_range(s.gather_rays, 0, magg_core::scene::MAX_GATHER_RAYS, "settings.gather_rays")?;
     let lrt_depth = in_range(s.lrt_depth, 0, 32, "settings.lrt_depth")?;
     let vrt_depth = in_range(s.vrt_depth, 0, 32, "settings.vrt_depth")?;
     let diffuse_bounces = in_range(s.diffuse_bounces, 0, 16, "settings.diffuse_bounces")?;
@@ -392,6 +394,7 @@ fn settings_from_wire(s: v1::RenderSettings) -> Result<RenderSettings, ConvertEr
         element_size,
         light_rays,
         bounce_rays,
+        gather_rays,
         lrt_depth,
         vrt_depth,
         diffuse_bounces,

@@ -336,15 +336,25 @@ impl ElementRecord {
 }
 
 /// Writes a vertex irradiance at byte offset `at` (stored as f32).
-pub fn encode_vertex_energy(b: &mut Block, at: usize, e: Rgb) {
+pub fn encode_vertex_energy(b: &mut Block, at: usize, e: Rgb, gather: bool) {
     for i in 0..3 {
-        b[at + 4 * i..at + 4 * i + 4].copy_from_slice(&(e.0[i] as f32).to_le_bytes());
+        // Irradiance is never negative: the first channel's sign bit carries the mark
+        // (-0.0 for a zero).
+        let v = (e.0[i] as f32).abs();
+        let v = if i == 0 && gather { -v } else { v };
+        b[at + 4 * i..at + 4 * i + 4].copy_from_slice(&v.to_le_bytes());
     }
 }
 
 /// Reads a vertex irradiance at byte offset `at`.
 pub fn decode_vertex_energy(b: &Block, at: usize) -> Rgb {
-    Rgb([get_f32(b, at) as f64, get_f32(b, at + 4) as f64, get_f32(b, at + 8) as f64])
+    Rgb([get_f32(b, at).abs() as f64, get_f32(b, at + 4) as f64, get_f32(b, at + 8) as f64])
+}
+
+/// Whether the vertex record at byte offset `at` is marked for gathering
+/// ([`crate::energy::gather_vertices`]).
+pub fn decode_vertex_gather(b: &Block, at: usize) -> bool {
+    get_f32(b, at).is_sign_negative()
 }
 
 /// Writes the header of a subspace block: number of ids in it, next block of the chain.
@@ -395,8 +405,15 @@ mod tests {
         let e = ElementRecord { patch: 3, local: 9, vertices: [1, 2, 3], child: 77, area: 0.25 };
         e.encode(&mut b, 0);
         assert_eq!(ElementRecord::decode(&b, 0), e);
-        encode_vertex_energy(&mut b, 24, Rgb::new(1.5, 2.0, 0.25));
+        encode_vertex_energy(&mut b, 24, Rgb::new(1.5, 2.0, 0.25), false);
         assert_eq!(decode_vertex_energy(&b, 24), Rgb::new(1.5, 2.0, 0.25));
+        assert!(!decode_vertex_gather(&b, 24));
+        // The gather mark rides on the first channel's sign, zero included.
+        for e in [Rgb::new(1.5, 2.0, 0.25), Rgb::BLACK] {
+            encode_vertex_energy(&mut b, 36, e, true);
+            assert_eq!(decode_vertex_energy(&b, 36), e);
+            assert!(decode_vertex_gather(&b, 36));
+        }
     }
 
     #[test]

@@ -181,6 +181,9 @@ pub enum Exposure {
 /// Most diffuse bounce rays per light ray (`[render] bounce_rays`).
 pub const MAX_BOUNCE_RAYS: u32 = 4096;
 
+/// Most gather rays per viewing ray (`[render] gather_rays`).
+pub const MAX_GATHER_RAYS: u32 = 4096;
+
 /// Every accuracy knob and output setting of a render.
 #[derive(Clone, Debug, PartialEq)]
 pub struct RenderSettings {
@@ -201,6 +204,13 @@ pub struct RenderSettings {
     /// stratified bounce directions with an equal share of its flux, so that it still
     /// sends `light_rays` bounce rays for fewer light rays. 1 is one bounce per light ray.
     pub bounce_rays: u32,
+    /// Rays a viewing ray's diffuse hit gathers the bounced light with where the
+    /// elements cannot hold it (next to elements that received no light: a contact with
+    /// another surface, [`crate::energy::gather_vertices`]), each with a shadow ray per
+    /// light at its own hit; 0 interpolates everywhere. Only where the elements hold
+    /// nothing but one diffuse bounce of direct light computed at VRT
+    /// ([`crate::plan::EffectsPlan::gathers`]).
+    pub gather_rays: u32,
     /// Maximum specular bounces of light rays (mirror, refraction) after the first hit.
     pub lrt_depth: u32,
     /// Maximum specular bounces of viewing rays.
@@ -246,6 +256,7 @@ impl Default for RenderSettings {
             element_size: 0.1,
             light_rays: 64,
             bounce_rays: 8,
+            gather_rays: 64,
             lrt_depth: 4,
             vrt_depth: 4,
             diffuse_bounces: 0,

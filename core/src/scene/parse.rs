@@ -18,7 +18,7 @@ use super::field::field_at;
 use super::mesh::{self, MaterialTable, MeshEntry, MeshShading, ReadFile, Transform};
 use super::model::{
     Accel, Camera, CameraPath, DirectLight, Exposure, GridSpec, Light, Material, PatchDef, RenderSettings, Scene,
-    SourceLoc, Spot, MAX_BOUNCE_RAYS, MAX_COORDINATE, MAX_RADIOMETRIC,
+    SourceLoc, Spot, MAX_BOUNCE_RAYS, MAX_COORDINATE, MAX_GATHER_RAYS, MAX_RADIOMETRIC,
 };
 use super::shape::{check_quad, is_degenerate};
 use crate::color::Rgb;
@@ -64,6 +64,7 @@ struct RawRender {
     element_size: Option<Spanned<f64>>,
     light_rays: Option<Spanned<i64>>,
     bounce_rays: Option<Spanned<i64>>,
+    gather_rays: Option<Spanned<i64>>,
     lrt_depth: Option<Spanned<i64>>,
     vrt_depth: Option<Spanned<i64>>,
     diffuse_bounces: Option<Spanned<i64>>,
@@ -378,6 +379,7 @@ impl<'a> Ctx<'a> {
         u32_in(&r.pixel_samples, "render.pixel_samples", 1, 4096, &mut s.pixel_samples)?;
         u32_in(&r.light_rays, "render.light_rays", 1, 1_000_000, &mut s.light_rays)?;
         u32_in(&r.bounce_rays, "render.bounce_rays", 1, MAX_BOUNCE_RAYS as i64, &mut s.bounce_rays)?;
+        u32_in(&r.gather_rays, "render.gather_rays", 0, MAX_GATHER_RAYS as i64, &mut s.gather_rays)?;
         u32_in(&r.lrt_depth, "render.lrt_depth", 0, 32, &mut s.lrt_depth)?;
         u32_in(&r.vrt_depth, "render.vrt_depth", 0, 32, &mut s.vrt_depth)?;
         u32_in(&r.diffuse_bounces, "render.diffuse_bounces", 0, 16, &mut s.diffuse_bounces)?;

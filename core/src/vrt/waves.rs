@@ -114,7 +114,7 @@ pub fn shade_pixels(
         }
         for &(_, i) in &by_element {
             let (_, a, irr) = &mut arrived[i as usize];
-            *irr = interpolated(view, a)?;
+            *irr = interpolated(view, scratch, a)?;
         }
         for (_, a, irr) in arrived.iter_mut().filter(|(_, a, _)| a.direct) {
             *irr = irr.add(direct::irradiance(view, scratch, &a.at, a.patch)?);
@@ -168,7 +168,7 @@ fn radiance(
     };
     let mut irr = Rgb::BLACK;
     if a.shaded {
-        irr = interpolated(view, &a)?;
+        irr = interpolated(view, scratch, &a)?;
     }
     if a.direct {
         irr = irr.add(direct::irradiance(view, scratch, &a.at, a.patch)?);

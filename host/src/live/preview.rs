@@ -104,7 +104,7 @@ impl Previewer {
         );
         let blocks = SnapshotBlocks {
             scene: self.scene.clone(),
-            vertex: vertex_energy_blocks(&vertex, &h.layout).into_iter().collect(),
+            vertex: vertex_energy_blocks(&vertex, &[], &h.layout).into_iter().collect(),
         };
         let mut view = SceneView::new(self.header.clone(), BlockCache::new(Arc::new(blocks), None));
         let mut scratch = TraceScratch::default();

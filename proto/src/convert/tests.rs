@@ -189,7 +189,7 @@ fn bad_materials_and_lights_are_refused() {
 #[test]
 fn settings_out_of_the_parsers_ranges_are_refused() {
     type Spoil = fn(&mut v1::RenderSettings);
-    let cases: [(Spoil, &str); 14] = [
+    let cases: [(Spoil, &str); 15] = [
         (|s| s.width = 0, "settings.width"),
         (|s| s.height = 16385, "settings.height"),
         (|s| s.pixel_samples = 4097, "settings.pixel_samples"),
@@ -197,6 +197,7 @@ fn settings_out_of_the_parsers_ranges_are_refused() {
         (|s| s.light_rays = 1_000_001, "settings.light_rays"),
         (|s| s.bounce_rays = 0, "settings.bounce_rays"),
         (|s| s.bounce_rays = 4097, "settings.bounce_rays"),
+        (|s| s.gather_rays = 4097, "settings.gather_rays"),
         (|s| s.lrt_depth = 33, "settings.lrt_depth"),
         (|s| s.vrt_depth = 33, "settings.vrt_depth"),
         (|s| s.diffuse_bounces = 17, "settings.diffuse_bounces"),

@@ -32,7 +32,8 @@ pub enum Quality {
 pub struct Preset {
     /// Element edge multiplier (see [`scale_elements`]).
     pub element_scale: f64,
-    /// Multiplier of the scene's light rays per (light, element) pair.
+    /// Multiplier of the scene's light rays per (light, element) pair, and of its gather
+    /// rays per viewing ray (`[render] gather_rays`; none stay none).
     pub ray_factor: f64,
     /// Viewing rays per pixel; `None` keeps the scene's.
     pub pixel_samples: Option<u32>,
@@ -49,6 +50,17 @@ impl Preset {
             (r as u32).max(4).min(scene_rays.max(1))
         } else {
             r.min(1_000_000.0) as u32
+        }
+    }
+
+    /// Gather rays per viewing ray for a scene that asks for `scene_rays` (0 stays 0).
+    /// A preset that cuts rays gathers none: at one viewing ray per pixel, a few gather
+    /// rays are noisier than the interpolation they replace (docs/ACCURACY.md).
+    pub fn gather_rays(&self, scene_rays: u32) -> u32 {
+        match scene_rays {
+            _ if self.ray_factor < 1.0 => 0,
+            0 => 0,
+            n => self.light_rays(n).min(magg_core::scene::MAX_GATHER_RAYS),
         }
     }
 }
@@ -68,6 +80,7 @@ impl Quality {
         let p = self.preset();
         scale_elements(scene, p.element_scale);
         scene.settings.light_rays = p.light_rays(scene.settings.light_rays);
+        scene.settings.gather_rays = p.gather_rays(scene.settings.gather_rays);
         if let Some(v) = p.pixel_samples {
             scene.settings.pixel_samples = v;
         }
@@ -99,6 +112,11 @@ mod tests {
         assert_eq!(d.light_rays(8), 4);
         assert_eq!(d.light_rays(2), 2);
         assert_eq!(Quality::Good.preset().light_rays(7), 7);
+        assert_eq!(d.gather_rays(64), 0);
+        assert_eq!(Quality::Good.preset().gather_rays(64), 64);
+        assert_eq!(d.gather_rays(0), 0);
+        assert_eq!(Quality::Final.preset().gather_rays(64), 256);
+        assert_eq!(Quality::Final.preset().gather_rays(0), 0);
     }
 
     use super::*;

@@ -149,6 +149,16 @@ fn bounce_rays_default_to_eight_per_light_ray_and_are_range_checked() {
 }
 
 #[test]
+fn gather_rays_default_to_64_and_are_range_checked() {
+    assert_eq!(parse(MINI).unwrap().settings.gather_rays, 64);
+    assert_eq!(parse(&format!("{MINI}[render]\ngather_rays = 0\n")).unwrap().settings.gather_rays, 0);
+    for bad in ["-1", "4097", "2.5"] {
+        let e = err(&format!("{MINI}[render]\ngather_rays = {bad}\n"));
+        assert!(e.starts_with("t.toml:18: render.gather_rays:"), "{bad}: {e}");
+    }
+}
+
+#[test]
 fn accel_is_bvh_unless_the_scene_asks_for_the_grid() {
     assert_eq!(parse(MINI).unwrap().settings.accel, Accel::Bvh);
     let grid = parse(&format!("{MINI}[render]\naccel = \"grid\"\n")).unwrap().settings;
