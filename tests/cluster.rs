@@ -24,6 +24,27 @@ fn same_files(a: &Rendered, b: &Rendered, what: &str) {
 }
 
 #[test]
+fn the_gathered_bounce_crosses_the_cluster_bit_for_bit() {
+    // diffuse.toml: direct light at VRT and one diffuse bounce, so pixels beside the
+    // boxes' contacts with the floor gather the bounce (their vertices are marked in the
+    // vertex-energy blocks that travel through the forks).
+    let dir = tempfile::tempdir().unwrap();
+    let s = scene("diffuse.toml");
+    let args = |extra: &[&str]| with(&[&["--element-size", "0.3"][..], extra].concat());
+    let base = render(&s, dir.path(), "embedded", &args(&["--embedded"]));
+    let flat = render(&s, dir.path(), "interpolated", &args(&["--embedded", "--gather-rays", "0"]));
+    assert_ne!(std::fs::read(&base.pfm).unwrap(), std::fs::read(&flat.pfm).unwrap(), "nothing was gathered");
+    let shapes: &[&[&str]] = &[
+        &["--nodes", "3", "--forks", "2"],
+        &["--nodes", "2", "--forks", "5", "--cache-blocks", "60", "--transport", "tcp"],
+    ];
+    for (i, shape) in shapes.iter().enumerate() {
+        let r = render(&s, dir.path(), &format!("cluster{i}"), &args(shape));
+        same_files(&base, &r, &format!("diffuse.toml {}", shape.join(" ")));
+    }
+}
+
+#[test]
 fn in_process_cluster_matches_the_embedded_core_bit_for_bit() {
     let dir = tempfile::tempdir().unwrap();
     // area.toml: light sources are emitting elements (area lights) after the point lights.
