@@ -5,7 +5,7 @@
 # the ratio magg / Embree, the median over ROUNDS interleaved rounds (each the median of
 # REPEATS timed runs). docs/PERFORMANCE.md records it.
 #
-#   deploy/bench-embree.sh                      # large, cornell, magg-paper, 50k random
+#   deploy/bench-embree.sh                      # the issue's table, and 50k random triangles
 #   SIZE=200 ROUNDS=3 deploy/bench-embree.sh scenes/cornell.toml
 #
 # Installs libembree-dev with apt-get when missing (as root); where there is no apt, says
@@ -17,7 +17,9 @@ rounds=${ROUNDS:-3}
 repeats=${REPEATS:-3}
 occ=${OCCLUSION:-100000}
 targets=("$@")
-[ ${#targets[@]} -gt 0 ] || targets=(scenes/large.toml scenes/cornell.toml scenes/magg-paper.toml random:50000)
+# sphere-box and spheres:25 are generated (core/examples/embree_rays/scenes.rs): the box
+# with a block and a sphere (3 988 triangles) and 25 spheres in a box (55 210).
+[ ${#targets[@]} -gt 0 ] || targets=(sphere-box spheres:25 scenes/magg-paper.toml scenes/cornell.toml scenes/large.toml random:50000)
 
 if [ ! -f /usr/include/embree3/rtcore.h ]; then
   if ! command -v apt-get >/dev/null; then
@@ -38,6 +40,8 @@ echo "|---|---:|---:|---:|---:|---:|---:|---:|"
 for t in "${targets[@]}"; do
   case $t in
     random:*) src=(--random "${t#random:}"); name="random ${t#random:}" ;;
+    spheres:*) src=(--spheres "${t#spheres:}"); name="${t#spheres:} spheres" ;;
+    sphere-box) src=(--sphere-box); name="box, block and sphere" ;;
     *) src=("$root/$t"); name=$(basename "$t" .toml) ;;
   esac
   : >"$tmp/runs"

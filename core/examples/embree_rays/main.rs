@@ -13,17 +13,17 @@
 //! ```text
 //! cargo run --release -p magg-core --example embree_rays -- scenes/large.toml --out /tmp/r.bin
 //! cargo run --release -p magg-core --example embree_rays -- --random 50000 --out /tmp/r.bin
+//! cargo run --release -p magg-core --example embree_rays -- --spheres 25 --out /tmp/r.bin
 //! ```
+//! The generated scenes (`--random`, `--spheres`, `--sphere-box`) are in `scenes.rs`.
 //! File (little-endian): u32 triangles, u32 primary rays, u32 occlusion rays; then 9 x f32
 //! per triangle; then 7 x f32 per ray (origin, direction, tmax).
 
 use glam::DVec3;
 use magg_core::blocks::{BlockCache, MemStore};
 use magg_core::camera::CameraRig;
-use magg_core::color::Rgb;
 use magg_core::geometry::Ray;
 use magg_core::preprocess::{prepare, PreparedScene};
-use magg_core::rng::Rng;
 use magg_core::scene::*;
 use magg_core::trace::{cast, occluded, TraceScratch, NO_PATCH};
 use magg_core::view::SceneView;
@@ -33,9 +33,12 @@ use std::process::ExitCode;
 use std::sync::Arc;
 use std::time::Instant;
 
+mod scenes;
+use scenes::Generated;
+
 struct Args {
     scene: Option<PathBuf>,
-    random: usize,
+    generated: Option<Generated>,
     out: PathBuf,
     size: u32,
     occlusion: usize,
@@ -43,14 +46,22 @@ struct Args {
 }
 
 fn parse_args() -> Result<Args, String> {
-    let mut a =
-        Args { scene: None, random: 0, out: PathBuf::from("rays.bin"), size: 400, occlusion: 200_000, repeats: 5 };
+    let mut a = Args {
+        scene: None,
+        generated: None,
+        out: PathBuf::from("rays.bin"),
+        size: 400,
+        occlusion: 200_000,
+        repeats: 5,
+    };
     let mut it = std::env::args().skip(1);
     while let Some(flag) = it.next() {
         let mut value = || it.next().ok_or_else(|| format!("{flag} needs a value"));
         let num = |v: String| v.parse::<usize>().map_err(|e| format!("{flag}: {e}"));
         match flag.as_str() {
-            "--random" => a.random = num(value()?)?,
+            "--random" => a.generated = Some(Generated::Random(num(value()?)?)),
+            "--spheres" => a.generated = Some(Generated::Spheres(num(value()?)?)),
+            "--sphere-box" => a.generated = Some(Generated::SphereBox),
             "--out" => a.out = PathBuf::from(value()?),
             "--size" => a.size = num(value()?)?.clamp(1, 16384) as u32,
             "--occlusion" => a.occlusion = num(value()?)?,
@@ -59,73 +70,19 @@ fn parse_args() -> Result<Args, String> {
             other => return Err(format!("unknown argument {other}")),
         }
     }
-    if a.scene.is_none() && a.random == 0 {
+    if a.scene.is_none() && a.generated.is_none() {
         return Err(
-            "usage: embree_rays (SCENE.toml | --random N) [--out FILE] [--size PX] [--occlusion N] [--repeats N]"
+            "usage: embree_rays (SCENE.toml | --random N | --spheres N | --sphere-box) [--out FILE] [--size PX] \
+                    [--occlusion N] [--repeats N]"
                 .into(),
         );
     }
     Ok(a)
 }
 
-/// `n` random triangles (edges up to about 0.3) in a closed box [-4, 4]^3, one light.
-fn random_scene(n: usize) -> Scene {
-    let loc = SourceLoc { file: "<random>".into(), line: 0 };
-    let mut rng = Rng::from_words(&[n as u64, 0xe5b]);
-    let mut u = move || rng.next_f64() * 2.0 - 1.0;
-    let tri = |v: [DVec3; 3]| PatchDef {
-        vertices: v,
-        material: 0,
-        subdivisions: Some(1),
-        size_hint: None,
-        normals: None,
-        uv: None,
-        texture: None,
-        loc: loc.clone(),
-    };
-    let mut patches = Vec::new();
-    let (lo, hi) = (-4.0, 4.0);
-    let c = |x: f64, y: f64, z: f64| DVec3::new(x, y, z);
-    // The box, facing in.
-    for [a, b, cc, d] in [
-        [c(lo, lo, lo), c(hi, lo, lo), c(hi, lo, hi), c(lo, lo, hi)],
-        [c(lo, hi, lo), c(lo, hi, hi), c(hi, hi, hi), c(hi, hi, lo)],
-        [c(lo, lo, lo), c(lo, lo, hi), c(lo, hi, hi), c(lo, hi, lo)],
-        [c(hi, lo, lo), c(hi, hi, lo), c(hi, hi, hi), c(hi, lo, hi)],
-        [c(lo, lo, lo), c(lo, hi, lo), c(hi, hi, lo), c(hi, lo, lo)],
-        [c(lo, lo, hi), c(hi, lo, hi), c(hi, hi, hi), c(lo, hi, hi)],
-    ] {
-        patches.push(tri([a, b, cc]));
-        patches.push(tri([a, cc, d]));
-    }
-    while patches.len() < n {
-        let p = c(u() * 3.0, u() * 3.0, u() * 3.0);
-        let mut corner = || p + c(u(), u(), u()) * 0.15;
-        patches.push(tri([corner(), corner(), corner()]));
-    }
-    Scene {
-        name: format!("random-{n}"),
-        camera: Camera { eye: c(0.0, 0.0, 3.9), look_at: c(0.0, 0.0, 0.0), up: c(0.0, 1.0, 0.0), fov_y_deg: 60.0 },
-        settings: RenderSettings { max_elements: u64::MAX, ..RenderSettings::default() },
-        lights: vec![Light { position: c(0.5, 3.5, 0.5), intensity: Rgb::splat(1.0), spot: None, loc: loc.clone() }],
-        materials: vec![Material {
-            name: "white".into(),
-            diffuse: Rgb::splat(0.5),
-            mirror: Rgb::BLACK,
-            transmit: Rgb::BLACK,
-            ior: 1.5,
-            one_sided: false,
-            emit: Rgb::BLACK,
-            loc: loc.clone(),
-        }],
-        patches,
-        textures: Vec::new(),
-    }
-}
-
 fn load(a: &Args) -> Result<Scene, String> {
     let Some(path) = &a.scene else {
-        return Ok(random_scene(a.random));
+        return a.generated.map(scenes::generate).ok_or_else(|| "no scene".to_string());
     };
     let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
     let base = path.parent().unwrap_or(Path::new("."));
