@@ -40,7 +40,7 @@ use crate::FaultPolicy;
 use magg_core::preprocess::PreparedScene;
 use magg_plumbing::auth::{AddToken, Authed, NodeKey, Token};
 use magg_plumbing::retry::{self, Backoff};
-use magg_plumbing::transport::InProcess;
+use magg_plumbing::transport::{InProcess, Sharing};
 use magg_plumbing::with_message_limits;
 use magg_proto::convert::scene_blocks_to_wire;
 use magg_proto::v1::fork_client::ForkClient;
@@ -87,7 +87,11 @@ const PARALLEL_UPLOAD_BYTES: usize = 4 << 20;
 pub struct ForkSet {
     prepared: Arc<PreparedScene>,
     /// The scene's blocks for the wire, by id (sharing the scene's memory).
-    wire_blocks: Vec<v1::Block>,
+    wire_blocks: Arc<Vec<v1::Block>>,
+    /// Which forks run in this process, and the blocks shared with them: their shards
+    /// are loaded by reference, not encoded and decoded (`shared_blocks`).
+    in_process: Vec<bool>,
+    sharing: Option<Sharing>,
     addrs: Vec<String>,
     clients: Vec<ForkClient<Authed>>,
     lease_ms: u32,
@@ -145,9 +149,17 @@ impl ForkSet {
         for addr in addrs {
             clients.push(connect(links, addr, &faults.token, faults.fork_timeout).await?);
         }
+        let wire_blocks = Arc::new(scene_blocks_to_wire(prepared));
+        let in_process: Vec<bool> = addrs.iter().map(|a| links.get(a).is_some()).collect();
+        let sharing = match in_process.contains(&true) {
+            true => links.share(wire_blocks.clone()),
+            false => None,
+        };
         Ok(ForkSet {
             prepared: prepared.clone(),
-            wire_blocks: scene_blocks_to_wire(prepared),
+            wire_blocks,
+            in_process,
+            sharing,
             addrs: addrs.to_vec(),
             clients,
             lease_ms: faults.lease.as_millis().clamp(1, u32::MAX as u128) as u32,
@@ -196,13 +208,13 @@ impl ForkSet {
 
     /// Loads every fork's shard, all at once. A fork of this process answers within the
     /// call, so where the calls run decides what runs in parallel: a large scene's shards
-    /// are encoded, decoded and checked on the runtime's threads side by side (large.toml,
-    /// 22 MB: 33 -> 24 ms on 2 cores); a small one's are polled together in this task,
-    /// where waking runtime threads would cost more than it saves (magg-paper, 350 KB:
-    /// 1.0 ms, 1.2 spawned). Forks across sockets load concurrently either way.
+    /// are checked and set up on the runtime's threads side by side; a small one's are
+    /// polled together in this task, where waking runtime threads would cost more than
+    /// it saves (magg-paper, 350 KB: 1.0 ms, 1.2 spawned). Forks across sockets load
+    /// concurrently either way.
     pub async fn load_all(&mut self) -> Result<()> {
         let requests: Vec<_> = (0..self.len()).map(|i| self.shard_request(i)).collect();
-        let bytes: usize = requests.iter().map(|r| r.blocks.len() * magg_core::blocks::BLOCK_SIZE).sum();
+        let bytes = self.wire_blocks.len() * magg_core::blocks::BLOCK_SIZE;
         let loads = requests
             .into_iter()
             .enumerate()
@@ -218,10 +230,15 @@ impl ForkSet {
         Ok(())
     }
 
-    /// Fork `i`'s `LoadShard` request.
+    /// Fork `i`'s `LoadShard` request; a fork of this process takes its blocks from
+    /// those shared with it.
     fn shard_request(&self, i: usize) -> LoadShardRequest {
         let f = self.len();
-        let mut blocks: Vec<v1::Block> = self.wire_blocks.iter().skip(i).step_by(f).cloned().collect();
+        let shared = self.sharing.as_ref().filter(|_| self.in_process.get(i) == Some(&true)).map(Sharing::key);
+        let mut blocks: Vec<v1::Block> = match shared {
+            Some(_) => Vec::new(),
+            None => self.wire_blocks.iter().skip(i).step_by(f).cloned().collect(),
+        };
         // Later blocks of a request replace earlier ones with the same id.
         blocks.extend(self.vertex_blocks.as_ref().map(|v| v[i].clone()).unwrap_or_default());
         LoadShardRequest {
@@ -235,6 +252,7 @@ impl ForkSet {
             profile: self.profile.clone(),
             nodes: self.nodes,
             node_key: self.node_key.as_bytes().to_vec().into(),
+            shared_blocks: shared.unwrap_or(0),
         }
     }
 

@@ -109,6 +109,31 @@ pub fn load_shard(req: v1::LoadShardRequest, access: PeerAccess, max_mb: u64) ->
     Shard::load_within(ShardLoad::try_from(req)?, access, max_mb)
 }
 
+/// `req` with the blocks its host shared in this process (`shared_blocks`, the
+/// in-process harness) put back in: this fork's own (id mod forks = its index) first,
+/// then the request's, which replace them. A key this process does not share (a fork of
+/// a process of its own, or a host gone) is refused.
+pub fn with_shared_blocks(
+    mut req: v1::LoadShardRequest,
+    links: &magg_plumbing::transport::InProcess,
+) -> Result<v1::LoadShardRequest, ForkError> {
+    if req.shared_blocks == 0 {
+        return Ok(req);
+    }
+    let key = req.shared_blocks;
+    let all = links.shared(key).and_then(|v| v.downcast::<Vec<v1::Block>>().ok()).ok_or_else(|| {
+        ForkError::BadRequest(format!("shared blocks {key} are not in this fork's process: send the blocks"))
+    })?;
+    let (index, forks) = (req.fork_index as usize, req.fork_addrs.len());
+    if forks == 0 || index >= forks {
+        return Err(ForkError::BadRequest(format!("fork index {index} among {forks} forks")));
+    }
+    let own = all.iter().skip(index).step_by(forks).cloned();
+    req.blocks = own.chain(std::mem::take(&mut req.blocks)).collect();
+    req.shared_blocks = 0;
+    Ok(req)
+}
+
 /// Blocks from the wire, each checked to be 2 KB (kept as received, no copy).
 pub fn blocks_from_wire(blocks: Vec<v1::Block>) -> Result<Vec<(u32, Bytes)>, ForkError> {
     Ok(blocks.into_iter().map(block_bytes_from_wire).collect::<Result<_, _>>()?)
@@ -231,7 +256,9 @@ fn check_stolen(shard: &Shard, peer: u32, pairs: &[u64]) -> Result<(), ForkError
 #[tonic::async_trait]
 impl Fork for ForkService {
     async fn load_shard(&self, req: Request<v1::LoadShardRequest>) -> Result<Response<v1::LoadShardReply>, Status> {
-        let req = req.into_inner();
+        let req = with_shared_blocks(req.into_inner(), &self.access.links)?;
+        // (The request as it would have come with every block in it: the G-bus carries
+        // the same bytes either way.)
         let bytes = prost::Message::encoded_len(&req);
         let profile = if req.profile.is_empty() {
             None

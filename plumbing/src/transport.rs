@@ -81,6 +81,40 @@ struct Shared {
     services: Mutex<HashMap<String, Transport>>,
     /// Signalled whenever a service registers (for [`InProcess::wait_registered`]).
     registered: Condvar,
+    /// Values handed between the servers and clients of this process by key
+    /// ([`InProcess::share`]), and the last key given.
+    values: Mutex<(u64, HashMap<u64, SharedValue>)>,
+}
+
+/// A value of [`InProcess::share`].
+pub type SharedValue = Arc<dyn std::any::Any + Send + Sync>;
+
+/// Keeps a value shared; dropping it withdraws the value.
+#[must_use = "the value is withdrawn when this is dropped"]
+pub struct Sharing {
+    shared: Arc<Shared>,
+    key: u64,
+}
+
+impl Sharing {
+    /// The key the value is found under ([`InProcess::shared`]); never 0.
+    pub fn key(&self) -> u64 {
+        self.key
+    }
+}
+
+impl std::fmt::Debug for Sharing {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Sharing").field("key", &self.key).finish()
+    }
+}
+
+impl Drop for Sharing {
+    fn drop(&mut self) {
+        if let Ok(mut v) = self.shared.values.lock() {
+            v.1.remove(&self.key);
+        }
+    }
 }
 
 impl std::fmt::Debug for Shared {
@@ -152,6 +186,25 @@ impl InProcess {
             shared.registered.notify_all();
         }
         Registration { shared: self.shared.clone(), key: k }
+    }
+
+    /// Shares `value` with the servers of this set, which find it by the key of the
+    /// guard returned ([`InProcess::shared`]) until the guard is dropped: large payloads
+    /// (a fork's scene blocks) then pass between the host and its in-process forks by
+    /// reference, where a call would encode them and decode a copy. `None` for
+    /// [`InProcess::none`] (no server shares this process).
+    pub fn share(&self, value: SharedValue) -> Option<Sharing> {
+        let shared = self.shared.as_ref()?;
+        let mut v = shared.values.lock().ok()?;
+        v.0 += 1;
+        let key = v.0;
+        v.1.insert(key, value);
+        Some(Sharing { shared: shared.clone(), key })
+    }
+
+    /// The value shared under `key` in this set, if it still is.
+    pub fn shared(&self, key: u64) -> Option<SharedValue> {
+        self.shared.as_ref()?.values.lock().ok()?.1.get(&key).cloned()
     }
 
     /// The registered service at `addr`, if any.
@@ -228,5 +281,27 @@ impl Service<Request<Body>> for Deadline {
                 Err(_) => Err(TransportError(Box::new(tonic::TimeoutExpired(())))),
             }
         })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_shared_value_is_found_by_its_key_until_its_guard_drops() {
+        let links = InProcess::new(Mode::InProcess);
+        let guard = links.share(Arc::new(vec![1u8, 2, 3])).expect("an in-process set shares");
+        let key = guard.key();
+        assert_ne!(key, 0);
+        let other = links.clone();
+        let v = other.shared(key).and_then(|v| v.downcast::<Vec<u8>>().ok()).expect("shared");
+        assert_eq!(*v, vec![1, 2, 3]);
+        assert!(other.shared(key + 1).is_none());
+        drop(guard);
+        assert!(links.shared(key).is_none(), "withdrawn with its guard");
+        // A process of its own shares nothing.
+        assert!(InProcess::none().share(Arc::new(0u8)).is_none());
+        assert!(InProcess::none().shared(key).is_none());
     }
 }
