@@ -471,11 +471,15 @@ fn follow_one(
 }
 
 /// One entry per element, sorted by element, each summed in generation order
-/// (deterministic), in fixed point.
-fn merged(mut deposits: Vec<(u32, Rgb)>, quantum: f64) -> Vec<(u32, Fixed)> {
-    deposits.sort_by_key(|d| d.0);
+/// (deterministic), in fixed point. (The order is that of a stable sort by element,
+/// found by sorting the deposits' (element, index) keys, 8 bytes each, rather than
+/// moving the 32-byte deposits themselves.)
+fn merged(deposits: Vec<(u32, Rgb)>, quantum: f64) -> Vec<(u32, Fixed)> {
+    let mut keys: Vec<u64> = deposits.iter().enumerate().map(|(i, d)| (d.0 as u64) << 32 | i as u64).collect();
+    keys.sort_unstable();
     let mut merged: Vec<(u32, Rgb)> = Vec::new();
-    for (e, f) in deposits {
+    for k in keys {
+        let (e, f) = deposits[(k & 0xffff_ffff) as usize];
         match merged.last_mut() {
             Some(last) if last.0 == e => last.1 = last.1.add(f),
             _ => merged.push((e, f)),
