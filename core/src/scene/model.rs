@@ -256,7 +256,7 @@ impl Default for RenderSettings {
             element_size: 0.1,
             light_rays: 64,
             bounce_rays: 8,
-            gather_rays: 64,
+            gather_rays: 128,
             lrt_depth: 4,
             vrt_depth: 4,
             diffuse_bounces: 0,

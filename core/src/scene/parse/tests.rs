@@ -149,8 +149,8 @@ fn bounce_rays_default_to_eight_per_light_ray_and_are_range_checked() {
 }
 
 #[test]
-fn gather_rays_default_to_64_and_are_range_checked() {
-    assert_eq!(parse(MINI).unwrap().settings.gather_rays, 64);
+fn gather_rays_default_to_128_and_are_range_checked() {
+    assert_eq!(parse(MINI).unwrap().settings.gather_rays, 128);
     assert_eq!(parse(&format!("{MINI}[render]\ngather_rays = 0\n")).unwrap().settings.gather_rays, 0);
     for bad in ["-1", "4097", "2.5"] {
         let e = err(&format!("{MINI}[render]\ngather_rays = {bad}\n"));
