@@ -209,18 +209,8 @@ impl SceneView {
         Ok(depth)
     }
 
-    /// Irradiance of vertex `id` (valid after energy interpolation).
-    pub fn vertex_energy(&mut self, id: u32) -> Result<Rgb, BlockError> {
-        let count = self.header.counts.vertices;
-        if id >= count {
-            return Err(BlockError::BadId { kind: "vertex", id: id as u64, count: count as u64 });
-        }
-        let (b, at) = self.header.layout.vertex_slot(id);
-        Ok(decode_vertex_energy(self.cache.get(b)?, at))
-    }
-
-    /// Vertex `id`'s irradiance, and whether it is marked for gathering
-    /// ([`crate::energy::gather_vertices`]).
+    /// Vertex `id`'s irradiance (valid after energy interpolation), and whether it is
+    /// marked for gathering ([`crate::energy::gather_vertices`]).
     pub fn vertex_light(&mut self, id: u32) -> Result<(Rgb, bool), BlockError> {
         let count = self.header.counts.vertices;
         if id >= count {

@@ -246,11 +246,11 @@ fn interpolated(view: &mut SceneView, scratch: &mut TraceScratch, a: &Arrived) -
     Ok(irr)
 }
 
-/// The bounced light arriving at `at` on patch `patch` (irradiance), gathered with `n` rays: directions
-/// over the hemisphere of the side arrived on, cosine-weighted and stratified
-/// (Hammersley, rotated by a seed of the point and the incoming direction, so that the
-/// result depends on the ray alone, not on the node or the order of tracing). Each
-/// ray's hit reflects `rho E`: its diffuse reflectance (textured) times the direct
+/// The bounced light arriving at `at` on patch `patch` (irradiance), gathered with `n`
+/// rays: directions over the hemisphere of the side arrived on, cosine-weighted and
+/// stratified (Hammersley, rotated by a seed of the point and the incoming direction, so
+/// that the result depends on the ray alone, not on the node or the order of tracing).
+/// Each ray's hit reflects `rho E`: its diffuse reflectance (textured) times the direct
 /// irradiance the lights give it there ([`crate::direct::irradiance`], on the side the
 /// gather ray arrived on), which is exactly the light that the elements' one diffuse
 /// bounce carries; the mean of `rho E` over cosine-weighted directions is the
