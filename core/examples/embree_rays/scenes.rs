@@ -161,20 +161,8 @@ fn sphere_box() -> Scene {
 fn random(n: usize) -> Scene {
     let mut rng = Rng::from_words(&[n as u64, 0xe5b]);
     let mut u = move || rng.next_f64() * 2.0 - 1.0;
-    let mut patches = Vec::new();
-    let (lo, hi) = (-4.0, 4.0);
-    // The box, facing in.
-    for [a, b, cc, d] in [
-        [c(lo, lo, lo), c(hi, lo, lo), c(hi, lo, hi), c(lo, lo, hi)],
-        [c(lo, hi, lo), c(lo, hi, hi), c(hi, hi, hi), c(hi, hi, lo)],
-        [c(lo, lo, lo), c(lo, lo, hi), c(lo, hi, hi), c(lo, hi, lo)],
-        [c(hi, lo, lo), c(hi, hi, lo), c(hi, hi, hi), c(hi, lo, hi)],
-        [c(lo, lo, lo), c(lo, hi, lo), c(hi, hi, lo), c(hi, lo, lo)],
-        [c(lo, lo, hi), c(hi, lo, hi), c(hi, hi, hi), c(lo, hi, hi)],
-    ] {
-        patches.push(tri([a, b, cc], "random"));
-        patches.push(tri([a, cc, d], "random"));
-    }
+    // The box's walls (the material is two-sided: which way they face does not matter).
+    let mut patches = box_faces(c(-4.0, -4.0, -4.0), c(4.0, 4.0, 4.0), false, &[], "random");
     while patches.len() < n {
         let p = c(u() * 3.0, u() * 3.0, u() * 3.0);
         let mut corner = || p + c(u(), u(), u()) * 0.15;
