@@ -114,6 +114,9 @@ pub struct ClusterMachine {
     pub(super) gather_s: f64,
     /// Modelled busy seconds, filled in as the passes report them.
     pub(super) busy: EmulatedBusy,
+    /// Refinement's pilot pairs shared with the nodes of this process, until the light
+    /// pass ends.
+    pub(super) kept_pairs: Option<magg_plumbing::transport::Sharing>,
     _done_on_exit: DoneOnDrop,
 }
 
@@ -156,6 +159,9 @@ impl ClusterMachine {
             node_key.clone(),
         );
 
+        // Refinement's pilot pairs, for the nodes of this process (see
+        // magg_core::refine::KeptPairs); shared until the light pass ends.
+        let kept_pairs = prepared.kept_pairs.clone().and_then(|k| opts.links.share(k));
         // Serve the host service.
         let service = HostService::new(HostState {
             node_key,
@@ -172,6 +178,7 @@ impl ClusterMachine {
             frame_camera: None,
             events: opts.events.clone(),
             pairs_epoch: 0,
+            kept_pairs: kept_pairs.as_ref().map_or(0, |k| k.key()),
         });
         let (stop_tx, stop_rx) = tokio::sync::oneshot::channel::<()>();
         let (health, health_service) = magg_plumbing::health::health_service();
@@ -230,6 +237,7 @@ impl ClusterMachine {
             preprocess_wall,
             gather_s,
             busy: EmulatedBusy { preprocess_s: preprocess_model.as_secs_f64(), ..Default::default() },
+            kept_pairs,
             _done_on_exit: done_on_exit,
         })
     }

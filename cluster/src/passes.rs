@@ -151,6 +151,10 @@ impl ClusterMachine {
             self.service.wait_for(poll).await;
         };
         progress.end();
+        // Nodes that register from now on trace no pairs: the pilot pairs are withdrawn
+        // (those that hold them drop them when the viewing pass begins).
+        self.service.lock().kept_pairs = 0;
+        self.kept_pairs = None;
         Ok(LightPass { element_flux, pairs: total_pairs, collect_s })
     }
 

@@ -112,6 +112,9 @@ pub struct HostState {
     /// Bumped when forks give back pairs of lost nodes during LRT: every node that has
     /// run out of pairs is told to trace pairs again.
     pub pairs_epoch: u64,
+    /// The key refinement's pilot pairs are shared under in this process, told to nodes
+    /// at registration (0: none; see `magg_core::refine::KeptPairs`).
+    pub kept_pairs: u64,
 }
 
 impl HostState {
@@ -276,6 +279,7 @@ impl Host for HostService {
             profile: s.profile.clone(),
             scheme: s.scheme.clone(),
             node_secret: secret,
+            kept_pairs: s.kept_pairs,
         }))
     }
 

@@ -260,6 +260,37 @@ pub fn trace_pairs_each(
     Ok(())
 }
 
+/// [`trace_pairs_each`], where the pairs of `kept` (refinement's pilot pairs, see
+/// [`crate::refine::KeptPairs`]) are binned from their kept deposits rather than traced:
+/// the same results, handed to `each` in the batch's order.
+pub fn trace_pairs_kept(
+    view: &mut SceneView,
+    scratch: &mut TraceScratch,
+    pairs: &[(u32, u32)],
+    kept: Option<&crate::refine::KeptPairs>,
+    mut each: impl FnMut(usize, PairResult),
+) -> Result<(), BlockError> {
+    let Some(kept) = kept else {
+        return trace_pairs_each(view, scratch, pairs, each);
+    };
+    // Runs of pairs not kept are traced together (as trace_pairs_each would).
+    let mut run = 0;
+    for i in 0..=pairs.len() {
+        let binned = match pairs.get(i) {
+            Some(&(light, element)) => kept.bin(view, light, element).transpose()?,
+            None => None,
+        };
+        if binned.is_some() || i == pairs.len() {
+            trace_pairs_each(view, scratch, &pairs[run..i], |k, r| each(run + k, r))?;
+            run = i + 1;
+        }
+        if let Some(r) = binned {
+            each(i, r);
+        }
+    }
+    Ok(())
+}
+
 /// Traces the pair (`light`, `element`), its deposits raw: what [`bin`] turns into the
 /// pair's result under any later refinement of the other elements.
 pub fn trace_pair_raw(

@@ -18,6 +18,14 @@
 //! owners, pairs and vertex-energy blocks, so the final render runs unchanged in the
 //! embedded renderer and in the cluster, the same bits in every shape.
 //!
+//! Where the render's light pass carries exactly the pilots' light (no diffuse bounce,
+//! the same effects plan), its pairs are the last pilot's and those of the elements the
+//! last level split: the pilots' raw pairs are then kept with the prepared scene
+//! ([`KeptPairs`]), and the light pass bins them instead of tracing them again
+//! ([`crate::lrt::trace_pairs_kept`]), in the embedded renderer and on the cluster's
+//! nodes of the host's process; only the new elements' pairs are traced. The result is
+//! the same, bit for bit, as tracing every pair.
+//!
 //! ```
 //! use magg_core::{plan::EffectsPlan, refine, scene};
 //! let text = include_str!("../../scenes/magg-paper.toml");
@@ -54,6 +62,7 @@ pub const MAX_LEVELS: u32 = 6;
 pub fn prepare(scene: &Scene, plan: EffectsPlan) -> Result<PreparedScene, RenderError> {
     let start = Instant::now();
     let mut splits: Vec<Vec<u32>> = Vec::new();
+    let mut kept = None;
     if scene.settings.refine > 0 {
         // The pilot carries the light that makes edges: direct light from the lights and
         // light via mirrors and glass. Diffuse interreflection is smooth (and noisy in a
@@ -62,6 +71,9 @@ pub fn prepare(scene: &Scene, plan: EffectsPlan) -> Result<PreparedScene, Render
         pilot_scene.settings.diffuse_bounces = 0;
         let pilot_plan = EffectsPlan::for_scene(&pilot_scene);
         let pairs = PilotPairs::default();
+        // The render's light pass carries the pilots' light when the scene has no
+        // diffuse bounce to drop and the plan is the pilots'.
+        let keep = scene.settings.diffuse_bounces == 0 && plan == pilot_plan;
         for _ in 0..scene.settings.refine.min(MAX_LEVELS) {
             let pilot = prepare_split(&pilot_scene, pilot_plan.clone(), &splits)?;
             if !pilot.header.plan.lrt {
@@ -78,10 +90,47 @@ pub fn prepare(scene: &Scene, plan: EffectsPlan) -> Result<PreparedScene, Render
             }
             splits.push(split);
         }
+        if keep {
+            kept = Some(Arc::new(pairs.into_kept()));
+        }
     }
     let mut prepared = prepare_split(scene, plan, &splits)?;
     prepared.preprocess_s = start.elapsed().as_secs_f64();
+    prepared.kept_pairs = kept.filter(|k| !k.is_empty());
     Ok(prepared)
+}
+
+/// Refinement's pilot pairs of point lights, traced once and kept raw (see the module
+/// doc), read-only: for the render's light pass when it carries exactly the pilots'
+/// light. [`KeptPairs::bin`] gives a kept pair's result on the render's scene, which is
+/// what tracing it there gives, bit for bit (the pair's element is a leaf there, as it
+/// was when the pair was traced, and its rays are the same).
+pub struct KeptPairs {
+    raw: HashMap<(u32, u32), Arc<RawPair>>,
+}
+
+impl KeptPairs {
+    /// Pairs kept.
+    pub fn len(&self) -> usize {
+        self.raw.len()
+    }
+
+    /// No pair kept.
+    pub fn is_empty(&self) -> bool {
+        self.raw.is_empty()
+    }
+
+    /// The result of pair (`light`, `element`) on `view`'s scene from its kept raw
+    /// deposits, `None` when it was not kept (a new element's pair, or an area light's).
+    pub fn bin(&self, view: &mut SceneView, light: u32, element: u32) -> Option<Result<PairResult, BlockError>> {
+        self.raw.get(&(light, element)).map(|raw| bin(view, element, raw))
+    }
+}
+
+impl std::fmt::Debug for KeptPairs {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "KeptPairs({} pairs)", self.raw.len())
+    }
 }
 
 /// The pilots' pairs of point lights, traced once and kept raw: every level's pilot has
@@ -96,6 +145,11 @@ struct PilotPairs {
 }
 
 impl PilotPairs {
+    /// The pairs traced, read-only.
+    fn into_kept(self) -> KeptPairs {
+        KeptPairs { raw: self.raw.into_inner().unwrap_or_else(|e| e.into_inner()) }
+    }
+
     fn trace(
         &self,
         view: &mut SceneView,

@@ -236,6 +236,9 @@ pub struct EmbeddedMachine {
     tally: LrtTally,
     preprocess_s: f64,
     started: Instant,
+    /// Refinement's pilot pairs, binned instead of traced by the light pass (dropped
+    /// after it).
+    kept_pairs: Option<Arc<crate::refine::KeptPairs>>,
 }
 
 impl EmbeddedMachine {
@@ -270,6 +273,7 @@ impl EmbeddedMachine {
             preprocess_s: prepared.preprocess_s,
             started,
             header,
+            kept_pairs: prepared.kept_pairs.clone(),
         }
     }
 }
@@ -291,7 +295,17 @@ impl EmbeddedMachine {
 
 impl Machine for EmbeddedMachine {
     fn light_pass(&mut self, progress: &dyn Progress) -> Result<machine::LightPass, RenderError> {
-        self.light_pass_with(&trace_pairs, progress)
+        match self.kept_pairs.take() {
+            Some(kept) => {
+                let trace = |view: &mut SceneView, scratch: &mut TraceScratch, batch: &[(u32, u32)]| {
+                    let mut results = Vec::with_capacity(batch.len());
+                    crate::lrt::trace_pairs_kept(view, scratch, batch, Some(&kept), |_, r| results.push(r))?;
+                    Ok(results)
+                };
+                self.light_pass_with(&trace, progress)
+            }
+            None => self.light_pass_with(&trace_pairs, progress),
+        }
     }
 
     fn publish_vertex_energies(&mut self, vertex_irradiance: &[Rgb], gather: &[bool]) -> Result<(), RenderError> {

@@ -1,8 +1,9 @@
 //! Adaptive element refinement (`[render] refine`): elements split in four keep the
 //! light of their parent (flux conserved across a split, against the closed form of a
 //! point light), refinement chooses the elements along a shadow's edge, the irradiance
-//! stays continuous across a T-junction, the image comes closer to a finer render, and
-//! pilots that trace each pair once choose the splits of pilots that trace every level.
+//! stays continuous across a T-junction, the image comes closer to a finer render,
+//! pilots that trace each pair once choose the splits of pilots that trace every level,
+//! and the light pass that bins the pilots' pairs gives the bits of tracing them.
 
 mod common;
 use common::*;
@@ -223,5 +224,32 @@ fn pilots_that_trace_each_pair_once_split_as_pilots_that_trace_every_level() {
     }
     assert_eq!(refined.splits, splits, "the same elements split at every level");
     let again = prepare_split(&s, plan, &splits).unwrap();
-    assert_eq!(run(&refined, 2, None).frame.pixels, run(&again, 2, None).frame.pixels, "and the same image");
+    assert!(again.kept_pairs.is_none());
+    // The refined scene's light pass bins the pilots' pairs (only the last level's new
+    // elements' pairs are traced): the bits of tracing every pair, with fewer rays.
+    let kept = refined.kept_pairs.as_ref().expect("no diffuse bounce: the pilots' pairs are kept");
+    assert!(!kept.is_empty());
+    let (a, b) = (run(&refined, 2, None), run(&again, 2, None));
+    assert_eq!(a.element_flux, b.element_flux, "the same element energies");
+    assert_eq!(a.frame.pixels, b.frame.pixels, "and the same image");
+    let rays = |o: &magg_core::machine::RenderOutput| o.stats.work.light_rays;
+    assert!(0 < rays(&a) && rays(&a) < rays(&b), "light rays traced: {} kept, {} all", rays(&a), rays(&b));
+}
+
+#[test]
+fn pilot_pairs_are_kept_only_where_the_light_pass_carries_the_pilots_light() {
+    let mut s = floor_scene(true);
+    s.settings.direct = magg_core::scene::DirectLight::Lrt;
+    s.settings.refine = 1;
+    let plan = EffectsPlan::for_scene(&s);
+    assert!(refine::prepare(&s, plan.clone()).unwrap().kept_pairs.is_some());
+    // Another plan (every effect forced on) or a diffuse bounce: the light pass carries
+    // other light than the pilots', and traces every pair.
+    assert!(refine::prepare(&s, EffectsPlan::forced_on(&s)).unwrap().kept_pairs.is_none());
+    s.settings.diffuse_bounces = 1;
+    assert!(refine::prepare(&s, EffectsPlan::for_scene(&s)).unwrap().kept_pairs.is_none());
+    // No refinement: no pilot.
+    s.settings.diffuse_bounces = 0;
+    s.settings.refine = 0;
+    assert!(refine::prepare(&s, plan).unwrap().kept_pairs.is_none());
 }

@@ -154,6 +154,11 @@ pub fn run_with_runtime(rt: Handle, cfg: &NodeConfig) -> Result<NodeSummary, Nod
     let totals = Arc::new(Totals::new(threads).paced(pace.clone()));
     tracing::info!(node = reg.node, home, threads, ?cache_blocks, "registered with {}", cfg.host);
     let overlap = crate::work::overlap_pays(pace.is_some(), &cfg.links, &reg.fork_addrs);
+    // Refinement's pilot pairs, where the host runs in this process and shares them.
+    let kept_pairs = (reg.kept_pairs != 0)
+        .then(|| cfg.links.shared(reg.kept_pairs))
+        .flatten()
+        .and_then(|v| v.downcast::<magg_core::refine::KeptPairs>().ok());
 
     let handles: Vec<_> = (0..threads)
         .map(|index| {
@@ -195,6 +200,7 @@ pub fn run_with_runtime(rt: Handle, cfg: &NodeConfig) -> Result<NodeSummary, Nod
                 overlap,
                 vrt: Default::default(),
                 fetching,
+                kept_pairs: kept_pairs.clone(),
             };
             let cores = cfg.cores.clone();
             std::thread::Builder::new()

@@ -10,7 +10,7 @@ use crate::timing::PassTimes;
 use crate::NodeError;
 use magg_core::camera::CameraRig;
 use magg_core::cluster::PairLease;
-use magg_core::lrt::trace_pairs_each;
+use magg_core::lrt::trace_pairs_kept;
 use magg_core::trace::TraceScratch;
 use magg_core::view::SceneView;
 use magg_core::vrt::{shade_pixels, Subscreen};
@@ -115,6 +115,9 @@ pub struct Worker {
     pub vrt: PassTimes,
     /// Nanoseconds its block cache has spent fetching blocks so far.
     pub fetching: Arc<std::sync::atomic::AtomicU64>,
+    /// Refinement's pilot pairs, shared by a host of this process: binned instead of
+    /// traced during the light pass, dropped when the viewing pass begins.
+    pub kept_pairs: Option<Arc<magg_core::refine::KeptPairs>>,
 }
 
 /// Whether a node gains by overlapping communication with tracing: when a link is
@@ -189,6 +192,7 @@ impl Worker {
                 Kind::Pairs => self.pairs()?,
                 Kind::Subscreen => match reply.subscreen {
                     Some(s) => {
+                        self.kept_pairs = None;
                         PassTimes::lap(&mut self.vrt.asking, asked);
                         self.vrt.unit(asked);
                         handed = self.subscreen(s)?
@@ -296,7 +300,7 @@ impl Worker {
             let (layout, forks) = (self.view.header.layout, self.forks.len());
             let owner_of = |e: u32| element_owner(&layout, forks, e);
             let (delay, mine) = (self.pair_delay, &mut self.mine);
-            trace_pairs_each(&mut self.view, &mut scratch, &leased, |i, r| {
+            trace_pairs_kept(&mut self.view, &mut scratch, &leased, self.kept_pairs.as_deref(), |i, r| {
                 let (pair, (_, element)) = (got.pairs[i], leased[i]);
                 if !delay.is_zero() {
                     std::thread::sleep(delay);

@@ -33,7 +33,8 @@ pub const RENDER_OVER: &str = "the render is over: this host takes no more nodes
 pub const NOT_LOADED: &str = "no scene loaded";
 
 /// Version of the protocol; processes with another version are refused at registration.
-/// 11: render settings carry `gather_rays` (gather rays per viewing ray beside unlit elements), and a
+/// 12: a registration may carry the key of refinement's pilot pairs shared in the
+/// host's process (`kept_pairs`); 11: render settings carry `gather_rays` (gather rays per viewing ray beside unlit elements), and a
 /// vertex-energy record's first channel its gather mark (sign bit); 10: render settings carry `bounce_rays` (bounce rays per light ray); 9: BVH node records hold four children (16 records per node block), patch records
 /// their back element and render settings whether the faces share elements
 /// (`shared_faces`); 8: materials carry their emitted radiance (`emit`), the scene header its emitting
@@ -48,4 +49,4 @@ pub const NOT_LOADED: &str = "no scene loaded";
 /// replies carry the ledger's digests, checked by the host before it interpolates; 3: a
 /// batch's deposits on a fork are packed arrays and may carry the next `TakePairs`
 /// ([`deposits`]); 2: packed deposits per pair, `Replay` names the lost fork.
-pub const PROTOCOL_VERSION: u32 = 11;
+pub const PROTOCOL_VERSION: u32 = 12;
