@@ -8,6 +8,7 @@
 
 mod bvh;
 mod grid;
+mod idhash;
 mod mesh;
 mod pack;
 mod split;

@@ -15,11 +15,11 @@
 //! irradiance is set to the mean of theirs ([`t_junctions`]), and the image stays
 //! continuous across the edge.
 
+use super::idhash::{IdMap, IdSet};
 use super::mesh::Mesh;
 use super::ElementInfo;
 use crate::geometry::triangle_area;
 use crate::subdivision::child_triangle;
-use std::collections::{HashMap, HashSet};
 
 /// The key of the edge between vertices `a` and `b`.
 fn edge(a: u32, b: u32) -> (u32, u32) {
@@ -28,7 +28,7 @@ fn edge(a: u32, b: u32) -> (u32, u32) {
 
 /// Splits each leaf element of `ids` (ascending) into four.
 pub(super) fn split(mesh: &mut Mesh, ids: &[u32]) {
-    let mut made: HashMap<(u32, u32), u32> = mesh.midpoints.iter().map(|&[a, b, m]| (edge(a, b), m)).collect();
+    let mut made: IdMap<(u32, u32), u32> = mesh.midpoints.iter().map(|&[a, b, m]| (edge(a, b), m)).collect();
     for &e in ids {
         let Some(&parent) = mesh.elements.get(e as usize) else { continue };
         if !parent.is_leaf() {
@@ -71,7 +71,7 @@ pub(super) fn t_junctions(mesh: &Mesh) -> Vec<[u32; 3]> {
     if mesh.midpoints.is_empty() {
         return Vec::new();
     }
-    let leaf_edges: HashSet<(u32, u32)> = mesh
+    let leaf_edges: IdSet<(u32, u32)> = mesh
         .elements
         .iter()
         .filter(|e| e.is_leaf())

@@ -12,7 +12,7 @@
 //! `[render] refine` times. A pilot traces each pair once: refinement splits diffuse
 //! elements and leaves every other element, and so every pair's rays, as they were, so
 //! a pair's deposits are kept raw (where in which lattice element) and binned again to
-//! the leaves at each level ([`PilotPairs`]); only the new elements' pairs are traced.
+//! the leaves at each level (`pairs::PilotPairs`); only the new elements' pairs are traced.
 //! The result is
 //! an ordinary prepared scene whose split elements are elements like any other: they get
 //! owners, pairs and vertex-energy blocks, so the final render runs unchanged in the
@@ -38,10 +38,8 @@
 //! assert_eq!(prepared.elements.len(), 1664 + 4 * prepared.splits.iter().map(Vec::len).sum::<usize>());
 //! ```
 
-use crate::blocks::BlockError;
 use crate::color::Rgb;
 use crate::energy::{element_irradiance, interpolate, Fixed};
-use crate::lrt::{bin, trace_pair, trace_pair_raw, PairResult, RawDeposit, RawPair};
 use crate::machine::RenderError;
 use crate::plan::EffectsPlan;
 use crate::preprocess::{prepare_split, PreparedScene};
@@ -50,9 +48,12 @@ use crate::render::{EmbeddedMachine, RenderOptions};
 use crate::scene::Scene;
 use crate::trace::TraceScratch;
 use crate::view::SceneView;
-use std::collections::HashMap;
-use std::sync::{Arc, Mutex};
+use std::sync::Arc;
 use std::time::Instant;
+
+mod pairs;
+pub use pairs::KeptPairs;
+use pairs::PilotPairs;
 
 /// Most levels of refinement (`[render] refine`).
 pub const MAX_LEVELS: u32 = 6;
@@ -98,93 +99,6 @@ pub fn prepare(scene: &Scene, plan: EffectsPlan) -> Result<PreparedScene, Render
     prepared.preprocess_s = start.elapsed().as_secs_f64();
     prepared.kept_pairs = kept.filter(|k| !k.is_empty());
     Ok(prepared)
-}
-
-/// Refinement's pilot pairs of point lights, traced once and kept raw (see the module
-/// doc), read-only: for the render's light pass when it carries exactly the pilots'
-/// light. [`KeptPairs::bin`] gives a kept pair's result on the render's scene, which is
-/// what tracing it there gives, bit for bit (the pair's element is a leaf there, as it
-/// was when the pair was traced, and its rays are the same).
-pub struct KeptPairs {
-    raw: HashMap<(u32, u32), Arc<RawPair>>,
-}
-
-impl KeptPairs {
-    /// Pairs kept.
-    pub fn len(&self) -> usize {
-        self.raw.len()
-    }
-
-    /// No pair kept.
-    pub fn is_empty(&self) -> bool {
-        self.raw.is_empty()
-    }
-
-    /// The result of pair (`light`, `element`) on `view`'s scene from its kept raw
-    /// deposits, `None` when it was not kept (a new element's pair, or an area light's).
-    pub fn bin(&self, view: &mut SceneView, light: u32, element: u32) -> Option<Result<PairResult, BlockError>> {
-        self.raw.get(&(light, element)).map(|raw| bin(view, element, raw))
-    }
-}
-
-impl std::fmt::Debug for KeptPairs {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        write!(f, "KeptPairs({} pairs)", self.raw.len())
-    }
-}
-
-/// The pilots' pairs of point lights, traced once and kept raw: every level's pilot has
-/// the same lights and, for every element not split since, the same element ids and
-/// rays ([`crate::lrt::bin`] gives exactly the result a new trace would). A pair whose
-/// deposits all fall on its own element keeps their sum (the same sum, in the same
-/// order, as binning them would make), so the pairs of direct light carried by light
-/// rays cost one entry each. Pairs of area lights are traced at every level.
-#[derive(Default)]
-struct PilotPairs {
-    raw: Mutex<HashMap<(u32, u32), Arc<RawPair>>>,
-}
-
-impl PilotPairs {
-    /// The pairs traced, read-only.
-    fn into_kept(self) -> KeptPairs {
-        KeptPairs { raw: self.raw.into_inner().unwrap_or_else(|e| e.into_inner()) }
-    }
-
-    fn trace(
-        &self,
-        view: &mut SceneView,
-        scratch: &mut TraceScratch,
-        light: u32,
-        element: u32,
-    ) -> Result<PairResult, BlockError> {
-        if light as usize >= view.header.lights.len() {
-            return trace_pair(view, scratch, light, element);
-        }
-        let kept = self.raw.lock().unwrap_or_else(|e| e.into_inner()).get(&(light, element)).cloned();
-        let raw = match kept {
-            Some(raw) => raw,
-            None => {
-                let raw = Arc::new(compact(trace_pair_raw(view, scratch, light, element)?));
-                self.raw.lock().unwrap_or_else(|e| e.into_inner()).insert((light, element), raw.clone());
-                raw
-            }
-        };
-        bin(view, element, &raw)
-    }
-}
-
-/// `raw` with its deposits summed into one when they all fall on the same element
-/// itself, in generation order (as [`bin`] would sum them).
-fn compact(raw: RawPair) -> RawPair {
-    let Some(&RawDeposit::On(first, f0)) = raw.deposits.first() else { return raw };
-    let mut sum = f0;
-    for d in &raw.deposits[1..] {
-        match *d {
-            RawDeposit::On(e, f) if e == first => sum = sum.add(f),
-            _ => return raw,
-        }
-    }
-    RawPair { deposits: vec![RawDeposit::On(first, sum)], tally: raw.tally }
 }
 
 /// Luminance-like weight of a colour (the channels' mean: no channel is preferred).
