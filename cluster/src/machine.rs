@@ -161,7 +161,7 @@ impl ClusterMachine {
 
         // Refinement's pilot pairs, for the nodes of this process (see
         // magg_core::refine::KeptPairs); shared until the light pass ends.
-        let kept_pairs = prepared.kept_pairs.clone().and_then(|k| opts.links.share(k));
+        let kept_pairs = prepared.kept_pairs.take().and_then(|k| opts.links.share(k));
         // Serve the host service.
         let service = HostService::new(HostState {
             node_key,

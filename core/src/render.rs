@@ -273,7 +273,7 @@ impl EmbeddedMachine {
             preprocess_s: prepared.preprocess_s,
             started,
             header,
-            kept_pairs: prepared.kept_pairs.clone(),
+            kept_pairs: prepared.kept_pairs.take(),
         }
     }
 }

@@ -224,12 +224,12 @@ fn pilots_that_trace_each_pair_once_split_as_pilots_that_trace_every_level() {
     }
     assert_eq!(refined.splits, splits, "the same elements split at every level");
     let again = prepare_split(&s, plan, &splits).unwrap();
-    assert!(again.kept_pairs.is_none());
+    assert!(again.kept_pairs.is_empty());
     // The refined scene's light pass bins the pilots' pairs (only the last level's new
     // elements' pairs are traced): the bits of tracing every pair, with fewer rays.
-    let kept = refined.kept_pairs.as_ref().expect("no diffuse bounce: the pilots' pairs are kept");
-    assert!(!kept.is_empty());
+    assert!(!refined.kept_pairs.is_empty(), "no diffuse bounce: the pilots' pairs are kept");
     let (a, b) = (run(&refined, 2, None), run(&again, 2, None));
+    assert!(refined.kept_pairs.is_empty(), "the light pass took them");
     assert_eq!(a.element_flux, b.element_flux, "the same element energies");
     assert_eq!(a.frame.pixels, b.frame.pixels, "and the same image");
     let rays = |o: &magg_core::machine::RenderOutput| o.stats.work.light_rays;
@@ -242,14 +242,15 @@ fn pilot_pairs_are_kept_only_where_the_light_pass_carries_the_pilots_light() {
     s.settings.direct = magg_core::scene::DirectLight::Lrt;
     s.settings.refine = 1;
     let plan = EffectsPlan::for_scene(&s);
-    assert!(refine::prepare(&s, plan.clone()).unwrap().kept_pairs.is_some());
+    assert!(!refine::prepare(&s, plan.clone()).unwrap().kept_pairs.is_empty());
+
     // Another plan (every effect forced on) or a diffuse bounce: the light pass carries
     // other light than the pilots', and traces every pair.
-    assert!(refine::prepare(&s, EffectsPlan::forced_on(&s)).unwrap().kept_pairs.is_none());
+    assert!(refine::prepare(&s, EffectsPlan::forced_on(&s)).unwrap().kept_pairs.is_empty());
     s.settings.diffuse_bounces = 1;
-    assert!(refine::prepare(&s, EffectsPlan::for_scene(&s)).unwrap().kept_pairs.is_none());
+    assert!(refine::prepare(&s, EffectsPlan::for_scene(&s)).unwrap().kept_pairs.is_empty());
     // No refinement: no pilot.
     s.settings.diffuse_bounces = 0;
     s.settings.refine = 0;
-    assert!(refine::prepare(&s, plan).unwrap().kept_pairs.is_none());
+    assert!(refine::prepare(&s, plan).unwrap().kept_pairs.is_empty());
 }

@@ -129,9 +129,10 @@ pub struct PreparedScene {
     pub splits: Vec<Vec<u32>>,
     /// Wall-clock seconds spent preparing.
     pub preprocess_s: f64,
-    /// The pairs refinement's pilot passes traced, kept for the light pass where it
-    /// carries exactly the pilots' light ([`crate::refine::KeptPairs`]); `None` otherwise.
-    pub kept_pairs: Option<Arc<crate::refine::KeptPairs>>,
+    /// The pairs refinement's pilot passes traced, kept for the first light pass where
+    /// it carries exactly the pilots' light ([`crate::refine::KeptPairs`]); empty
+    /// otherwise.
+    pub kept_pairs: crate::refine::KeptSlot,
     /// Operations preprocessing did (for the throttling layer's cost model).
     pub ops: PrepareOps,
 }
@@ -250,6 +251,6 @@ fn prepare_here(
         t_junctions,
         splits: splits.to_vec(),
         preprocess_s: start.elapsed().as_secs_f64(),
-        kept_pairs: None,
+        kept_pairs: Default::default(),
     })
 }

@@ -52,8 +52,8 @@ use std::sync::Arc;
 use std::time::Instant;
 
 mod pairs;
-pub use pairs::KeptPairs;
 use pairs::PilotPairs;
+pub use pairs::{KeptPairs, KeptSlot};
 
 /// Most levels of refinement (`[render] refine`).
 pub const MAX_LEVELS: u32 = 6;
@@ -97,7 +97,7 @@ pub fn prepare(scene: &Scene, plan: EffectsPlan) -> Result<PreparedScene, Render
     }
     let mut prepared = prepare_split(scene, plan, &splits)?;
     prepared.preprocess_s = start.elapsed().as_secs_f64();
-    prepared.kept_pairs = kept.filter(|k| !k.is_empty());
+    prepared.kept_pairs = KeptSlot::new(kept.filter(|k| !k.is_empty()));
     Ok(prepared)
 }
 

@@ -132,3 +132,38 @@ impl std::fmt::Debug for KeptPairs {
         write!(f, "KeptPairs({} pairs)", self.len)
     }
 }
+
+/// Where the prepared scene holds its [`KeptPairs`] until the first light pass takes
+/// them ([`KeptSlot::take`]): the pairs are freed when that pass ends, not with the
+/// scene. A later light pass of the same prepared scene traces every pair (the same
+/// bits). Clones share the slot.
+#[derive(Clone, Default)]
+pub struct KeptSlot(Arc<Mutex<Option<Arc<KeptPairs>>>>);
+
+impl KeptSlot {
+    /// A slot holding `kept`.
+    pub fn new(kept: Option<Arc<KeptPairs>>) -> KeptSlot {
+        KeptSlot(Arc::new(Mutex::new(kept)))
+    }
+
+    /// The pairs, leaving the slot empty.
+    pub fn take(&self) -> Option<Arc<KeptPairs>> {
+        self.0.lock().unwrap_or_else(|e| e.into_inner()).take()
+    }
+
+    /// Pairs held (0 once taken, or when none were kept).
+    pub fn len(&self) -> usize {
+        self.0.lock().unwrap_or_else(|e| e.into_inner()).as_ref().map_or(0, |k| k.len())
+    }
+
+    /// No pair held.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+}
+
+impl std::fmt::Debug for KeptSlot {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "KeptSlot({} pairs)", self.len())
+    }
+}
