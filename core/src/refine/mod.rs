@@ -28,7 +28,7 @@
 //!
 //! ```
 //! use magg_core::{plan::EffectsPlan, refine, scene};
-//! let text = include_str!("../../scenes/magg-paper.toml");
+//! let text = include_str!("../../../scenes/magg-paper.toml");
 //! let read = |p: &std::path::Path| std::fs::read(p);
 //! let mut scene = scene::parse_scene_str("magg-paper.toml", text, "scenes".as_ref(), &read).unwrap();
 //! scene.settings.refine = 1;
