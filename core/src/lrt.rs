@@ -30,7 +30,7 @@ use crate::rng::{halton35, hammersley, Rng};
 use crate::scatter::{arrive, offset_scale, Arrival, Dielectric};
 use crate::scene::Light;
 use crate::subdivision::locate;
-use crate::trace::{cast, occluded, TraceScratch};
+use crate::trace::{cast, occluded_all, Bundled, TraceScratch};
 use crate::view::SceneView;
 use glam::DVec3;
 
@@ -395,6 +395,12 @@ fn trace_into(
         return Ok(tally);
     };
 
+    // The pair's light rays first: all leave the light, so their occlusion queries walk
+    // the BVH in packets (`occluded_all`); then each ray in order, as before.
+    let (mut shots, mut bundle, mut occluded) =
+        (std::mem::take(&mut trees.shots), std::mem::take(&mut trees.bundle), std::mem::take(&mut trees.occluded));
+    shots.clear();
+    bundle.clear();
     for k in 0..n {
         let (u0, u1) = hammersley(k, n, sx, sy);
         let Some(w) = seen.sample(u0, u1) else {
@@ -411,31 +417,42 @@ fn trace_into(
         if !(t_plane > 0.0) || !t_plane.is_finite() {
             continue;
         }
-        let ray = Ray::new(l.position, w);
         // An occlusion query up to (just short of) the element; secondary rays below are
         // nearest-hit queries. Both go through the scene's acceleration structure.
-        if occluded(view, scratch, &ray, eps0, t_plane * (1.0 - 1e-9), erec.patch)? {
-            tally.occluded = tally.occluded.add(flux);
-            continue;
-        }
-        tally.reached = tally.reached.add(flux);
-        if on_back {
-            // The back of a one-sided patch: absorbed, nothing deposited or reflected.
-            tally.absorbed = tally.absorbed.add(flux);
-            continue;
-        }
-        let p = ray.at(t_plane);
-        let floor = flux.max_channel() * MIN_RELATIVE_FLUX;
-        // Shading normals bend specular directions and a texture colours what bounces
-        // diffusely (deposits are flux, taken on the geometric surface).
-        let (at, albedo) = arrive(view, &prec, p, w, normal, None)?;
-        let bounce = Some(Strata { first: k * fan, count: fan, offset: (bx, by) });
-        let s = Surface { at, albedo, material: prec.material, patch: erec.patch };
-        let id = RayId::primary(seed, light, element, k);
-        scatter(view, id, &mut trees.spawned, &mut tally, s, bounce, flux, 0, 0, floor);
-        let deposit = plan.deposits_direct(false).then_some(RawDeposit::On(element, flux));
-        trees.root(view, scratch, &mut tally, deposit, out)?;
+        let ray = Ray::new(l.position, w);
+        shots.push((k, flux, t_plane));
+        bundle.push(Bundled { ray, tmin: eps0, tmax: t_plane * (1.0 - 1e-9), exclude: erec.patch });
     }
+    let answered = occluded_all(view, scratch, &bundle, &mut occluded);
+    let traced = answered.and_then(|()| {
+        for ((&(k, flux, t_plane), b), &blocked) in shots.iter().zip(&bundle).zip(&occluded) {
+            if blocked {
+                tally.occluded = tally.occluded.add(flux);
+                continue;
+            }
+            tally.reached = tally.reached.add(flux);
+            if on_back {
+                // The back of a one-sided patch: absorbed, nothing deposited or reflected.
+                tally.absorbed = tally.absorbed.add(flux);
+                continue;
+            }
+            let (ray, w) = (b.ray, b.ray.direction);
+            let p = ray.at(t_plane);
+            let floor = flux.max_channel() * MIN_RELATIVE_FLUX;
+            // Shading normals bend specular directions and a texture colours what bounces
+            // diffusely (deposits are flux, taken on the geometric surface).
+            let (at, albedo) = arrive(view, &prec, p, w, normal, None)?;
+            let bounce = Some(Strata { first: k * fan, count: fan, offset: (bx, by) });
+            let s = Surface { at, albedo, material: prec.material, patch: erec.patch };
+            let id = RayId::primary(seed, light, element, k);
+            scatter(view, id, &mut trees.spawned, &mut tally, s, bounce, flux, 0, 0, floor);
+            let deposit = plan.deposits_direct(false).then_some(RawDeposit::On(element, flux));
+            trees.root(view, scratch, &mut tally, deposit, out)?;
+        }
+        Ok(())
+    });
+    (trees.shots, trees.bundle, trees.occluded) = (shots, bundle, occluded);
+    traced?;
     trees.trace(view, scratch, &mut tally, out)?;
     Ok(tally)
 }

@@ -2,13 +2,16 @@
 //! primary rays and occlusion rays, and writes the same triangles and rays to a file for
 //! the Embree harness (`deploy/embree/harness.c`) to trace.
 //!
-//! - **primary**: one ray through each pixel centre, nearest hit (`trace::cast`);
+//! - **primary**: one ray through each pixel centre, nearest hit (`trace::cast`), in
+//!   tiles of 4 x 2 pixels (left to right, then down);
 //! - **occlusion**: from each light to the centroid of every k-th element, stopped
 //!   1e-4 of the distance short of it (`trace::occluded`; Embree's f32 cannot stop
 //!   closer), about `--occlusion` rays in all.
 //!
-//! Each is traced once to warm the block cache (unlimited), then timed `--repeats` times;
-//! the median rate is printed as `magg primary MRAYS occlusion MRAYS hits P O`.
+//! Each is traced once to warm the block cache (unlimited), then timed `--repeats` times,
+//! one ray at a time and then in packets of 8 consecutive rays (`trace::cast_all`,
+//! `trace::occluded_all`: the rays of one origin walk the BVH together); the median rates
+//! are printed as `magg primary MRAYS occlusion MRAYS hits P O ... packets MRAYS MRAYS`.
 //!
 //! ```text
 //! cargo run --release -p magg-core --example embree_rays -- scenes/large.toml --out /tmp/r.bin
@@ -25,7 +28,7 @@ use magg_core::camera::CameraRig;
 use magg_core::geometry::Ray;
 use magg_core::preprocess::{prepare, PreparedScene};
 use magg_core::scene::*;
-use magg_core::trace::{cast, occluded, TraceScratch, NO_PATCH};
+use magg_core::trace::{cast, cast_all, occluded, occluded_all, Bundled, TraceScratch, NO_PATCH};
 use magg_core::view::SceneView;
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -92,7 +95,17 @@ fn load(a: &Args) -> Result<Scene, String> {
 /// The primary rays, and the occlusion rays with their tmax.
 fn rays(p: &PreparedScene, size: u32, occlusion: usize) -> (Vec<Ray>, Vec<(Ray, f64)>) {
     let rig = CameraRig::new(&p.header.camera, size, size);
-    let primary = (0..size * size).map(|i| rig.ray((i % size) as f64 + 0.5, (i / size) as f64 + 0.5)).collect();
+    // In tiles of 4 x 2 pixels, so that 8 consecutive rays are neighbours.
+    let mut primary = Vec::with_capacity((size * size) as usize);
+    for ty in (0..size).step_by(2) {
+        for tx in (0..size).step_by(4) {
+            for y in ty..(ty + 2).min(size) {
+                for x in tx..(tx + 4).min(size) {
+                    primary.push(rig.ray(x as f64 + 0.5, y as f64 + 0.5));
+                }
+            }
+        }
+    }
     let pairs = p.header.lights.len() * p.elements.len();
     let step = (pairs / occlusion.max(1)).max(1);
     let mut shadow = Vec::new();
@@ -172,6 +185,20 @@ fn main() -> ExitCode {
         let (to, hits_o) = time(a.repeats, || {
             shadow.iter().filter(|(r, t)| occluded(&mut v, &mut scratch, r, 0.0, *t, NO_PATCH).unwrap_or(false)).count()
         });
+        let bundled_p: Vec<Bundled> =
+            primary.iter().map(|r| Bundled { ray: *r, tmin: 0.0, tmax: f64::INFINITY, exclude: NO_PATCH }).collect();
+        let bundled_o: Vec<Bundled> =
+            shadow.iter().map(|(r, t)| Bundled { ray: *r, tmin: 0.0, tmax: *t, exclude: NO_PATCH }).collect();
+        let (mut hits, mut occ) = (Vec::new(), Vec::new());
+        let (tpp, packed_p) = time(a.repeats, || {
+            cast_all(&mut v, &mut scratch, &bundled_p, &mut hits).map(|()| hits.iter().flatten().count())
+        });
+        let (top, packed_o) = time(a.repeats, || {
+            occluded_all(&mut v, &mut scratch, &bundled_o, &mut occ).map(|()| occ.iter().filter(|o| **o).count())
+        });
+        if packed_p != Ok(hits_p) || packed_o != Ok(hits_o) {
+            return Err(format!("packets hit {packed_p:?} {packed_o:?}, single rays {hits_p} {hits_o}"));
+        }
         // Node visits and patch tests per ray, from one more pass of each kind.
         let mut per_ray = |rays: usize, pass: &mut dyn FnMut(&mut SceneView, &mut TraceScratch)| {
             let (n0, t0) = (v.counters.grid_steps, v.counters.patch_tests);
@@ -185,11 +212,16 @@ fn main() -> ExitCode {
         let (no, tso) = per_ray(shadow.len(), &mut |v, s| {
             shadow.iter().for_each(|(r, t)| drop(occluded(v, s, r, 0.0, *t, NO_PATCH)))
         });
+        let (pnp, ptp) = per_ray(primary.len(), &mut |v, s| drop(cast_all(v, s, &bundled_p, &mut Vec::new())));
+        let (pno, pto) = per_ray(shadow.len(), &mut |v, s| drop(occluded_all(v, s, &bundled_o, &mut Vec::new())));
+        eprintln!("packets: nodes/ray {pnp:.2} {pno:.2} tests/ray {ptp:.1} {pto:.1}");
         println!(
             "magg triangles {triangles} primary {:.3} occlusion {:.3} hits {hits_p} {hits_o} \
-             nodes/ray {np:.1} {no:.1} tests/ray {tsp:.1} {tso:.1}",
+             nodes/ray {np:.1} {no:.1} tests/ray {tsp:.1} {tso:.1} packets {:.3} {:.3}",
             primary.len() as f64 / tp / 1e6,
-            shadow.len() as f64 / to / 1e6
+            shadow.len() as f64 / to / 1e6,
+            primary.len() as f64 / tpp / 1e6,
+            shadow.len() as f64 / top / 1e6
         );
         Ok(())
     };

@@ -90,7 +90,7 @@ impl WatertightRay {
     /// [`WatertightRay::intersect`] on corners stored as nine little-endian f64 (corner 0's
     /// x, y, z, then corner 1's, corner 2's) at the start of `record`, as patch and leaf
     /// triangle records hold them: the same bits, without decoding the corners.
-    #[inline]
+    #[inline(always)]
     pub fn intersect_record(&self, record: &[u8; 72], tmin: f64, tmax: f64) -> Option<TriHit> {
         // `k & 3` and `min(64)` keep every read within the 72 bytes whatever `k` (the
         // compiler sees it and checks nothing); `k` is 0, 1 or 2, so neither changes one.
@@ -100,7 +100,9 @@ impl WatertightRay {
             f64::from_le_bytes(bytes)
         };
         let [kx, ky, kz] = self.k;
-        let p = [0, 1, 2].map(|c| [at(c, kx), at(c, ky), at(c, kz)]);
+        // (Written out, not `[0, 1, 2].map`: the map is not always inlined.)
+        let p =
+            [[at(0, kx), at(0, ky), at(0, kz)], [at(1, kx), at(1, ky), at(1, kz)], [at(2, kx), at(2, ky), at(2, kz)]];
         self.intersect_permuted(&p, tmin, tmax)
     }
 

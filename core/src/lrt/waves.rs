@@ -69,6 +69,11 @@ pub(super) struct PairTrees {
     stack: Vec<u32>,
     /// Secondary rays spawned by the ray just traced (`scatter` pushes here).
     pub spawned: Vec<Pending>,
+    /// A pair's light rays (ray number, flux, distance to the element's plane), their
+    /// occlusion queries and the answers: buffers kept from pair to pair.
+    pub shots: Vec<(u32, crate::color::Rgb, f64)>,
+    pub bundle: Vec<crate::trace::Bundled>,
+    pub occluded: Vec<bool>,
 }
 
 impl PairTrees {

@@ -20,6 +20,10 @@ use crate::blocks::bvh::{BvhNodeLanes, BvhTriangle, BVH_NODE_RECORD, BVH_NODE_SH
 use crate::blocks::BlockError;
 use crate::view::SceneView;
 
+mod packet;
+
+pub(super) use packet::PACKET;
+
 /// `1 + 2 gamma(3)`, gamma(n) = n eps / (1 - n eps) with eps = 2^-53.
 const FAR_SLACK: f64 = 1.0 + 2.0 * (3.0 * f64::EPSILON * 0.5) / (1.0 - 3.0 * f64::EPSILON * 0.5);
 
@@ -150,17 +154,7 @@ impl Narrow {
             near = _mm_max_ps(n, near);
             far = _mm_min_ps(f, far);
         }
-        let tiny = _mm_set1_ps(TINY);
-        let near = _mm_sub_ps(_mm_mul_ps(near, _mm_set1_ps(1.0 - WIDEN)), tiny);
-        let far = _mm_add_ps(_mm_mul_ps(far, _mm_set1_ps(1.0 + WIDEN)), tiny);
-        let near = _mm_max_ps(near, _mm_set1_ps(t0));
-        let far = _mm_min_ps(far, _mm_set1_ps(t1));
-        // Entered within the interval, and not only at infinity.
-        let inside = _mm_and_ps(_mm_cmple_ps(near, far), _mm_cmplt_ps(near, _mm_set1_ps(f32::INFINITY)));
-        let mut out = [0.0f32; BVH_WIDTH];
-        // SAFETY: `out` holds four f32 (an unaligned store).
-        unsafe { _mm_storeu_ps(out.as_mut_ptr(), near) };
-        Entered { near: out, mask: _mm_movemask_ps(inside) as u32 }
+        widened_sse2(near, far, t0, t1)
     }
 
     /// [`Narrow::enter`] one lane at a time (other processors; the SSE2 version's oracle
@@ -182,15 +176,7 @@ impl Narrow {
                 far[k] = if tf < far[k] { tf } else { far[k] };
             }
         }
-        let mut mask = 0;
-        for k in 0..BVH_WIDTH {
-            let n = near[k] * (1.0 - WIDEN) - TINY;
-            let f = far[k] * (1.0 + WIDEN) + TINY;
-            near[k] = if n > t0 { n } else { t0 };
-            let f = if f < t1 { f } else { t1 };
-            mask |= ((near[k] <= f && near[k] < f32::INFINITY) as u32) << k;
-        }
-        Entered { near, mask }
+        widened_scalar(near, far, t0, t1)
     }
 
     /// [`Narrow::enter`] on processors without SSE2 code here.
@@ -199,6 +185,41 @@ impl Narrow {
     fn enter(&self, record: &[u8; BVH_NODE_RECORD], t0: f32, t1: f32) -> Entered<f32> {
         self.enter_scalar(record, t0, t1)
     }
+}
+
+/// The f32 slab test's end, in SSE2: the farthest near and nearest far distances of
+/// four boxes widened by [`WIDEN`] and [`TINY`], clamped to `[t0, t1]`, and the boxes
+/// entered (within the interval, not only at infinity).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "sse2")]
+#[inline]
+fn widened_sse2(near: std::arch::x86_64::__m128, far: std::arch::x86_64::__m128, t0: f32, t1: f32) -> Entered<f32> {
+    use std::arch::x86_64::*;
+    let tiny = _mm_set1_ps(TINY);
+    let near = _mm_sub_ps(_mm_mul_ps(near, _mm_set1_ps(1.0 - WIDEN)), tiny);
+    let far = _mm_add_ps(_mm_mul_ps(far, _mm_set1_ps(1.0 + WIDEN)), tiny);
+    let near = _mm_max_ps(near, _mm_set1_ps(t0));
+    let far = _mm_min_ps(far, _mm_set1_ps(t1));
+    let inside = _mm_and_ps(_mm_cmple_ps(near, far), _mm_cmplt_ps(near, _mm_set1_ps(f32::INFINITY)));
+    let mut out = [0.0f32; BVH_WIDTH];
+    // SAFETY: `out` holds four f32 (an unaligned store).
+    unsafe { _mm_storeu_ps(out.as_mut_ptr(), near) };
+    Entered { near: out, mask: _mm_movemask_ps(inside) as u32 }
+}
+
+/// [`widened_sse2`] one lane at a time: the same bits.
+#[cfg_attr(target_arch = "x86_64", allow(dead_code))]
+#[inline]
+fn widened_scalar(mut near: [f32; BVH_WIDTH], far: [f32; BVH_WIDTH], t0: f32, t1: f32) -> Entered<f32> {
+    let mut mask = 0;
+    for k in 0..BVH_WIDTH {
+        let n = near[k] * (1.0 - WIDEN) - TINY;
+        let f = far[k] * (1.0 + WIDEN) + TINY;
+        near[k] = if n > t0 { n } else { t0 };
+        let f = if f < t1 { f } else { t1 };
+        mask |= ((near[k] <= f && near[k] < f32::INFINITY) as u32) << k;
+    }
+    Entered { near, mask }
 }
 
 impl SlabRay {
@@ -401,6 +422,28 @@ pub(super) fn cast(view: &mut SceneView, scratch: &mut TraceScratch, q: &Query) 
     }
 }
 
+/// [`cast`] of each of `queries` (at most [`PACKET`], one origin) into `out`: walked
+/// together as a packet where they can be packed (see [`packet`]), one at a time
+/// otherwise; the same answers either way.
+pub(super) fn cast_packet(
+    view: &mut SceneView,
+    scratch: &mut TraceScratch,
+    queries: &[Query],
+    out: &mut [Option<Hit>],
+) -> Result<(), BlockError> {
+    let packed =
+        if queries.len() > 1 && view.header.bvh.nodes >= NARROW_MIN_NODES { packet::Spread::of(queries) } else { None };
+    match packed {
+        Some(spread) => packet::walk(view, scratch, queries, &spread, out),
+        None => {
+            for (q, o) in queries.iter().zip(out.iter_mut()) {
+                *o = cast(view, scratch, q)?;
+            }
+            Ok(())
+        }
+    }
+}
+
 /// The depth-first walk from the root, with the slab test `boxes` (a function of its own
 /// for each test, so that each keeps its own registers).
 #[inline(never)]
@@ -519,7 +562,7 @@ fn corrupt(bvh_base: u32, index: u32) -> BlockError {
 }
 
 #[cfg(test)]
-mod tests {
+pub(super) mod tests {
     use super::*;
     use crate::blocks::bvh::{f32_down, f32_up, BvhNode, BVH_NO_CHILD};
     use crate::rng::Rng;
@@ -541,19 +584,7 @@ mod tests {
                     _ => (rng.next_f64() - 0.5) * 4.0,
                 }
         };
-        let mut node = BvhNodeLanes {
-            lo: [[0.0; BVH_WIDTH]; 3],
-            hi: [[0.0; BVH_WIDTH]; 3],
-            index: [1, 2, 3, 4],
-            count: [0; BVH_WIDTH],
-        };
-        for a in 0..3 {
-            for k in 0..BVH_WIDTH {
-                let (x, y) = (coord(rng), coord(rng));
-                node.lo[a][k] = f32_down(x.min(y));
-                node.hi[a][k] = f32_up(x.max(y));
-            }
-        }
+        let mut node = random_node(rng, coord);
         if case % 7 == 0 {
             let k = case % BVH_WIDTH;
             node.index[k] = BVH_NO_CHILD;
@@ -584,7 +615,27 @@ mod tests {
         (node, ray, narrow, t0, t1)
     }
 
-    fn record(node: &BvhNodeLanes) -> [u8; crate::blocks::BLOCK_SIZE] {
+    /// A node of four inner children whose boxes have corners drawn by `coord`, rounded
+    /// outward to f32.
+    pub(super) fn random_node(rng: &mut Rng, coord: impl Fn(&mut Rng) -> f64) -> BvhNodeLanes {
+        let mut node = BvhNodeLanes {
+            lo: [[0.0; BVH_WIDTH]; 3],
+            hi: [[0.0; BVH_WIDTH]; 3],
+            index: [1, 2, 3, 4],
+            count: [0; BVH_WIDTH],
+        };
+        for a in 0..3 {
+            for k in 0..BVH_WIDTH {
+                let (x, y) = (coord(rng), coord(rng));
+                node.lo[a][k] = f32_down(x.min(y));
+                node.hi[a][k] = f32_up(x.max(y));
+            }
+        }
+        node
+    }
+
+    /// The block holding `node` as its first record.
+    pub(super) fn record(node: &BvhNodeLanes) -> [u8; crate::blocks::BLOCK_SIZE] {
         let mut block = [0u8; crate::blocks::BLOCK_SIZE];
         BvhNode { children: std::array::from_fn(|k| node.child(k)) }.encode(&mut block, 0);
         assert_eq!(&BvhNodeLanes::read(crate::blocks::bvh::node_record(&block, 0)), node);

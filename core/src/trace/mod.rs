@@ -37,6 +37,11 @@ pub struct TraceScratch {
     ids: Vec<u32>,
     /// BVH traversal stack: (node index or triangle address, leaf count, entry distance).
     stack: Vec<(u32, u32, f64)>,
+    /// The packet walk's stack: (node index or triangle address, leaf count, nearest
+    /// entry distance, rays as a bit mask).
+    packet_stack: Vec<(u32, u32, f32, u32)>,
+    /// [`occluded_all`]'s answers before they become booleans.
+    hits: Vec<Option<Hit>>,
     recent: [u32; 16],
     recent_len: usize,
     recent_pos: usize,
@@ -70,23 +75,119 @@ pub fn cast(
     exclude: u32,
     any: bool,
 ) -> Result<Option<Hit>, BlockError> {
-    let (o, d) = (ray.origin, ray.direction);
-    if !o.is_finite() || !d.is_finite() || d.length_squared() == 0.0 || tmin.is_nan() || tmax.is_nan() {
-        return Ok(None);
-    }
-    // The per-ray part of the watertight test, once (a finite, non-zero direction has one).
-    let Some(wray) = WatertightRay::new(ray) else {
+    let Some(q) = Query::new(ray, tmin, tmax, exclude, any) else {
         return Ok(None);
     };
-    let q = Query { ray, wray, tmin, tmax, exclude, any };
     match view.header.settings.accel {
         Accel::Bvh => bvh::cast(view, scratch, &q),
         Accel::Grid => grid::cast(view, scratch, &q),
     }
 }
 
+/// One ray of [`cast_all`] or [`occluded_all`]: what [`cast`] takes besides the view.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Bundled {
+    /// The ray.
+    pub ray: Ray,
+    /// Hits count from beyond this distance...
+    pub tmin: f64,
+    /// ...up to this one.
+    pub tmax: f64,
+    /// A patch to skip ([`NO_PATCH`] for none).
+    pub exclude: u32,
+}
+
+/// [`cast`] (nearest hit) of each of `rays`, in order, into `out` (replaced): the same
+/// hits, bit for bit. Consecutive rays from one origin (a pinhole camera's, a point
+/// light's) walk the BVH together, up to [`PACKET`] at a time, where their directions
+/// allow (see `bvh/packet.rs`): a node is read and tested once for all of them.
+pub fn cast_all(
+    view: &mut SceneView,
+    scratch: &mut TraceScratch,
+    rays: &[Bundled],
+    out: &mut Vec<Option<Hit>>,
+) -> Result<(), BlockError> {
+    out.clear();
+    out.resize(rays.len(), None);
+    in_packets(view, scratch, rays, false, out)
+}
+
+/// [`occluded`] of each of `rays`, in order, into `out` (replaced): the same answers,
+/// rays from one origin walking the BVH together as in [`cast_all`].
+pub fn occluded_all(
+    view: &mut SceneView,
+    scratch: &mut TraceScratch,
+    rays: &[Bundled],
+    out: &mut Vec<bool>,
+) -> Result<(), BlockError> {
+    let mut hits = std::mem::take(&mut scratch.hits);
+    hits.clear();
+    hits.resize(rays.len(), None);
+    let done = in_packets(view, scratch, rays, true, &mut hits);
+    out.clear();
+    out.extend(hits.iter().map(Option::is_some));
+    scratch.hits = hits;
+    done
+}
+
+/// The most rays walked together by [`cast_all`] and [`occluded_all`].
+pub const PACKET: usize = bvh::PACKET;
+
+/// Answers `rays` into `out` (as long), runs of one origin as packets through the BVH.
+fn in_packets(
+    view: &mut SceneView,
+    scratch: &mut TraceScratch,
+    rays: &[Bundled],
+    any: bool,
+    out: &mut [Option<Hit>],
+) -> Result<(), BlockError> {
+    let bvh = view.header.settings.accel == Accel::Bvh;
+    let mut i = 0;
+    while i < rays.len() {
+        let origin = rays[i].ray.origin;
+        let mut j = i + 1;
+        while j < rays.len() && j - i < PACKET && rays[j].ray.origin == origin {
+            j += 1;
+        }
+        // The run's valid queries (the others hit nothing, as in `cast`).
+        let mut queries: [Option<Query>; PACKET] = [None; PACKET];
+        let mut at = [0usize; PACKET];
+        let mut n = 0;
+        for (k, b) in rays[i..j].iter().enumerate() {
+            out[i + k] = None;
+            if let Some(q) = Query::new(&b.ray, b.tmin, b.tmax, b.exclude, any) {
+                queries[n] = Some(q);
+                at[n] = i + k;
+                n += 1;
+            }
+        }
+        let Some(first) = queries[0] else {
+            i = j;
+            continue;
+        };
+        if bvh && n > 1 {
+            let packed: [Query; PACKET] = std::array::from_fn(|k| queries[k].unwrap_or(first));
+            let mut hits = [None; PACKET];
+            bvh::cast_packet(view, scratch, &packed[..n], &mut hits[..n])?;
+            for k in 0..n {
+                out[at[k]] = hits[k];
+            }
+        } else {
+            for (k, q) in queries[..n].iter().flatten().enumerate() {
+                out[at[k]] = match view.header.settings.accel {
+                    Accel::Bvh => bvh::cast(view, scratch, q)?,
+                    Accel::Grid => grid::cast(view, scratch, q)?,
+                };
+            }
+        }
+        i = j;
+    }
+    Ok(())
+}
+
 /// A query of [`cast`], checked (finite origin and direction, no NaN bound): what both
 /// kernels answer.
+#[derive(Clone, Copy)]
 struct Query<'a> {
     ray: &'a Ray,
     wray: WatertightRay,
@@ -96,7 +197,20 @@ struct Query<'a> {
     any: bool,
 }
 
-impl Query<'_> {
+impl<'a> Query<'a> {
+    /// The query of [`cast`], `None` for one that hits nothing: a non-finite origin or
+    /// direction, a zero direction, a NaN bound.
+    #[inline]
+    fn new(ray: &'a Ray, tmin: f64, tmax: f64, exclude: u32, any: bool) -> Option<Query<'a>> {
+        let (o, d) = (ray.origin, ray.direction);
+        if !o.is_finite() || !d.is_finite() || d.length_squared() == 0.0 || tmin.is_nan() || tmax.is_nan() {
+            return None;
+        }
+        // The per-ray part of the watertight test, once (a finite, non-zero direction has one).
+        let wray = WatertightRay::new(ray)?;
+        Some(Query { ray, wray, tmin, tmax, exclude, any })
+    }
+
     /// Tests patch `pid` (corners `v`) against the best hit so far, or against `limit`
     /// when there is none; keeps it when nearer, or as near with a lower id. Returns
     /// whether it was kept.
