@@ -15,7 +15,7 @@ use crate::geometry::{cosine_hemisphere, triangle_normal, Ray};
 use crate::rng::{hammersley, Rng};
 use crate::scatter::{arrive, offset_scale, Arrival, Dielectric};
 use crate::subdivision::locate;
-use crate::trace::{cast, TraceScratch, NO_PATCH};
+use crate::trace::{cast, Bundled, Hit, TraceScratch, NO_PATCH};
 use crate::view::SceneView;
 use std::f64::consts::PI;
 
@@ -192,9 +192,24 @@ fn arrive_at(
     depth: u32,
     exclude: u32,
 ) -> Result<Result<Arrived, Rgb>, BlockError> {
-    view.counters.view_rays += 1;
+    let q = query(ray, exclude);
+    let hit = cast(view, scratch, ray, q.tmin, q.tmax, exclude, false)?;
+    arrival(view, ray, hit, depth)
+}
+
+/// The query [`arrive_at`] casts for viewing ray `ray` leaving patch `exclude` (or the
+/// eye): from just off the patch, or from the eye itself, to any distance.
+#[inline]
+fn query(ray: &Ray, exclude: u32) -> Bundled {
     let tmin = if exclude == NO_PATCH { 0.0 } else { offset_scale(ray.origin) };
-    let Some(hit) = cast(view, scratch, ray, tmin, f64::INFINITY, exclude, false)? else {
+    Bundled { ray: *ray, tmin, tmax: f64::INFINITY, exclude }
+}
+
+/// [`arrive_at`] once the ray's hit is known (cast for it alone or with others).
+#[inline]
+fn arrival(view: &mut SceneView, ray: &Ray, hit: Option<Hit>, depth: u32) -> Result<Result<Arrived, Rgb>, BlockError> {
+    view.counters.view_rays += 1;
+    let Some(hit) = hit else {
         return Ok(Err(view.header.settings.background));
     };
     let prec = view.patch(hit.patch)?;

@@ -15,13 +15,13 @@
 //! with the same arithmetic, in the same order, as the depth-first recursion that
 //! traces pixels when every block is resident (where waves would only add bookkeeping).
 
-use super::{arrive_at, interpolated, pixel_rays, Arrived, Join};
+use super::{arrival, arrive_at, interpolated, pixel_rays, query, Arrived, Join};
 use crate::blocks::BlockError;
 use crate::camera::CameraRig;
 use crate::color::Rgb;
 use crate::direct;
 use crate::geometry::Ray;
-use crate::trace::{TraceScratch, NO_PATCH};
+use crate::trace::{cast_all, TraceScratch, NO_PATCH};
 use crate::view::SceneView;
 use crate::vrt::Subscreen;
 use glam::DVec3;
@@ -58,15 +58,32 @@ pub fn shade_pixels(
 ) -> Result<(), BlockError> {
     let (n, seed) = (view.header.plan.pixel_samples.max(1), view.header.settings.seed);
     if !view.cache_is_bounded() {
-        // Every block resident: pixel by pixel, each ray's tree depth first, with no
-        // bookkeeping (the same bits).
-        for y in s.y..s.y + s.h {
-            for x in s.x..s.x + s.w {
-                let mut sum = Rgb::BLACK;
-                for ray in pixel_rays(seed, n, rig, x, y) {
-                    sum = sum.add(radiance(view, scratch, &ray, 0, NO_PATCH)?);
+        // Every block resident: tile by tile (4 x 2 pixels), the tile's primary rays cast
+        // together (they leave the eye: packets through the BVH), then each ray's tree
+        // depth first, with no bookkeeping (the same bits).
+        let start = out.len();
+        out.resize(start + s.pixels() as usize, Rgb::BLACK);
+        let (mut pixels, mut queries, mut hits) = (Vec::new(), Vec::new(), Vec::new());
+        for ty in (0..s.h).step_by(2) {
+            for tx in (0..s.w).step_by(4) {
+                pixels.clear();
+                queries.clear();
+                for dy in ty..(ty + 2).min(s.h) {
+                    for dx in tx..(tx + 4).min(s.w) {
+                        pixels.push((dy * s.w + dx) as usize);
+                        queries.extend(pixel_rays(seed, n, rig, s.x + dx, s.y + dy).map(|r| query(&r, NO_PATCH)));
+                    }
                 }
-                out.push(sum.scale(1.0 / n as f64));
+                cast_all(view, scratch, &queries, &mut hits)?;
+                let rays = queries.chunks(n as usize).zip(hits.chunks(n as usize));
+                for (&pixel, (qs, hs)) in pixels.iter().zip(rays) {
+                    let mut sum = Rgb::BLACK;
+                    for (q, h) in qs.iter().zip(hs) {
+                        let arrived = arrival(view, &q.ray, *h, 0)?;
+                        sum = sum.add(radiance_from(view, scratch, arrived, 0)?);
+                    }
+                    out[start + pixel] = sum.scale(1.0 / n as f64);
+                }
             }
         }
         return Ok(());
@@ -162,7 +179,18 @@ fn radiance(
     depth: u32,
     exclude: u32,
 ) -> Result<Rgb, BlockError> {
-    let a = match arrive_at(view, scratch, ray, depth, exclude)? {
+    let arrived = arrive_at(view, scratch, ray, depth, exclude)?;
+    radiance_from(view, scratch, arrived, depth)
+}
+
+/// [`radiance`] once the ray has arrived.
+fn radiance_from(
+    view: &mut SceneView,
+    scratch: &mut TraceScratch,
+    arrived: Result<Arrived, Rgb>,
+    depth: u32,
+) -> Result<Rgb, BlockError> {
+    let a = match arrived {
         Ok(a) => a,
         Err(whole) => return Ok(whole),
     };
