@@ -1,9 +1,11 @@
 #!/usr/bin/env bash
 # magg's ray kernel against Intel Embree 3 (Debian's libembree-dev), one thread, the same
-# triangles and the same rays: primary rays (one per pixel centre, nearest hit) and
-# occlusion rays (light to element centroids). Prints one markdown table of Mrays/s and
-# the ratio magg / Embree, the median over ROUNDS interleaved rounds (each the median of
-# REPEATS timed runs). docs/PERFORMANCE.md records it.
+# triangles and the same rays: primary rays (one per pixel centre, nearest hit, in tiles
+# of 4 x 2 pixels) and occlusion rays (light to element centroids). Prints two markdown
+# tables of Mrays/s and the ratio magg / Embree, the median over ROUNDS interleaved rounds
+# (each the median of REPEATS timed runs): one ray at a time (trace::cast against
+# rtcIntersect1 / rtcOccluded1), then packets of 8 consecutive rays (trace::cast_all /
+# occluded_all against rtcIntersect8 / rtcOccluded8). docs/PERFORMANCE.md records it.
 #
 #   deploy/bench-embree.sh                      # the issue's table, and 50k random triangles
 #   SIZE=200 ROUNDS=3 deploy/bench-embree.sh scenes/cornell.toml
@@ -35,8 +37,11 @@ cc -O2 -o "$tmp/harness" "$root/deploy/embree/harness.c" -lembree3 -lm
 (cd "$root" && cargo build --release -q -p magg-core --example embree_rays)
 rays=${CARGO_TARGET_DIR:-$root/target}/release/examples/embree_rays
 
-echo "| scene | triangles | magg primary | Embree primary | ratio | magg occlusion | Embree occlusion | ratio |"
-echo "|---|---:|---:|---:|---:|---:|---:|---:|"
+head="| scene | triangles | magg primary | Embree primary | ratio | magg occlusion | Embree occlusion | ratio |"
+rule="|---|---:|---:|---:|---:|---:|---:|---:|"
+printf '%s\n%s\n' "One ray at a time:" "" >"$tmp/single"
+printf '%s\n%s\n' "Packets of 8 rays:" "" >"$tmp/packets"
+for f in single packets; do printf '%s\n%s\n' "$head" "$rule" >>"$tmp/$f"; done
 for t in "${targets[@]}"; do
   case $t in
     random:*) src=(--random "${t#random:}"); name="random ${t#random:}" ;;
@@ -49,16 +54,19 @@ for t in "${targets[@]}"; do
     "$rays" "${src[@]}" --out "$tmp/rays.bin" --size "$size" --occlusion "$occ" --repeats "$repeats" >>"$tmp/runs"
     "$tmp/harness" "$tmp/rays.bin" "$repeats" >>"$tmp/runs"
   done
-  python3 - "$name" "$tmp/runs" <<'PY'
-import statistics, sys
+  python3 - "$name" "$tmp/runs" >>"$tmp/single" 3>>"$tmp/packets" <<'PY'
+import os, statistics, sys
 name, path = sys.argv[1], sys.argv[2]
 rows = {"magg": [], "embree": []}
 for line in open(path):
     w = line.split()
-    rows[w[0]].append((int(w[2]), float(w[4]), float(w[6])))
+    # "... primary P occlusion O ... packets P8 O8" on both sides.
+    rows[w[0]].append((int(w[2]), float(w[4]), float(w[6]), float(w[-2]), float(w[-1])))
 med = lambda who, k: statistics.median(r[k] for r in rows[who])
 tri = rows["magg"][0][0]
-mp, ep, mo, eo = med("magg", 1), med("embree", 1), med("magg", 2), med("embree", 2)
-print(f"| {name} | {tri} | {mp:.2f} | {ep:.2f} | {mp / ep:.2f} | {mo:.2f} | {eo:.2f} | {mo / eo:.2f} |")
+for k, out in ((1, sys.stdout), (3, os.fdopen(3, "w"))):
+    mp, ep, mo, eo = med("magg", k), med("embree", k), med("magg", k + 1), med("embree", k + 1)
+    print(f"| {name} | {tri} | {mp:.2f} | {ep:.2f} | {mp / ep:.2f} | {mo:.2f} | {eo:.2f} | {mo / eo:.2f} |", file=out, flush=True)
 PY
 done
+cat "$tmp/single"; echo; cat "$tmp/packets"

@@ -1,8 +1,9 @@
 /* The Embree side of deploy/bench-embree.sh: reads the triangles and rays written by
  * core/examples/embree_rays.rs, builds one Embree 3 scene (default build quality),
  * and times rtcIntersect1 over the primary rays and rtcOccluded1 over the occlusion rays
- * on one thread. Prints "embree primary MRAYS occlusion MRAYS hits P O" (median of the
- * repeats, after one warm-up run). */
+ * on one thread, then rtcIntersect8 and rtcOccluded8 over the same rays in packets of 8
+ * consecutive ones (as magg's packets). Prints "embree primary MRAYS occlusion MRAYS hits
+ * P O packets MRAYS MRAYS" (median of the repeats, after one warm-up run). */
 #include <embree3/rtcore.h>
 #include <math.h>
 #include <stdint.h>
@@ -57,6 +58,53 @@ static long occlusion(uint32_t first, uint32_t n) {
   return hits;
 }
 
+/* The same rays, 8 consecutive ones at a time (the last packet partly valid). */
+static long primary8(uint32_t n) {
+  long hits = 0;
+  struct RTCIntersectContext ctx;
+  for (uint32_t i = 0; i < n; i += 8) {
+    _Alignas(32) struct RTCRayHit8 rh;
+    _Alignas(32) int valid[8];
+    for (int k = 0; k < 8; k++) {
+      uint32_t j = i + k < n ? i + k : i;
+      const float *r = rays + 7 * (size_t)j;
+      valid[k] = i + k < n ? -1 : 0;
+      rh.ray.org_x[k] = r[0]; rh.ray.org_y[k] = r[1]; rh.ray.org_z[k] = r[2];
+      rh.ray.dir_x[k] = r[3]; rh.ray.dir_y[k] = r[4]; rh.ray.dir_z[k] = r[5];
+      rh.ray.tnear[k] = 0.0f; rh.ray.tfar[k] = r[6]; rh.ray.mask[k] = 0xffffffff;
+      rh.ray.time[k] = 0.0f; rh.ray.flags[k] = 0;
+      rh.hit.geomID[k] = RTC_INVALID_GEOMETRY_ID;
+      rh.hit.instID[0][k] = RTC_INVALID_GEOMETRY_ID;
+    }
+    rtcInitIntersectContext(&ctx);
+    rtcIntersect8(valid, scene, &ctx, &rh);
+    for (int k = 0; k < 8; k++) hits += valid[k] && rh.hit.geomID[k] != RTC_INVALID_GEOMETRY_ID;
+  }
+  return hits;
+}
+
+static long occlusion8(uint32_t first, uint32_t n) {
+  long hits = 0;
+  struct RTCIntersectContext ctx;
+  for (uint32_t i = 0; i < n; i += 8) {
+    _Alignas(32) struct RTCRay8 ray;
+    _Alignas(32) int valid[8];
+    for (int k = 0; k < 8; k++) {
+      uint32_t j = first + (i + k < n ? i + k : i);
+      const float *r = rays + 7 * (size_t)j;
+      valid[k] = i + k < n ? -1 : 0;
+      ray.org_x[k] = r[0]; ray.org_y[k] = r[1]; ray.org_z[k] = r[2];
+      ray.dir_x[k] = r[3]; ray.dir_y[k] = r[4]; ray.dir_z[k] = r[5];
+      ray.tnear[k] = 0.0f; ray.tfar[k] = r[6]; ray.mask[k] = 0xffffffff;
+      ray.time[k] = 0.0f; ray.flags[k] = 0;
+    }
+    rtcInitIntersectContext(&ctx);
+    rtcOccluded8(valid, scene, &ctx, &ray);
+    for (int k = 0; k < 8; k++) hits += valid[k] && ray.tfar[k] < 0.0f;
+  }
+  return hits;
+}
+
 int main(int argc, char **argv) {
   if (argc < 2) {
     fprintf(stderr, "usage: harness RAYS.bin [REPEATS]\n");
@@ -105,8 +153,21 @@ int main(int argc, char **argv) {
   }
   qsort(tp, repeats, sizeof(double), cmp);
   qsort(to, repeats, sizeof(double), cmp);
-  printf("embree triangles %u primary %.3f occlusion %.3f hits %ld %ld\n", nt, np / tp[repeats / 2] / 1e6,
-         no / to[repeats / 2] / 1e6, hp, ho);
+  double rp = np / tp[repeats / 2] / 1e6, ro = no / to[repeats / 2] / 1e6;
+  long hp8 = primary8(np), ho8 = occlusion8(np, no);
+  for (int k = 0; k < repeats; k++) {
+    double t = now();
+    primary8(np);
+    tp[k] = now() - t;
+    t = now();
+    occlusion8(np, no);
+    to[k] = now() - t;
+  }
+  qsort(tp, repeats, sizeof(double), cmp);
+  qsort(to, repeats, sizeof(double), cmp);
+  if (hp8 != hp || ho8 != ho) fprintf(stderr, "harness: packets hit %ld %ld, single rays %ld %ld\n", hp8, ho8, hp, ho);
+  printf("embree triangles %u primary %.3f occlusion %.3f hits %ld %ld packets %.3f %.3f\n", nt, rp, ro, hp, ho,
+         np / tp[repeats / 2] / 1e6, no / to[repeats / 2] / 1e6);
   rtcReleaseScene(scene);
   rtcReleaseDevice(dev);
   return 0;

@@ -11,7 +11,9 @@
 //! Each is traced once to warm the block cache (unlimited), then timed `--repeats` times,
 //! one ray at a time and then in packets of 8 consecutive rays (`trace::cast_all`,
 //! `trace::occluded_all`: the rays of one origin walk the BVH together); the median rates
-//! are printed as `magg primary MRAYS occlusion MRAYS hits P O ... packets MRAYS MRAYS`.
+//! are printed as `magg primary MRAYS occlusion MRAYS hits P O ... packets MRAYS MRAYS`,
+//! with the node visits and triangle tests per ray of both (a packet's node visit counts
+//! once for all its rays).
 //!
 //! ```text
 //! cargo run --release -p magg-core --example embree_rays -- scenes/large.toml --out /tmp/r.bin
@@ -214,10 +216,10 @@ fn main() -> ExitCode {
         });
         let (pnp, ptp) = per_ray(primary.len(), &mut |v, s| drop(cast_all(v, s, &bundled_p, &mut Vec::new())));
         let (pno, pto) = per_ray(shadow.len(), &mut |v, s| drop(occluded_all(v, s, &bundled_o, &mut Vec::new())));
-        eprintln!("packets: nodes/ray {pnp:.2} {pno:.2} tests/ray {ptp:.1} {pto:.1}");
         println!(
             "magg triangles {triangles} primary {:.3} occlusion {:.3} hits {hits_p} {hits_o} \
-             nodes/ray {np:.1} {no:.1} tests/ray {tsp:.1} {tso:.1} packets {:.3} {:.3}",
+             nodes/ray {np:.1} {no:.1} tests/ray {tsp:.1} {tso:.1} \
+             packed nodes/ray {pnp:.2} {pno:.2} tests/ray {ptp:.1} {pto:.1} packets {:.3} {:.3}",
             primary.len() as f64 / tp / 1e6,
             shadow.len() as f64 / to / 1e6,
             primary.len() as f64 / tpp / 1e6,

@@ -422,6 +422,13 @@ pub(super) fn cast(view: &mut SceneView, scratch: &mut TraceScratch, q: &Query) 
     }
 }
 
+/// Whether `view`'s rays walk its BVH in packets: a BVH (not the grid) of at least
+/// [`NARROW_MIN_NODES`] nodes (in smaller ones a ray visits a node or two, and the
+/// packet's set-up would cost more than it saves).
+pub(super) fn packs(view: &SceneView) -> bool {
+    view.header.settings.accel == crate::scene::Accel::Bvh && view.header.bvh.nodes >= NARROW_MIN_NODES
+}
+
 /// [`cast`] of each of `queries` (at most [`PACKET`], one origin) into `out`: walked
 /// together as a packet where they can be packed (see [`packet`]), one at a time
 /// otherwise; the same answers either way.

@@ -141,7 +141,13 @@ fn in_packets(
     any: bool,
     out: &mut [Option<Hit>],
 ) -> Result<(), BlockError> {
-    let bvh = view.header.settings.accel == Accel::Bvh;
+    if !bvh::packs(view) {
+        // The grid, or a BVH too small for packets to pay: one ray at a time.
+        for (b, o) in rays.iter().zip(out.iter_mut()) {
+            *o = cast(view, scratch, &b.ray, b.tmin, b.tmax, b.exclude, any)?;
+        }
+        return Ok(());
+    }
     let mut i = 0;
     while i < rays.len() {
         let origin = rays[i].ray.origin;
@@ -165,7 +171,7 @@ fn in_packets(
             i = j;
             continue;
         };
-        if bvh && n > 1 {
+        if n > 1 {
             let packed: [Query; PACKET] = std::array::from_fn(|k| queries[k].unwrap_or(first));
             let mut hits = [None; PACKET];
             bvh::cast_packet(view, scratch, &packed[..n], &mut hits[..n])?;
@@ -174,10 +180,7 @@ fn in_packets(
             }
         } else {
             for (k, q) in queries[..n].iter().flatten().enumerate() {
-                out[at[k]] = match view.header.settings.accel {
-                    Accel::Bvh => bvh::cast(view, scratch, q)?,
-                    Accel::Grid => grid::cast(view, scratch, q)?,
-                };
+                out[at[k]] = bvh::cast(view, scratch, q)?;
             }
         }
         i = j;
