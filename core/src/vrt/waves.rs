@@ -107,6 +107,7 @@ pub fn shade_pixels(
     let mut next: Vec<Queued> = Vec::new();
     let mut arrived: Vec<(u32, Arrived, Rgb)> = Vec::new();
     let mut by_element: Vec<(u32, u32)> = Vec::new();
+    let (mut queries, mut hits) = (Vec::new(), Vec::new());
     while !wave.is_empty() {
         // Node ids grow with the pixel and the sample: ties keep that order.
         if !wave.is_sorted_by_key(|q| (q.path, q.node)) {
@@ -116,8 +117,12 @@ pub fn shade_pixels(
         // to back: the hits (BVH, leaf triangles, patches, shading), the elements'
         // light (element records, vertex energies), then the shadow rays (the BVH
         // again, towards the lights).
-        for (i, q) in wave.iter().enumerate() {
-            match arrive_at(view, scratch, &q.ray, q.depth, q.exclude)? {
+        // (The first wave's rays leave the eye, neighbours side by side: packets.)
+        queries.clear();
+        queries.extend(wave.iter().map(|q| query(&q.ray, q.exclude)));
+        cast_all(view, scratch, &queries, &mut hits)?;
+        for (i, (q, hit)) in wave.iter().zip(&hits).enumerate() {
+            match arrival(view, &q.ray, *hit, q.depth)? {
                 Ok(a) => arrived.push((i as u32, a, Rgb::BLACK)),
                 Err(local) => nodes[q.node as usize].local = local,
             }
