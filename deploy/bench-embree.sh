@@ -1,11 +1,12 @@
 #!/usr/bin/env bash
 # magg's ray kernel against Intel Embree 3 (Debian's libembree-dev), one thread, the same
 # triangles and the same rays: primary rays (one per pixel centre, nearest hit, in tiles
-# of 4 x 2 pixels) and occlusion rays (light to element centroids). Prints two markdown
+# of 4 x 4 pixels) and occlusion rays (light to element centroids). Prints two markdown
 # tables of Mrays/s and the ratio magg / Embree, the median over ROUNDS interleaved rounds
 # (each the median of REPEATS timed runs): one ray at a time (trace::cast against
-# rtcIntersect1 / rtcOccluded1), then packets of 8 consecutive rays (trace::cast_all /
-# occluded_all against rtcIntersect8 / rtcOccluded8). docs/PERFORMANCE.md records it.
+# rtcIntersect1 / rtcOccluded1), then packets of consecutive rays (trace::cast_all /
+# occluded_all, 16 rays, against rtcIntersect8 / rtcOccluded8, Embree's native width on
+# AVX2; EMBREE_WIDTH=16 for rtcIntersect16). docs/PERFORMANCE.md records it.
 #
 #   deploy/bench-embree.sh                      # the table, and 50k random triangles
 #   SIZE=200 ROUNDS=3 deploy/bench-embree.sh scenes/cornell.toml
@@ -33,14 +34,15 @@ if [ ! -f /usr/include/embree3/rtcore.h ]; then
   $sudo apt-get update -qq && DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq libembree-dev >/dev/null
 fi
 tmp=$(mktemp -d); trap 'rm -rf "$tmp"' EXIT
-cc -O2 -o "$tmp/harness" "$root/deploy/embree/harness.c" -lembree3 -lm
+width=${EMBREE_WIDTH:-8}
+cc -O2 -DW="$width" -o "$tmp/harness" "$root/deploy/embree/harness.c" -lembree3 -lm
 (cd "$root" && cargo build --release -q -p magg-core --example embree_rays)
 rays=${CARGO_TARGET_DIR:-$root/target}/release/examples/embree_rays
 
 head="| scene | triangles | magg primary | Embree primary | ratio | magg occlusion | Embree occlusion | ratio |"
 rule="|---|---:|---:|---:|---:|---:|---:|---:|"
 printf '%s\n%s\n' "One ray at a time:" "" >"$tmp/single"
-printf '%s\n%s\n' "Packets of 8 rays:" "" >"$tmp/packets"
+printf '%s\n%s\n' "Packets (magg 16 rays, Embree $width):" "" >"$tmp/packets"
 for f in single packets; do printf '%s\n%s\n' "$head" "$rule" >>"$tmp/$f"; done
 for t in "${targets[@]}"; do
   case $t in

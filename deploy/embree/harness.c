@@ -2,7 +2,7 @@
  * core/examples/embree_rays.rs, builds one Embree 3 scene (default build quality),
  * and times rtcIntersect1 over the primary rays and rtcOccluded1 over the occlusion rays
  * on one thread, then rtcIntersect8 and rtcOccluded8 over the same rays in packets of 8
- * consecutive ones (as magg's packets). Prints "embree primary MRAYS occlusion MRAYS hits
+ * consecutive ones (magg's packets hold 16). Prints "embree primary MRAYS occlusion MRAYS hits
  * P O packets MRAYS MRAYS" (median of the repeats, after one warm-up run). */
 #include <embree3/rtcore.h>
 #include <math.h>
@@ -58,14 +58,32 @@ static long occlusion(uint32_t first, uint32_t n) {
   return hits;
 }
 
-/* The same rays, 8 consecutive ones at a time (the last packet partly valid). */
-static long primary8(uint32_t n) {
+/* The same rays, W consecutive ones at a time (the last packet partly valid): 8 by
+ * default, Embree's native width on AVX2 (rtcIntersect16 ran slower on the AVX2 machine
+ * of docs/PERFORMANCE.md); cc -DW=16 for 16. */
+#ifndef W
+#define W 8
+#endif
+#if W == 16
+#define PACKET_HIT RTCRayHit16
+#define PACKET_RAY RTCRay16
+#define PACKET_INTERSECT rtcIntersect16
+#define PACKET_OCCLUDED rtcOccluded16
+#elif W == 8
+#define PACKET_HIT RTCRayHit8
+#define PACKET_RAY RTCRay8
+#define PACKET_INTERSECT rtcIntersect8
+#define PACKET_OCCLUDED rtcOccluded8
+#else
+#error "W must be 8 or 16"
+#endif
+static long primary_packets(uint32_t n) {
   long hits = 0;
   struct RTCIntersectContext ctx;
-  for (uint32_t i = 0; i < n; i += 8) {
-    _Alignas(32) struct RTCRayHit8 rh;
-    _Alignas(32) int valid[8];
-    for (int k = 0; k < 8; k++) {
+  for (uint32_t i = 0; i < n; i += W) {
+    _Alignas(64) struct PACKET_HIT rh;
+    _Alignas(64) int valid[W];
+    for (int k = 0; k < W; k++) {
       uint32_t j = i + k < n ? i + k : i;
       const float *r = rays + 7 * (size_t)j;
       valid[k] = i + k < n ? -1 : 0;
@@ -77,19 +95,19 @@ static long primary8(uint32_t n) {
       rh.hit.instID[0][k] = RTC_INVALID_GEOMETRY_ID;
     }
     rtcInitIntersectContext(&ctx);
-    rtcIntersect8(valid, scene, &ctx, &rh);
-    for (int k = 0; k < 8; k++) hits += valid[k] && rh.hit.geomID[k] != RTC_INVALID_GEOMETRY_ID;
+    PACKET_INTERSECT(valid, scene, &ctx, &rh);
+    for (int k = 0; k < W; k++) hits += valid[k] && rh.hit.geomID[k] != RTC_INVALID_GEOMETRY_ID;
   }
   return hits;
 }
 
-static long occlusion8(uint32_t first, uint32_t n) {
+static long occlusion_packets(uint32_t first, uint32_t n) {
   long hits = 0;
   struct RTCIntersectContext ctx;
-  for (uint32_t i = 0; i < n; i += 8) {
-    _Alignas(32) struct RTCRay8 ray;
-    _Alignas(32) int valid[8];
-    for (int k = 0; k < 8; k++) {
+  for (uint32_t i = 0; i < n; i += W) {
+    _Alignas(64) struct PACKET_RAY ray;
+    _Alignas(64) int valid[W];
+    for (int k = 0; k < W; k++) {
       uint32_t j = first + (i + k < n ? i + k : i);
       const float *r = rays + 7 * (size_t)j;
       valid[k] = i + k < n ? -1 : 0;
@@ -99,8 +117,8 @@ static long occlusion8(uint32_t first, uint32_t n) {
       ray.time[k] = 0.0f; ray.flags[k] = 0;
     }
     rtcInitIntersectContext(&ctx);
-    rtcOccluded8(valid, scene, &ctx, &ray);
-    for (int k = 0; k < 8; k++) hits += valid[k] && ray.tfar[k] < 0.0f;
+    PACKET_OCCLUDED(valid, scene, &ctx, &ray);
+    for (int k = 0; k < W; k++) hits += valid[k] && ray.tfar[k] < 0.0f;
   }
   return hits;
 }
@@ -154,13 +172,13 @@ int main(int argc, char **argv) {
   qsort(tp, repeats, sizeof(double), cmp);
   qsort(to, repeats, sizeof(double), cmp);
   double rp = np / tp[repeats / 2] / 1e6, ro = no / to[repeats / 2] / 1e6;
-  long hp8 = primary8(np), ho8 = occlusion8(np, no);
+  long hp8 = primary_packets(np), ho8 = occlusion_packets(np, no);
   for (int k = 0; k < repeats; k++) {
     double t = now();
-    primary8(np);
+    primary_packets(np);
     tp[k] = now() - t;
     t = now();
-    occlusion8(np, no);
+    occlusion_packets(np, no);
     to[k] = now() - t;
   }
   qsort(tp, repeats, sizeof(double), cmp);

@@ -3,13 +3,13 @@
 //! the Embree harness (`deploy/embree/harness.c`) to trace.
 //!
 //! - **primary**: one ray through each pixel centre, nearest hit (`trace::cast`), in
-//!   tiles of 4 x 2 pixels (left to right, then down);
+//!   tiles of 4 x 4 pixels (left to right, then down);
 //! - **occlusion**: from each light to the centroid of every k-th element, stopped
 //!   1e-4 of the distance short of it (`trace::occluded`; Embree's f32 cannot stop
 //!   closer), about `--occlusion` rays in all.
 //!
 //! Each is traced once to warm the block cache (unlimited), then timed `--repeats` times,
-//! one ray at a time and then in packets of 8 consecutive rays (`trace::cast_all`,
+//! one ray at a time and then in packets of 16 consecutive rays (`trace::cast_all`,
 //! `trace::occluded_all`: the rays of one origin walk the BVH together); the median rates
 //! are printed as `magg primary MRAYS occlusion MRAYS hits P O ... packets MRAYS MRAYS`,
 //! with the node visits and triangle tests per ray of both (a packet's node visit counts
@@ -97,11 +97,11 @@ fn load(a: &Args) -> Result<Scene, String> {
 /// The primary rays, and the occlusion rays with their tmax.
 fn rays(p: &PreparedScene, size: u32, occlusion: usize) -> (Vec<Ray>, Vec<(Ray, f64)>) {
     let rig = CameraRig::new(&p.header.camera, size, size);
-    // In tiles of 4 x 2 pixels, so that 8 consecutive rays are neighbours.
+    // In tiles of 4 x 4 pixels, so that 16 consecutive rays are neighbours.
     let mut primary = Vec::with_capacity((size * size) as usize);
-    for ty in (0..size).step_by(2) {
+    for ty in (0..size).step_by(4) {
         for tx in (0..size).step_by(4) {
-            for y in ty..(ty + 2).min(size) {
+            for y in ty..(ty + 4).min(size) {
                 for x in tx..(tx + 4).min(size) {
                     primary.push(rig.ray(x as f64 + 0.5, y as f64 + 0.5));
                 }

@@ -58,17 +58,17 @@ pub fn shade_pixels(
 ) -> Result<(), BlockError> {
     let (n, seed) = (view.header.plan.pixel_samples.max(1), view.header.settings.seed);
     if !view.cache_is_bounded() {
-        // Every block resident: tile by tile (4 x 2 pixels), the tile's primary rays cast
+        // Every block resident: tile by tile (4 x 4 pixels), the tile's primary rays cast
         // together (they leave the eye: packets through the BVH), then each ray's tree
         // depth first, with no bookkeeping (the same bits).
         let start = out.len();
         out.resize(start + s.pixels() as usize, Rgb::BLACK);
         let (mut pixels, mut queries, mut hits) = (Vec::new(), Vec::new(), Vec::new());
-        for ty in (0..s.h).step_by(2) {
+        for ty in (0..s.h).step_by(4) {
             for tx in (0..s.w).step_by(4) {
                 pixels.clear();
                 queries.clear();
-                for dy in ty..(ty + 2).min(s.h) {
+                for dy in ty..(ty + 4).min(s.h) {
                     for dx in tx..(tx + 4).min(s.w) {
                         pixels.push((dy * s.w + dx) as usize);
                         queries.extend(pixel_rays(seed, n, rig, s.x + dx, s.y + dy).map(|r| query(&r, NO_PATCH)));

@@ -32,7 +32,7 @@ use crate::trace::{Hit, NextUp, Query, TraceScratch};
 use crate::view::SceneView;
 
 /// The most rays one packet walks together (one bit each in a `u32` mask).
-pub const PACKET: usize = 8;
+pub const PACKET: usize = 16;
 
 /// Per axis, four copies of an f32 (one SSE register's worth), 16-byte aligned.
 type Splat3 = [[f32; 4]; 3];
