@@ -47,26 +47,25 @@ impl WatertightRay {
     /// The sheared ray; `None` for a zero or non-finite direction (which hits nothing).
     #[inline]
     pub fn new(ray: &Ray) -> Option<WatertightRay> {
-        let d = ray.direction;
-        let ad = d.abs();
-        // Axis of the largest direction component becomes z.
-        let kz = if ad.x >= ad.y && ad.x >= ad.z {
-            0
-        } else if ad.y >= ad.z {
-            1
+        let d = ray.direction.to_array();
+        let ad = [d[0].abs(), d[1].abs(), d[2].abs()];
+        // Axis of the largest direction component becomes z; the next two (cyclically)
+        // x and y, swapped when it points down z (a table, not `% 3`).
+        let (kz, mut kx, mut ky) = if ad[0] >= ad[1] && ad[0] >= ad[2] {
+            (0, 1, 2)
+        } else if ad[1] >= ad[2] {
+            (1, 2, 0)
         } else {
-            2
+            (2, 0, 1)
         };
-        let mut kx = (kz + 1) % 3;
-        let mut ky = (kx + 1) % 3;
-        if d[kz] < 0.0 {
+        let dz = d[kz];
+        if dz < 0.0 {
             std::mem::swap(&mut kx, &mut ky);
         }
-        let dz = d[kz];
         if dz == 0.0 || !dz.is_finite() {
             return None; // zero or non-finite direction
         }
-        let o = ray.origin;
+        let o = ray.origin.to_array();
         Some(WatertightRay {
             origin: [o[kx], o[ky], o[kz]],
             k: [kx, ky, kz],

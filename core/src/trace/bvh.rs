@@ -96,7 +96,7 @@ impl Narrow {
     /// too), an origin beyond 2^100, or a direction whose largest component is below
     /// 2^-25.
     fn of(origin: [f64; 3], direction: [f64; 3], inv: [f64; 3], negative: [bool; 3]) -> Option<Narrow> {
-        let inv32 = inv.map(|i| i as f32);
+        let inv32 = [inv[0] as f32, inv[1] as f32, inv[2] as f32];
         let bounded = |a: usize| inv32[a].is_normal() || (inv32[a].is_infinite() && inv[a].is_infinite());
         let largest = direction[0].abs().max(direction[1].abs()).max(direction[2].abs());
         let within = |o: f64| o.abs() <= FAST_ORIGIN;
@@ -112,11 +112,21 @@ impl Narrow {
             return None;
         }
         // A larger origin lowers (b - o) * inv when inv > 0 and raises it when inv < 0.
-        let o_near =
-            std::array::from_fn(|a| [if negative[a] { f32_below(origin[a]) } else { f32_above(origin[a]) }; 4]);
-        let o_far = std::array::from_fn(|a| [if negative[a] { f32_above(origin[a]) } else { f32_below(origin[a]) }; 4]);
-        let rows = std::array::from_fn(|a| if negative[a] { (3 + a, a) } else { (a, 3 + a) });
-        Some(Narrow { o_near, o_far, inv: inv32.map(|i| [i; 4]), rows })
+        // (Written out per axis: the array closures were not always inlined. The origin
+        // is finite here, within FAST_ORIGIN.)
+        let (b, h) = (origin.map(f32_below_finite), origin.map(f32_above_finite));
+        let (n0, n1, n2) = (negative[0], negative[1], negative[2]);
+        let pick = |neg: bool, a: usize| if neg { [b[a]; 4] } else { [h[a]; 4] };
+        Some(Narrow {
+            o_near: [pick(n0, 0), pick(n1, 1), pick(n2, 2)],
+            o_far: [pick(!n0, 0), pick(!n1, 1), pick(!n2, 2)],
+            inv: [[inv32[0]; 4], [inv32[1]; 4], [inv32[2]; 4]],
+            rows: [
+                if n0 { (3, 0) } else { (0, 3) },
+                if n1 { (4, 1) } else { (1, 4) },
+                if n2 { (5, 2) } else { (2, 5) },
+            ],
+        })
     }
 
     /// Which of the child boxes of the node `record` the ray enters within `[t0, t1]`
@@ -225,8 +235,8 @@ fn widened_scalar(mut near: [f32; BVH_WIDTH], far: [f32; BVH_WIDTH], t0: f32, t1
 impl SlabRay {
     /// The ray's slab data; with `narrow`, the f32 test's too (when it applies).
     fn new(origin: [f64; 3], direction: [f64; 3], narrow: bool) -> SlabRay {
-        let inv = direction.map(|d| 1.0 / d);
-        let negative = inv.map(f64::is_sign_negative);
+        let inv = [1.0 / direction[0], 1.0 / direction[1], 1.0 / direction[2]];
+        let negative = [inv[0].is_sign_negative(), inv[1].is_sign_negative(), inv[2].is_sign_negative()];
         let narrow = if narrow { Narrow::of(origin, direction, inv, negative) } else { None };
         SlabRay { origin, inv, negative, narrow }
     }
@@ -332,6 +342,18 @@ fn f32_below(x: f64) -> f32 {
     } else {
         x as f32
     }
+}
+
+/// [`f32_below`] for a finite `x` (no branch).
+#[inline(always)]
+fn f32_below_finite(x: f64) -> f32 {
+    (x - x.abs() * F32_UNIT - F32_TINY) as f32
+}
+
+/// [`f32_above`] for a finite `x` (no branch).
+#[inline(always)]
+fn f32_above_finite(x: f64) -> f32 {
+    (x + x.abs() * F32_UNIT + F32_TINY) as f32
 }
 
 /// An f32 not below `x`, as [`f32_below`] the other way.
