@@ -508,37 +508,20 @@ fn walk<B: BoxTest>(
                 Ok(l) => l,
                 Err(e) => break Err(e),
             };
-            // Each record read in place: the corners by the test, the patch id here.
-            let mut kept = false;
-            for record in leaf.chunks_exact(BVH_TRIANGLE_RECORD) {
-                let (corners, patch) = BvhTriangle::parts(record);
-                if patch == q.exclude {
-                    continue;
+            if test_leaf(q, leaf, &mut upper, &mut best, &mut tests) {
+                if q.any {
+                    break 'walk Ok(best);
                 }
-                tests += 1;
-                if q.test_record(corners, patch, upper, &mut best) {
-                    if q.any {
-                        break 'walk Ok(best);
-                    }
-                    if let Some(b) = best {
-                        upper = b.t.next_up_or(b.t);
-                    }
-                    kept = true;
+                if let Some(b) = best {
+                    bound = (b.t, boxes.bound(b.t));
                 }
-            }
-            if let Some(b) = best.filter(|_| kept) {
-                bound = (b.t, boxes.bound(b.t));
             }
             continue;
         }
-        steps += 1;
-        let record = match view.bvh_node_record(index) {
+        let record = match visit(view, index, &mut steps, (max_steps, bvh_base)) {
             Ok(r) => r,
             Err(e) => break Err(e),
         };
-        if steps > max_steps {
-            break Err(corrupt(bvh_base, index));
-        }
         // The children entered, nearest first (ties in the node's order): the nearest
         // is visited next, the others stacked farthest first.
         let Entered { near: t, mut mask } = boxes.enter(record, bound.1);
@@ -570,6 +553,50 @@ fn walk<B: BoxTest>(
     view.counters.grid_steps += steps;
     view.counters.patch_tests += tests;
     result
+}
+
+/// Tests query `q` against the triangle records of `leaf` (each read in place: the
+/// corners by the test, the patch id here), keeping the nearest hit in `best` and its
+/// upper limit `upper` renewed; counts the tests. Returns whether a hit was kept; an
+/// `any` query stops at the first. Both walks run it.
+#[inline(always)]
+fn test_leaf(q: &Query, leaf: &[u8], upper: &mut f64, best: &mut Option<Hit>, tests: &mut u64) -> bool {
+    let mut kept = false;
+    for record in leaf.chunks_exact(BVH_TRIANGLE_RECORD) {
+        let (corners, patch) = BvhTriangle::parts(record);
+        if patch == q.exclude {
+            continue;
+        }
+        *tests += 1;
+        if q.test_record(corners, patch, *upper, best) {
+            if q.any {
+                return true;
+            }
+            if let Some(b) = best {
+                *upper = b.t.next_up_or(b.t);
+            }
+            kept = true;
+        }
+    }
+    kept
+}
+
+/// Node `index`'s record, as the walk's next node visit (counted in `steps`): an error
+/// past `max_steps` visits, more than the tree has nodes. Nodes are written depth first,
+/// so a walk visits each at most once; a corrupt block whose child points back up the
+/// tree is caught here, not by a check per child. Both walks run it.
+#[inline(always)]
+fn visit<'v>(
+    view: &'v mut SceneView,
+    index: u32,
+    steps: &mut u64,
+    (max_steps, bvh_base): (u64, u32),
+) -> Result<&'v [u8; BVH_NODE_RECORD], BlockError> {
+    *steps += 1;
+    if *steps > max_steps {
+        return Err(corrupt(bvh_base, index));
+    }
+    view.bvh_node_record(index)
 }
 
 /// Child `k`'s index in a node record (see [`crate::blocks::bvh::BvhChild::index`]).

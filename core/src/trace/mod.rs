@@ -133,7 +133,8 @@ pub fn occluded_all(
 /// The most rays walked together by [`cast_all`] and [`occluded_all`].
 pub const PACKET: usize = bvh::PACKET;
 
-/// Answers `rays` into `out` (as long), runs of one origin as packets through the BVH.
+/// Answers `rays` into `out` (as long, every answer `None`), runs of one origin as
+/// packets through the BVH.
 fn in_packets(
     view: &mut SceneView,
     scratch: &mut TraceScratch,
@@ -155,32 +156,22 @@ fn in_packets(
         while j < rays.len() && j - i < PACKET && rays[j].ray.origin == origin {
             j += 1;
         }
-        // The run's valid queries (the others hit nothing, as in `cast`).
-        let mut queries: [Option<Query>; PACKET] = [None; PACKET];
-        let mut at = [0usize; PACKET];
-        let mut n = 0;
-        for (k, b) in rays[i..j].iter().enumerate() {
-            out[i + k] = None;
-            if let Some(q) = Query::new(&b.ray, b.tmin, b.tmax, b.exclude, any) {
-                queries[n] = Some(q);
-                at[n] = i + k;
+        // The run's valid queries (the others hit nothing, as in `cast`: `out` holds
+        // `None` for them), side by side; the first stands in for the unused places.
+        let mut valid = (i..j).filter_map(|k| {
+            let b = &rays[k];
+            Query::new(&b.ray, b.tmin, b.tmax, b.exclude, any).map(|q| (k, q))
+        });
+        if let Some((k0, q0)) = valid.next() {
+            let (mut queries, mut at, mut n) = ([q0; PACKET], [k0; PACKET], 1);
+            for (k, q) in valid {
+                (queries[n], at[n]) = (q, k);
                 n += 1;
             }
-        }
-        let Some(first) = queries[0] else {
-            i = j;
-            continue;
-        };
-        if n > 1 {
-            let packed: [Query; PACKET] = std::array::from_fn(|k| queries[k].unwrap_or(first));
             let mut hits = [None; PACKET];
-            bvh::cast_packet(view, scratch, &packed[..n], &mut hits[..n])?;
-            for k in 0..n {
-                out[at[k]] = hits[k];
-            }
-        } else {
-            for (k, q) in queries[..n].iter().flatten().enumerate() {
-                out[at[k]] = bvh::cast(view, scratch, q)?;
+            bvh::cast_packet(view, scratch, &queries[..n], &mut hits[..n])?;
+            for (&k, hit) in at[..n].iter().zip(hits) {
+                out[k] = hit;
             }
         }
         i = j;

@@ -24,9 +24,10 @@
 #[cfg(target_arch = "x86_64")]
 use super::widened_sse2;
 use super::{
-    child_count, child_index, corrupt, f32_above, f32_below, widened_scalar, Entered, FAST_MIN_DIRECTION, FAST_ORIGIN,
+    child_count, child_index, f32_above, f32_below, test_leaf, visit, widened_scalar, Entered, FAST_MIN_DIRECTION,
+    FAST_ORIGIN,
 };
-use crate::blocks::bvh::{BvhTriangle, BVH_NODE_RECORD, BVH_TRIANGLE_RECORD, BVH_WIDTH};
+use crate::blocks::bvh::{BVH_NODE_RECORD, BVH_WIDTH};
 use crate::blocks::BlockError;
 use crate::trace::{Hit, NextUp, Query, TraceScratch};
 use crate::view::SceneView;
@@ -257,31 +258,16 @@ pub(super) fn walk(
                 if near64 > lane.bound {
                     continue;
                 }
-                let mut kept = false;
-                for record in leaf.chunks_exact(BVH_TRIANGLE_RECORD) {
-                    let (corners, patch) = BvhTriangle::parts(record);
-                    if patch == q.exclude {
-                        continue;
-                    }
-                    tests += 1;
-                    if q.test_record(corners, patch, lane.upper, &mut lane.best) {
-                        if any {
-                            active &= !(1 << i);
-                            if active == 0 {
-                                break 'walk Ok(());
-                            }
-                            changed = true;
-                            break;
+                if test_leaf(q, leaf, &mut lane.upper, &mut lane.best, &mut tests) {
+                    if any {
+                        active &= !(1 << i);
+                        if active == 0 {
+                            break 'walk Ok(());
                         }
-                        if let Some(b) = lane.best {
-                            lane.upper = b.t.next_up_or(b.t);
-                        }
-                        kept = true;
+                    } else if let Some(b) = lane.best {
+                        lane.bound = b.t;
+                        lane.bound32 = f32_above(b.t);
                     }
-                }
-                if let Some(b) = lane.best.filter(|_| kept) {
-                    lane.bound = b.t;
-                    lane.bound32 = f32_above(b.t);
                     changed = true;
                 }
             }
@@ -290,14 +276,10 @@ pub(super) fn walk(
             }
             continue;
         }
-        steps += 1;
-        let record = match view.bvh_node_record(index) {
+        let record = match visit(view, index, &mut steps, (max_steps, bvh_base)) {
             Ok(r) => r,
             Err(e) => break Err(e),
         };
-        if steps > max_steps {
-            break Err(corrupt(bvh_base, index));
-        }
         let Entered { near: t, mut mask } = spread.enter(record, t0, bound.1);
         // Leaves entered: each ray's own test says which of them it enters.
         let leaves = (0..BVH_WIDTH).fold(0, |m, k| m | ((child_count(record, k) > 0) as u32) << k) & mask;
