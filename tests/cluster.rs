@@ -128,17 +128,23 @@ fn refined_elements_give_the_same_bits_in_every_shape() {
     let mut light_rays = Vec::new();
     for (i, shape) in [
         &["--nodes", "1", "--forks", "1"][..],
-        &["--nodes", "3", "--forks", "5", "--cache-blocks", "400"],
+        // Caches of 30 blocks fetch each level of the refined elements' records ahead,
+        // in runs, in both passes.
+        &["--nodes", "3", "--forks", "5", "--cache-blocks", "30"],
         // Over sockets the host shares nothing with its nodes: they trace the pairs that
         // the in-process nodes bin from the pilots' kept deposits.
-        &["--nodes", "2", "--forks", "3", "--transport", "tcp"],
+        &["--nodes", "2", "--forks", "3", "--transport", "tcp", "--cache-blocks", "30"],
     ]
     .iter()
     .enumerate()
     {
         let r = render(&s, dir.path(), &format!("cluster{i}"), &with(&[*shape, refined].concat()));
         same_files(&base, &r, &format!("refined cornell.toml {}", shape.join(" ")));
-        light_rays.push(read_json(&r.stats)["work"]["light_rays"].as_u64().unwrap());
+        let stats = read_json(&r.stats);
+        if shape.contains(&"--cache-blocks") {
+            assert!(stats["cache"]["prefetched"].as_u64().unwrap() > 0, "{}: nothing fetched ahead", shape.join(" "));
+        }
+        light_rays.push(stats["work"]["light_rays"].as_u64().unwrap());
     }
     assert!(light_rays[0] < light_rays[2] && light_rays[1] < light_rays[2], "light rays traced: {light_rays:?}");
 }

@@ -116,9 +116,10 @@ pub struct RawPair {
 }
 
 /// A pair's deposits binned to leaf elements, in their order. Through a bounded cache
-/// the leaves are looked up in the order of their lattice elements, so that each
-/// element block the lookups read is read once, back to back, however the pair's rays
-/// spread their deposits.
+/// the leaves are looked up in the order of their lattice elements, a level of
+/// refinement at a time, so that each element block the lookups read is read once a
+/// level, fetched ahead with the level's others, however the pair's rays spread their
+/// deposits.
 fn binned(view: &mut SceneView, raw: &[RawDeposit]) -> Result<Vec<(u32, Rgb)>, BlockError> {
     let leaf = |view: &mut SceneView, d: &RawDeposit| match *d {
         RawDeposit::On(e, f) => Ok((e, f)),
@@ -129,15 +130,26 @@ fn binned(view: &mut SceneView, raw: &[RawDeposit]) -> Result<Vec<(u32, Rgb)>, B
         // hand (the order of the lookups costs nothing).
         return raw.iter().map(|d| leaf(view, d)).collect();
     }
-    let lattice = |d: &RawDeposit| match *d {
-        RawDeposit::On(e, _) | RawDeposit::Under { element: e, .. } => e,
-    };
-    let mut order: Vec<u64> = raw.iter().enumerate().map(|(i, d)| (lattice(d) as u64) << 32 | i as u64).collect();
-    order.sort_unstable();
     let mut deposits = vec![(0, Rgb::BLACK); raw.len()];
-    for k in order {
-        let i = k as u32 as usize;
-        deposits[i] = leaf(view, &raw[i])?;
+    // (lattice element, deposit index) as one key, with the deposit's coordinates.
+    let mut under: Vec<(u64, [f64; 3])> = Vec::with_capacity(raw.len());
+    for (i, d) in raw.iter().enumerate() {
+        match *d {
+            RawDeposit::On(e, f) => deposits[i] = (e, f),
+            RawDeposit::Under { element, w, flux } => {
+                deposits[i].1 = flux;
+                under.push(((element as u64) << 32 | i as u64, w));
+            }
+        }
+    }
+    under.sort_unstable_by_key(|u| u.0);
+    // The leaves under the deposits a level of refinement at a time, each level's
+    // blocks fetched ahead (SceneView::leaf_elements).
+    let points: Vec<(u32, [f64; 3])> = under.iter().map(|&(k, w)| ((k >> 32) as u32, w)).collect();
+    let mut leaves = Vec::with_capacity(points.len());
+    view.leaf_elements(&points, &mut leaves)?;
+    for (&(k, _), &(leaf, _, _)) in under.iter().zip(&leaves) {
+        deposits[k as u32 as usize].0 = leaf;
     }
     Ok(deposits)
 }

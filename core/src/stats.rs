@@ -36,13 +36,16 @@ pub struct CacheSummary {
     pub hits: u64,
     /// Misses.
     pub misses: u64,
+    /// Blocks fetched ahead of a read, in one request with others (a read of one is
+    /// a hit): the blocks fetched are `misses + prefetched`.
+    pub prefetched: u64,
     /// hits / (hits + misses).
     pub hit_ratio: f64,
 }
 
 impl From<CacheStats> for CacheSummary {
     fn from(c: CacheStats) -> Self {
-        CacheSummary { hits: c.hits, misses: c.misses, hit_ratio: c.hit_ratio() }
+        CacheSummary { hits: c.hits, misses: c.misses, prefetched: c.prefetched, hit_ratio: c.hit_ratio() }
     }
 }
 

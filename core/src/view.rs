@@ -13,6 +13,9 @@ use crate::subdivision::{child_of, child_triangle, element_triangle};
 use glam::DVec3;
 use std::sync::Arc;
 
+mod batched;
+pub use batched::{element_block, vertex_block, ElementPoint, LeafPoint, NO_BLOCK};
+
 /// Operation counts of the kernels (the basis of the compute cost model).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
 pub struct OpCounters {

@@ -8,7 +8,7 @@
 //! depth. Each pixel is seeded from (scene seed, pixel), so the image does not depend on
 //! which node traced which subscreen.
 
-use crate::blocks::BlockError;
+use crate::blocks::{BlockError, ElementRecord};
 use crate::camera::CameraRig;
 use crate::color::Rgb;
 use crate::geometry::{cosine_hemisphere, triangle_normal, Ray};
@@ -242,11 +242,24 @@ fn arrival(view: &mut SceneView, ray: &Ray, hit: Option<Hit>, depth: u32) -> Res
 /// light gathered there ([`gathered`]).
 #[inline]
 fn interpolated(view: &mut SceneView, scratch: &mut TraceScratch, a: &Arrived) -> Result<Rgb, BlockError> {
-    view.counters.shades += 1;
     let (id, w) = (a.element, a.w);
     let rec = view.element(id)?;
     // Refinement may have split it: the leaf under the hit holds the light.
     let (_, e, w) = view.leaf_element(id, rec, w)?;
+    lit(view, scratch, a, &e, w)
+}
+
+/// [`interpolated`] once the leaf element under the hit is known: its record `e` and the
+/// hit's coordinates `w` in it.
+#[inline]
+fn lit(
+    view: &mut SceneView,
+    scratch: &mut TraceScratch,
+    a: &Arrived,
+    e: &ElementRecord,
+    w: [f64; 3],
+) -> Result<Rgb, BlockError> {
+    view.counters.shades += 1;
     let mut irr = Rgb::BLACK;
     let mut gather = false;
     for k in 0..3 {

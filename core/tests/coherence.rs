@@ -1,19 +1,21 @@
 //! Rays traced together give, bit for bit, what each traced alone gives, and read far
 //! fewer blocks through a small node cache: a pair's light rays a generation at a time,
-//! a batch's deposits binned together, a subscreen's viewing rays in waves and stages.
+//! a batch's deposits binned together, a subscreen's viewing rays in waves and stages;
+//! and, through a cache that fetches ahead as a node's does, in far fewer requests.
 //! (scenes/cornell.toml: a glass sphere and a mirror block, three levels of refinement.)
 
-use magg_core::blocks::{BlockCache, MemStore};
+use magg_core::blocks::{Block, BlockCache, BlockError, BlockSource, MemStore};
 use magg_core::camera::CameraRig;
 use magg_core::color::Rgb;
 use magg_core::energy::vertex_energy_blocks;
-use magg_core::lrt::{trace_pair, trace_pairs, LrtTally};
+use magg_core::lrt::{bin, trace_pair, trace_pair_raw, trace_pairs, LrtTally};
 use magg_core::preprocess::{prepare, PreparedScene};
 use magg_core::scene::parse_scene_with_path;
 use magg_core::trace::TraceScratch;
 use magg_core::view::SceneView;
 use magg_core::vrt::{shade_pixel, shade_pixels, Subscreen};
 use std::path::Path;
+use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Arc;
 
 /// scenes/cornell.toml at 64 x 64, 8 light rays a pair, with made-up vertex energies
@@ -40,6 +42,32 @@ fn accounted(t: &LrtTally) -> f64 {
 
 fn view(p: &PreparedScene, cache: Option<usize>) -> SceneView {
     SceneView::new(p.header.clone(), BlockCache::new(Arc::new(MemStore::new(p.blocks.clone())), cache))
+}
+
+/// A scene's blocks that count the requests made of them (a node's fork answers a
+/// request for many blocks at once).
+struct Requests(MemStore, AtomicU64);
+
+impl BlockSource for Requests {
+    fn fetch(&self, id: u32, out: &mut Block) -> Result<(), BlockError> {
+        self.1.fetch_add(1, Ordering::Relaxed);
+        self.0.fetch(id, out)
+    }
+    fn fetch_batch(&self, ids: &[u32], out: &mut [Box<Block>]) -> Result<(), BlockError> {
+        self.1.fetch_add(1, Ordering::Relaxed);
+        ids.iter().zip(out.iter_mut()).try_for_each(|(&id, b)| self.0.fetch(id, b))
+    }
+}
+
+/// A view through a cache of `blocks` blocks that counts its requests, fetching ahead
+/// (as a node's cache does) or not (the paper's scheme: a block per request).
+fn counted(p: &PreparedScene, blocks: usize, ahead: bool) -> (SceneView, Arc<Requests>) {
+    let source = Arc::new(Requests(MemStore::new(p.blocks.clone()), AtomicU64::new(0)));
+    let mut cache = BlockCache::new(source.clone(), Some(blocks));
+    if ahead {
+        cache = cache.with_prefetch(8, 1, vec![0, p.header.layout.total]);
+    }
+    (SceneView::new(p.header.clone(), cache), source)
 }
 
 /// The pairs of the scene's light with its mirror's and its glass's elements (the ones
@@ -140,4 +168,65 @@ fn a_subscreen_shaded_together_misses_a_small_cache_far_less_than_pixel_by_pixel
     }
     let (one, together) = (one.cache_stats().misses, together.cache_stats().misses);
     assert!(together * 2 < one, "{together} misses in bands against {one} pixel by pixel");
+}
+
+#[test]
+fn fetched_ahead_the_light_and_viewing_passes_give_the_same_bits() {
+    let p = cornell();
+    let pairs = specular_pairs(&p);
+    let rig = CameraRig::new(&p.header.camera, 64, 64);
+    let mut scratch = TraceScratch::default();
+    let mut resident = view(&p, None);
+    let alone: Vec<_> = pairs.iter().map(|&(l, e)| trace_pair(&mut resident, &mut scratch, l, e).unwrap()).collect();
+    let s = Subscreen { x: 8, y: 30, w: 48, h: 30 };
+    let mut pixels = Vec::new();
+    for y in s.y..s.y + s.h {
+        for x in s.x..s.x + s.w {
+            pixels.push(shade_pixel(&mut resident, &mut scratch, &rig, x, y).unwrap());
+        }
+    }
+    // Down to a cache of two blocks, which fetches one ahead at a time.
+    for blocks in [2, 7, 40] {
+        let (mut v, requests) = counted(&p, blocks, true);
+        let together: Vec<_> = pairs.chunks(64).flat_map(|c| trace_pairs(&mut v, &mut scratch, c).unwrap()).collect();
+        for (k, (t, a)) in together.iter().zip(&alone).enumerate() {
+            assert_eq!(t.deposits, a.deposits, "pair {k} through {blocks} blocks");
+        }
+        let mut shaded = Vec::new();
+        shade_pixels(&mut v, &mut scratch, &rig, s, &mut shaded).unwrap();
+        assert_eq!(shaded, pixels, "through {blocks} blocks");
+        let stats = v.cache_stats();
+        assert!(stats.prefetched > 0, "through {blocks} blocks nothing was fetched ahead");
+        // Two blocks fetch one at a time; more fetch several in a request.
+        let asked = requests.1.load(Ordering::Relaxed);
+        assert!(asked <= stats.misses + stats.prefetched && (blocks == 2 || asked < stats.misses + stats.prefetched));
+    }
+}
+
+#[test]
+fn fetching_ahead_asks_the_source_far_less_often() {
+    let p = cornell();
+    let pairs = specular_pairs(&p);
+    let rig = CameraRig::new(&p.header.camera, 64, 64);
+    let mut scratch = TraceScratch::default();
+    // The pairs' deposits as the pilots keep them, binned to the leaves again (what
+    // the light pass does with the pilots' pairs), then the viewing pass.
+    let mut resident = view(&p, None);
+    let raw: Vec<_> = pairs.iter().map(|&(l, e)| trace_pair_raw(&mut resident, &mut scratch, l, e).unwrap()).collect();
+    let mut requests = Vec::new();
+    for ahead in [false, true] {
+        let (mut v, source) = counted(&p, 40, ahead);
+        for (&(_, e), r) in pairs.iter().zip(&raw) {
+            bin(&mut v, e, r).unwrap();
+        }
+        let light = source.1.load(Ordering::Relaxed);
+        for band in (0..64).step_by(4) {
+            let s = Subscreen { x: 0, y: band, w: 64, h: 4 };
+            shade_pixels(&mut v, &mut scratch, &rig, s, &mut Vec::new()).unwrap();
+        }
+        requests.push((light, source.1.load(Ordering::Relaxed) - light));
+    }
+    let [(light, view), (light_ahead, view_ahead)] = requests[..] else { unreachable!() };
+    assert!(light_ahead * 2 < light, "binning: {light_ahead} requests fetching ahead against {light}");
+    assert!(view_ahead * 3 < view * 2, "viewing pass: {view_ahead} requests fetching ahead against {view}");
 }

@@ -207,6 +207,10 @@ impl BlockCache {
     /// next; those before b would otherwise be missed one at a time when a ray goes back
     /// to them. A bounded cache ignores this: prefetched blocks would evict ones still in
     /// use.
+    ///
+    /// A window over one block also lets the kernels fetch ahead what they will read
+    /// next, bounded cache or not ([`BlockCache::prefetch`]); the paper's scheme, a block
+    /// per request, leaves the window at one.
     pub fn with_prefetch(mut self, window: u32, stride: u32, boundaries: Vec<u32>) -> Self {
         self.prefetch = (window.max(1), stride.max(1), boundaries);
         self
@@ -321,6 +325,79 @@ impl BlockCache {
         }
     }
 
+    /// Of a bounded cache that fetches ahead ([`BlockCache::with_prefetch`] with a window
+    /// over one block), how many blocks one [`BlockCache::prefetch`] may fetch and keep:
+    /// half the capacity, so that what a caller reads between prefetches stays. `None`
+    /// for an unlimited cache, or one that fetches a block per request (the paper's
+    /// scheme).
+    pub fn prefetch_room(&self) -> Option<usize> {
+        match &self.slots {
+            Slots::Bounded(lru) if self.prefetch.0 > 1 => Some((lru.capacity / 2).max(1)),
+            _ => None,
+        }
+    }
+
+    /// Makes blocks `ids` (at most [`BlockCache::prefetch_room`] distinct ones, the first
+    /// taken) the most recently used: those not cached are fetched in one request
+    /// ([`BlockSource::fetch_batch`]: one call to a fork instead of one per block),
+    /// counted as prefetched, not missed; a later read of one is a hit. Nothing is
+    /// evicted that the prefetch keeps. What a kernel will read next, a level of element
+    /// records or a batch of vertex energies, is read without waiting once per block.
+    /// An unlimited cache fetches the missing ones the same way.
+    pub fn prefetch(&mut self, ids: &[u32]) -> Result<(), BlockError> {
+        let room = self.prefetch_room().unwrap_or(usize::MAX);
+        let mut wanted: Vec<u32> = Vec::with_capacity(ids.len().min(room));
+        for &id in ids {
+            if wanted.len() == room {
+                break;
+            }
+            if !wanted.contains(&id) {
+                wanted.push(id);
+            }
+        }
+        let missing: Vec<u32> = match &mut self.slots {
+            Slots::Bounded(lru) => wanted
+                .iter()
+                .copied()
+                .filter(|&id| match lru.slot(id) {
+                    Some(s) => {
+                        lru.touch(s);
+                        false
+                    }
+                    None => true,
+                })
+                .collect(),
+            Slots::Unlimited { table, .. } => {
+                wanted.iter().copied().filter(|&id| !table.get(id as usize).is_some_and(|b| b.is_some())).collect()
+            }
+        };
+        if missing.is_empty() {
+            return Ok(());
+        }
+        let mut bufs: Vec<Box<Block>> = missing.iter().map(|_| Box::new([0u8; BLOCK_SIZE])).collect();
+        self.source.fetch_batch(&missing, &mut bufs)?;
+        self.stats.prefetched += missing.len() as u64;
+        for (&id, buf) in missing.iter().zip(bufs) {
+            match &mut self.slots {
+                Slots::Bounded(lru) => {
+                    let s = lru.take_slot();
+                    lru.blocks[s as usize] = buf;
+                    lru.bind(s, id);
+                }
+                Slots::Unlimited { table, held } => {
+                    let k = id as usize;
+                    if table.len() <= k {
+                        table.resize_with(k + 1, || None);
+                    }
+                    if table[k].replace(buf).is_none() {
+                        *held += 1;
+                    }
+                }
+            }
+        }
+        Ok(())
+    }
+
     /// Drops every cached block of the given ids range (used when a phase rewrites
     /// blocks, e.g. vertex energies).
     pub fn invalidate_range(&mut self, ids: std::ops::Range<u32>) {
@@ -381,6 +458,57 @@ mod tests {
                 })
                 .collect(),
         ))
+    }
+
+    /// Counts the requests made of a store.
+    struct Counted(Arc<MemStore>, std::sync::atomic::AtomicU32);
+    impl BlockSource for Counted {
+        fn fetch(&self, id: u32, out: &mut Block) -> Result<(), BlockError> {
+            self.1.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+            self.0.fetch(id, out)
+        }
+        fn fetch_batch(&self, ids: &[u32], out: &mut [Box<Block>]) -> Result<(), BlockError> {
+            self.1.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+            ids.iter().zip(out.iter_mut()).try_for_each(|(&id, b)| self.0.fetch(id, b))
+        }
+    }
+
+    #[test]
+    fn prefetch_fetches_a_run_in_one_request_and_keeps_what_it_touched() {
+        let source = Arc::new(Counted(store(16), Default::default()));
+        let requests = || source.1.load(std::sync::atomic::Ordering::Relaxed);
+        let mut c = BlockCache::new(source.clone(), Some(6)).with_prefetch(2, 1, vec![0, 16]);
+        assert_eq!(c.prefetch_room(), Some(3));
+        for id in 0..5 {
+            c.get(id).unwrap();
+        }
+        assert_eq!(requests(), 5);
+        // 1 is cached: touched, not fetched; 9 and 10 come in one request; 11 is past
+        // the room (three distinct blocks) and left out. 10 takes the slot of 0, the
+        // least recently used.
+        c.prefetch(&[9, 1, 10, 9, 11]).unwrap();
+        assert_eq!(requests(), 6);
+        assert_eq!((c.stats().misses, c.stats().prefetched, c.len()), (5, 2, 6));
+        // Reads of what was prefetched or touched are hits, with the right contents.
+        for id in [9, 10, 1] {
+            assert_eq!(c.get(id).unwrap()[0], id as u8);
+        }
+        assert_eq!((c.stats().hits, c.stats().misses, requests()), (3, 5, 6));
+        // 11 was left out: a miss, which evicts 2; 3 and 4 stay; 0 went.
+        c.get(11).unwrap();
+        c.get(3).unwrap();
+        c.get(4).unwrap();
+        assert_eq!((c.stats().misses, requests()), (6, 7));
+        c.get(0).unwrap();
+        assert_eq!((c.stats().misses, requests()), (7, 8));
+    }
+
+    #[test]
+    fn a_cache_of_the_papers_scheme_does_not_fetch_ahead() {
+        let c = BlockCache::new(store(4), Some(4));
+        assert_eq!(c.prefetch_room(), None);
+        let c = BlockCache::new(store(4), None).with_prefetch(8, 1, vec![0, 4]);
+        assert_eq!(c.prefetch_room(), None);
     }
 
     #[test]

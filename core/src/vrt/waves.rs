@@ -15,14 +15,14 @@
 //! with the same arithmetic, in the same order, as the depth-first recursion that
 //! traces pixels when every block is resident (where waves would only add bookkeeping).
 
-use super::{arrival, arrive_at, interpolated, pixel_rays, query, Arrived, Join};
+use super::{arrival, arrive_at, interpolated, lit, pixel_rays, query, Arrived, Join};
 use crate::blocks::BlockError;
 use crate::camera::CameraRig;
 use crate::color::Rgb;
 use crate::direct;
 use crate::geometry::Ray;
 use crate::trace::{cast_all, TraceScratch, NO_PATCH};
-use crate::view::SceneView;
+use crate::view::{vertex_block, ElementPoint, LeafPoint, SceneView};
 use crate::vrt::Subscreen;
 use glam::DVec3;
 
@@ -107,6 +107,7 @@ pub fn shade_pixels(
     let mut next: Vec<Queued> = Vec::new();
     let mut arrived: Vec<(u32, Arrived, Rgb)> = Vec::new();
     let mut by_element: Vec<(u32, u32)> = Vec::new();
+    let mut lookups = Lookups::default();
     let (mut queries, mut hits) = (Vec::new(), Vec::new());
     while !wave.is_empty() {
         // Node ids grow with the pixel and the sample: ties keep that order.
@@ -134,10 +135,7 @@ pub fn shade_pixels(
         if !by_element.is_sorted() {
             by_element.sort_unstable();
         }
-        for &(_, i) in &by_element {
-            let (_, a, irr) = &mut arrived[i as usize];
-            *irr = interpolated(view, scratch, a)?;
-        }
+        lit_all(view, scratch, &mut arrived, &by_element, &mut lookups)?;
         for (_, a, irr) in arrived.iter_mut().filter(|(_, a, _)| a.direct) {
             *irr = irr.add(direct::irradiance(view, scratch, &a.at, a.patch)?);
         }
@@ -226,4 +224,43 @@ fn morton(x: u32, y: u32) -> u64 {
         (v | (v << 1)) & 0x5555_5555_5555_5555
     };
     spread(x) | (spread(y) << 1)
+}
+
+/// Buffers of [`lit_all`], kept across waves.
+#[derive(Default)]
+struct Lookups {
+    points: Vec<ElementPoint>,
+    leaves: Vec<LeafPoint>,
+}
+
+/// [`interpolated`] for the arrivals `order` names (`(element, index into arrived)`, in
+/// the order of their elements), into each arrival's irradiance: the leaf elements under
+/// all the hits a level of refinement at a time, then their vertex energies, each
+/// stage's blocks fetched ahead in runs ([`SceneView::leaf_elements`],
+/// [`SceneView::in_prefetched_runs`]). The same records, the same arithmetic.
+fn lit_all(
+    view: &mut SceneView,
+    scratch: &mut TraceScratch,
+    arrived: &mut [(u32, Arrived, Rgb)],
+    order: &[(u32, u32)],
+    lookups: &mut Lookups,
+) -> Result<(), BlockError> {
+    let Lookups { points, leaves } = lookups;
+    points.clear();
+    points.extend(order.iter().map(|&(element, i)| (element, arrived[i as usize].1.w)));
+    leaves.clear();
+    view.leaf_elements(points, leaves)?;
+    let header = view.header.clone();
+    let mut ctx = (arrived, scratch);
+    view.in_prefetched_runs(
+        &mut ctx,
+        order.len(),
+        |_, k| leaves[k].1.vertices.map(|v| vertex_block(&header, v)),
+        |view, (arrived, scratch), k| {
+            let (_, e, w) = &leaves[k];
+            let (_, a, irr) = &mut arrived[order[k].1 as usize];
+            *irr = lit(view, scratch, a, e, *w)?;
+            Ok(())
+        },
+    )
 }

@@ -115,6 +115,7 @@ impl From<&NodeReport> for v1::NodeReport {
             cache_hits: r.cache.hits,
             cache_misses: r.cache.misses,
             cache_remote_misses: r.cache.remote_misses,
+            cache_prefetched: r.cache.prefetched,
             grid_steps: r.ops.grid_steps,
             patch_tests: r.ops.patch_tests,
             light_rays: r.ops.light_rays,
@@ -152,7 +153,7 @@ impl TryFrom<&v1::NodeReport> for NodeReport {
                 hits: r.cache_hits,
                 misses: r.cache_misses,
                 remote_misses: r.cache_remote_misses,
-                prefetched: 0,
+                prefetched: r.cache_prefetched,
             },
             ops: OpCounters {
                 grid_steps: r.grid_steps,
