@@ -31,7 +31,7 @@ use crate::scatter::{arrive, offset_scale, Arrival, Dielectric};
 use crate::scene::Light;
 use crate::subdivision::locate;
 use crate::trace::{cast, occluded_all, Bundled, TraceScratch};
-use crate::view::SceneView;
+use crate::view::{element_block, SceneView, NO_BLOCK};
 use glam::DVec3;
 
 mod area;
@@ -285,11 +285,33 @@ pub fn trace_pairs_kept(
     let Some(kept) = kept else {
         return trace_pairs_each(view, scratch, pairs, each);
     };
+    // Whether refinement split each kept pair's element since the pilots (the pair then
+    // deposits nothing, as `bin` says): the elements' records read first, a run of
+    // blocks fetched ahead at a time, rather than one at a time between binnings.
+    let header = view.header.clone();
+    let mut split = vec![false; pairs.len()];
+    view.in_prefetched_runs(
+        &mut split,
+        pairs.len(),
+        |_, i| {
+            let (light, element) = pairs[i];
+            let block = if kept.raw(light, element).is_some() { element_block(&header, element) } else { NO_BLOCK };
+            [block, NO_BLOCK, NO_BLOCK]
+        },
+        |view, split, i| {
+            let (light, element) = pairs[i];
+            if kept.raw(light, element).is_some() {
+                split[i] = view.element(element)?.child != 0;
+            }
+            Ok(())
+        },
+    )?;
     // Runs of pairs not kept are traced together (as trace_pairs_each would).
     let mut run = 0;
     for i in 0..=pairs.len() {
-        let binned = match pairs.get(i) {
-            Some(&(light, element)) => kept.bin(view, light, element).transpose()?,
+        let binned = match pairs.get(i).and_then(|&(light, element)| kept.raw(light, element)) {
+            Some(_) if split[i] => Some(PairResult::default()),
+            Some(raw) => Some(bin_leaf(view, raw)?),
             None => None,
         };
         if binned.is_some() || i == pairs.len() {
@@ -345,6 +367,11 @@ pub fn bin(view: &mut SceneView, element: u32, raw: &RawPair) -> Result<PairResu
     if view.element(element)?.child != 0 {
         return Ok(PairResult::default());
     }
+    bin_leaf(view, raw)
+}
+
+/// [`bin`] of a pair whose element is known to be a leaf of `view`'s elements.
+fn bin_leaf(view: &mut SceneView, raw: &RawPair) -> Result<PairResult, BlockError> {
     let deposits = binned(view, &raw.deposits)?;
     Ok(PairResult { deposits: merged(deposits, view.header.energy_quantum), tally: raw.tally })
 }

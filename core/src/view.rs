@@ -14,7 +14,7 @@ use glam::DVec3;
 use std::sync::Arc;
 
 mod batched;
-pub use batched::{element_block, vertex_block, ElementPoint, LeafPoint, NO_BLOCK};
+pub use batched::{element_block, patch_block, vertex_block, ElementPoint, LeafPoint, NO_BLOCK};
 
 /// Operation counts of the kernels (the basis of the compute cost model).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]

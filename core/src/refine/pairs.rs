@@ -119,11 +119,12 @@ impl KeptPairs {
         self.len == 0
     }
 
-    /// The result of pair (`light`, `element`) on `view`'s scene from its kept raw
-    /// deposits, `None` when it was not kept (a new element's pair, or an area light's).
-    pub fn bin(&self, view: &mut SceneView, light: u32, element: u32) -> Option<Result<PairResult, BlockError>> {
+    /// The kept raw deposits of pair (`light`, `element`), `None` when it was not kept
+    /// (a new element's pair, or an area light's): [`crate::lrt::bin`] gives its result
+    /// on the render's scene.
+    pub fn raw(&self, light: u32, element: u32) -> Option<&RawPair> {
         let (part, at) = slot(element);
-        get(&self.shards[part], light, at).map(|raw| bin(view, element, raw))
+        get(&self.shards[part], light, at).map(|raw| &**raw)
     }
 }
 

@@ -33,6 +33,15 @@ pub fn element_block(header: &SceneHeader, id: u32) -> u32 {
     }
 }
 
+/// The block of patch record `id`, [`NO_BLOCK`] when there is no such patch.
+pub fn patch_block(header: &SceneHeader, id: u32) -> u32 {
+    if id < header.counts.patches {
+        header.layout.patch_slot(id).0
+    } else {
+        NO_BLOCK
+    }
+}
+
 /// The block of vertex `id`'s energy record, [`NO_BLOCK`] when there is no such vertex.
 pub fn vertex_block(header: &SceneHeader, id: u32) -> u32 {
     if id < header.counts.vertices {

@@ -22,7 +22,7 @@ use crate::color::Rgb;
 use crate::direct;
 use crate::geometry::Ray;
 use crate::trace::{cast_all, TraceScratch, NO_PATCH};
-use crate::view::{vertex_block, ElementPoint, LeafPoint, SceneView};
+use crate::view::{patch_block, vertex_block, ElementPoint, LeafPoint, SceneView, NO_BLOCK};
 use crate::vrt::Subscreen;
 use glam::DVec3;
 
@@ -122,12 +122,22 @@ pub fn shade_pixels(
         queries.clear();
         queries.extend(wave.iter().map(|q| query(&q.ray, q.exclude)));
         cast_all(view, scratch, &queries, &mut hits)?;
-        for (i, (q, hit)) in wave.iter().zip(&hits).enumerate() {
-            match arrival(view, &q.ray, *hit, q.depth)? {
-                Ok(a) => arrived.push((i as u32, a, Rgb::BLACK)),
-                Err(local) => nodes[q.node as usize].local = local,
-            }
-        }
+        // (The patches hit, a run of blocks fetched ahead at a time.)
+        let header = view.header.clone();
+        let patch = |i: usize| hits[i].map_or(NO_BLOCK, |h| patch_block(&header, h.patch));
+        view.in_prefetched_runs(
+            &mut (&mut arrived, &mut nodes),
+            wave.len(),
+            |_, i| [patch(i), NO_BLOCK, NO_BLOCK],
+            |view, (arrived, nodes), i| {
+                let q = &wave[i];
+                match arrival(view, &q.ray, hits[i], q.depth)? {
+                    Ok(a) => arrived.push((i as u32, a, Rgb::BLACK)),
+                    Err(local) => nodes[q.node as usize].local = local,
+                }
+                Ok(())
+            },
+        )?;
         // The elements in the order of their ids: neighbours share element and
         // vertex-energy blocks.
         by_element.clear();
