@@ -94,8 +94,11 @@ pub fn shade_pixels(
     coded.sort_unstable();
     let order: Vec<(u32, u32)> = coded.into_iter().map(|(_, dx, dy)| (dx, dy)).collect();
     // The primary rays are nodes 0.., pixel by pixel in that order, sample by sample.
-    let mut nodes: Vec<Node> = Vec::new();
-    let mut wave: Vec<Queued> = Vec::new();
+    // Room for the primary rays and as many again spawned (no growing copies while
+    // tracing; a wave of more rays grows its buffers once).
+    let rays = order.len() * n as usize;
+    let mut nodes: Vec<Node> = Vec::with_capacity(2 * rays);
+    let mut wave: Vec<Queued> = Vec::with_capacity(rays);
     for &(dx, dy) in &order {
         for ray in pixel_rays(seed, n, rig, s.x + dx, s.y + dy) {
             let node = nodes.len() as u32;
@@ -104,11 +107,11 @@ pub fn shade_pixels(
         }
     }
     let mut spawned = [Ray::new(DVec3::ZERO, DVec3::Z); 3];
-    let mut next: Vec<Queued> = Vec::new();
-    let mut arrived: Vec<(u32, Arrived, Rgb)> = Vec::new();
-    let mut by_element: Vec<(u32, u32)> = Vec::new();
+    let mut next: Vec<Queued> = Vec::with_capacity(rays);
+    let mut arrived: Vec<(u32, Arrived, Rgb)> = Vec::with_capacity(rays);
+    let mut by_element: Vec<(u32, u32)> = Vec::with_capacity(rays);
     let mut lookups = Lookups::default();
-    let (mut queries, mut hits) = (Vec::new(), Vec::new());
+    let (mut queries, mut hits) = (Vec::with_capacity(rays), Vec::with_capacity(rays));
     while !wave.is_empty() {
         // Node ids grow with the pixel and the sample: ties keep that order.
         if !wave.is_sorted_by_key(|q| (q.path, q.node)) {
