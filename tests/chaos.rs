@@ -90,7 +90,15 @@ fn wait_for(rx: &Receiver<String>, what: &str, n: usize) {
 /// One chaos run: kill a node after its `lrt_batches`-th batch of pairs began, another
 /// after its `vrt_subscreens`-th subscreen began, and with `forks_too` restart a fork
 /// right after each kill; compare with `base`.
-fn chaos_run(dir: &Path, base: &Rendered, stem: &str, lrt_batches: usize, vrt_subscreens: usize, forks_too: bool) {
+/// `cache`: the nodes' cache size (`--cache-blocks`), unlimited for `None`.
+fn chaos_run(
+    dir: &Path,
+    base: &Rendered,
+    stem: &str,
+    (lrt_batches, vrt_subscreens): (usize, usize),
+    forks_too: bool,
+    cache: Option<&str>,
+) {
     let s = scene("magg-paper.toml");
     let mut procs = Procs(Vec::new());
     let mut fork_addrs = Vec::new();
@@ -107,6 +115,7 @@ fn chaos_run(dir: &Path, base: &Rendered, stem: &str, lrt_batches: usize, vrt_su
         .command(&s)
         .args(["--subscreen", "16", "--forks-at", &forks_at, "--listen", &host_addr])
         .args(["--external-nodes", "--lease-timeout", LEASE, "--stall-timeout", "30"])
+        .args(cache.map(|c| ["--cache-blocks", c]).iter().flatten())
         .args(SMALL)
         .stdout(Stdio::null())
         .stderr(File::create(&host_log).unwrap())
@@ -176,7 +185,11 @@ fn chaos_run(dir: &Path, base: &Rendered, stem: &str, lrt_batches: usize, vrt_su
     assert_eq!(std::fs::read(&base.pfm).unwrap(), std::fs::read(&out.pfm).unwrap(), "{stem}: image differs");
     assert_eq!(std::fs::read(&base.energy).unwrap(), std::fs::read(&out.energy).unwrap(), "{stem}: energies differ");
     assert_eq!(std::fs::read(&base.png).unwrap(), std::fs::read(&out.png).unwrap(), "{stem}: PNG differs");
-    assert_eq!(read_json(&out.stats)["nodes"].as_u64().unwrap(), 3, "{stem}: three nodes registered");
+    let stats = read_json(&out.stats);
+    assert_eq!(stats["nodes"].as_u64().unwrap(), 3, "{stem}: three nodes registered");
+    if cache.is_some() {
+        assert!(stats["cache"]["prefetched"].as_u64().unwrap() > 0, "{stem}: nothing was fetched ahead");
+    }
 }
 
 #[test]
@@ -185,9 +198,11 @@ fn killed_nodes_lose_nothing_and_the_bits_are_those_of_a_clean_run() {
     let s = scene("magg-paper.toml");
     let base = render(&s, dir.path(), "embedded", &[SMALL, &["--embedded"]].concat());
     // Kill points: early in each phase, then later; forks restarted on two of the runs.
-    chaos_run(dir.path(), &base, "early", 1, 1, false);
-    chaos_run(dir.path(), &base, "mid", 2, 1, true);
-    chaos_run(dir.path(), &base, "later", 3, 2, true);
+    chaos_run(dir.path(), &base, "early", (1, 1), false, None);
+    chaos_run(dir.path(), &base, "mid", (2, 1), true, None);
+    // Through 30-block caches, which fetch element records and vertex energies ahead
+    // in runs: a fork lost in the viewing pass fails runs, not single blocks.
+    chaos_run(dir.path(), &base, "later", (3, 2), true, Some("30"));
 }
 
 #[test]

@@ -618,6 +618,17 @@ mod tests {
         assert_eq!(c.get(2).unwrap()[0], 2);
         assert_eq!(c.get(1).unwrap()[0], 1);
         assert_eq!(c.len(), 2);
+        // A run fetched ahead that fails (block 9 does not exist) keeps none of its
+        // blocks and evicts nothing.
+        let mut c = BlockCache::new(store(4), Some(4)).with_prefetch(2, 1, vec![0, 4]);
+        c.get(0).unwrap();
+        assert!(c.prefetch(&[2, 9]).is_err());
+        assert_eq!((c.len(), c.stats().prefetched), (1, 0));
+        c.prefetch(&[2, 3]).unwrap();
+        assert_eq!((c.len(), c.stats().prefetched, c.stats().misses), (3, 2, 1));
+        assert_eq!(c.get(0).unwrap()[0], 0);
+        assert_eq!(c.get(3).unwrap()[0], 3);
+        assert_eq!(c.stats().misses, 1);
     }
 
     #[test]
