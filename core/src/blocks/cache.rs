@@ -44,6 +44,11 @@ impl CacheStats {
     }
 }
 
+/// The most blocks one [`BlockCache::prefetch`] fetches (128 KB in one request): runs
+/// of that many already make the request's own cost small against its blocks', and
+/// finding a run's distinct blocks stays a short scan.
+pub const PREFETCH_RUN: usize = 64;
+
 /// Marks "no slot" / "no block" in [`Lru`]'s tables.
 const NIL: u32 = u32::MAX;
 
@@ -327,12 +332,12 @@ impl BlockCache {
 
     /// Of a bounded cache that fetches ahead ([`BlockCache::with_prefetch`] with a window
     /// over one block), how many blocks one [`BlockCache::prefetch`] may fetch and keep:
-    /// half the capacity, so that what a caller reads between prefetches stays. `None`
-    /// for an unlimited cache, or one that fetches a block per request (the paper's
-    /// scheme).
+    /// half the capacity, so that what a caller reads between prefetches stays, and at
+    /// most [`PREFETCH_RUN`]. `None` for an unlimited cache, or one that fetches a block
+    /// per request (the paper's scheme).
     pub fn prefetch_room(&self) -> Option<usize> {
         match &self.slots {
-            Slots::Bounded(lru) if self.prefetch.0 > 1 => Some((lru.capacity / 2).max(1)),
+            Slots::Bounded(lru) if self.prefetch.0 > 1 => Some((lru.capacity / 2).clamp(1, PREFETCH_RUN)),
             _ => None,
         }
     }

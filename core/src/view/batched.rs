@@ -52,10 +52,11 @@ pub fn vertex_block(header: &SceneHeader, id: u32) -> u32 {
 }
 
 impl SceneView {
-    /// Runs `each(view, ctx, i)` for `i` in `0..n`, in order. With a bounded cache the
-    /// items go in runs whose blocks (`blocks(ctx, i)`, up to three an item, [`NO_BLOCK`]
-    /// for none) number at most the cache's prefetch room, and each run's blocks are
-    /// prefetched (one request) before its items are read.
+    /// Runs `each(view, ctx, i)` for `i` in `0..n`, in order. Through a bounded cache
+    /// that fetches ahead ([`crate::blocks::BlockCache::prefetch_room`]) the items go in
+    /// runs whose blocks (`blocks(ctx, i)`, up to three an item, [`NO_BLOCK`] for none)
+    /// number at most that room, and each run's blocks are prefetched (one request)
+    /// before its items are read.
     pub fn in_prefetched_runs<C>(
         &mut self,
         ctx: &mut C,
