@@ -156,6 +156,14 @@ fn in_packets(
         while j < rays.len() && j - i < PACKET && rays[j].ray.origin == origin {
             j += 1;
         }
+        if j == i + 1 {
+            // A ray alone (a secondary ray of a wave): cast as such, without filling a
+            // packet's arrays.
+            let b = &rays[i];
+            out[i] = cast(view, scratch, &b.ray, b.tmin, b.tmax, b.exclude, any)?;
+            i = j;
+            continue;
+        }
         // The run's valid queries (the others hit nothing, as in `cast`: `out` holds
         // `None` for them), side by side; the first stands in for the unused places.
         let mut valid = (i..j).filter_map(|k| {
