@@ -53,24 +53,31 @@ pub const PREFETCH_RUN: usize = 64;
 const NIL: u32 = u32::MAX;
 
 /// A bounded LRU set of blocks without hashing: block ids are dense (`0..total`), so a
-/// table indexed by block id gives each cached block's slot, and the recency order is a
-/// doubly linked list through the slots. A hit is two table reads and a relink.
+/// table indexed by block id gives each cached block's slot. Recency is a stamp per slot
+/// from a clock that every use advances, so a hit is two table reads and one store (a
+/// linked list's relink was a tenth of the bounded viewing pass's instructions). The
+/// least recently used slot is the one of smallest stamp: a scan keeps the smallest
+/// eighth as candidates, and a candidate used since (its stamp changed) is passed over.
+/// Every other slot's stamp was above every candidate's at the scan and has only grown,
+/// so the first candidate still unused is exactly the least recently used slot, as a
+/// list would give it.
 struct Lru {
     capacity: usize,
     /// Slot -> block data.
     blocks: Vec<Box<Block>>,
     /// Slot -> block id (NIL for a free slot).
     ids: Vec<u32>,
-    /// Slot -> more recently used slot, less recently used slot.
-    prev: Vec<u32>,
-    next: Vec<u32>,
-    /// Most and least recently used slots.
-    head: u32,
-    tail: u32,
+    /// Slot -> the clock at its last use.
+    stamp: Vec<u64>,
+    /// Advanced by every use.
+    clock: u64,
     /// Block id -> slot (NIL when not cached); grown to the largest id fetched.
     slot_of: Vec<u32>,
     /// Slots emptied by invalidation.
     free: Vec<u32>,
+    /// Candidates for eviction, (stamp at the last scan, slot), the least recently used
+    /// last.
+    victims: Vec<(u64, u32)>,
 }
 
 impl Lru {
@@ -79,12 +86,11 @@ impl Lru {
             capacity: capacity.max(1),
             blocks: Vec::new(),
             ids: Vec::new(),
-            prev: Vec::new(),
-            next: Vec::new(),
-            head: NIL,
-            tail: NIL,
+            stamp: Vec::new(),
+            clock: 0,
             slot_of: Vec::new(),
             free: Vec::new(),
+            victims: Vec::new(),
         }
     }
 
@@ -94,42 +100,38 @@ impl Lru {
         self.slot_of.get(id as usize).copied().filter(|&s| s != NIL)
     }
 
-    fn unlink(&mut self, s: u32) {
-        let (p, n) = (self.prev[s as usize], self.next[s as usize]);
-        if p == NIL {
-            self.head = n;
-        } else {
-            self.next[p as usize] = n;
-        }
-        if n == NIL {
-            self.tail = p;
-        } else {
-            self.prev[n as usize] = p;
-        }
-    }
-
-    fn push_front(&mut self, s: u32) {
-        self.prev[s as usize] = NIL;
-        self.next[s as usize] = self.head;
-        if self.head == NIL {
-            self.tail = s;
-        } else {
-            self.prev[self.head as usize] = s;
-        }
-        self.head = s;
-    }
-
     /// Marks slot `s` most recently used.
     #[inline]
     fn touch(&mut self, s: u32) {
-        if self.head != s {
-            self.unlink(s);
-            self.push_front(s);
+        self.clock += 1;
+        self.stamp[s as usize] = self.clock;
+    }
+
+    /// The least recently used occupied slot (there is one: the cache is full).
+    fn least_recent(&mut self) -> u32 {
+        loop {
+            while let Some((stamp, s)) = self.victims.pop() {
+                if self.stamp[s as usize] == stamp && self.ids[s as usize] != NIL {
+                    return s;
+                }
+            }
+            // The occupied slots of smallest stamp, the least recently used last.
+            let mut all: Vec<(u64, u32)> = (0..self.ids.len() as u32)
+                .filter(|&s| self.ids[s as usize] != NIL)
+                .map(|s| (self.stamp[s as usize], s))
+                .collect();
+            let keep = (all.len() / 8).max(1).min(all.len());
+            if keep < all.len() {
+                all.select_nth_unstable(keep - 1);
+                all.truncate(keep);
+            }
+            all.sort_unstable_by(|a, b| b.cmp(a));
+            self.victims = all;
         }
     }
 
     /// A slot for a new block: a free one, a new one while under capacity, or the least
-    /// recently used one (forgetting its block). The slot is unlinked and owns no id.
+    /// recently used one (forgetting its block). The slot owns no id.
     fn take_slot(&mut self) -> u32 {
         if let Some(s) = self.free.pop() {
             return s;
@@ -137,18 +139,17 @@ impl Lru {
         if self.blocks.len() < self.capacity {
             self.blocks.push(Box::new([0u8; BLOCK_SIZE]));
             self.ids.push(NIL);
-            self.prev.push(NIL);
-            self.next.push(NIL);
+            self.stamp.push(0);
             return self.blocks.len() as u32 - 1;
         }
-        let s = self.tail;
-        self.unlink(s);
+        let s = self.least_recent();
         self.slot_of[self.ids[s as usize] as usize] = NIL;
         self.ids[s as usize] = NIL;
         s
     }
 
-    /// Records that slot `s` (taken by [`Lru::take_slot`]) now holds block `id`.
+    /// Records that slot `s` (taken by [`Lru::take_slot`]) now holds block `id`, as the
+    /// most recently used.
     fn bind(&mut self, s: u32, id: u32) {
         let i = id as usize;
         if self.slot_of.len() <= i {
@@ -156,12 +157,11 @@ impl Lru {
         }
         self.slot_of[i] = s;
         self.ids[s as usize] = id;
-        self.push_front(s);
+        self.touch(s);
     }
 
     fn forget(&mut self, id: u32) {
         if let Some(s) = self.slot(id) {
-            self.unlink(s);
             self.slot_of[id as usize] = NIL;
             self.ids[s as usize] = NIL;
             self.free.push(s);
@@ -581,7 +581,7 @@ mod tests {
     fn the_bounded_cache_is_exactly_lru_over_random_accesses_and_invalidations() {
         // Reference: a recency list, most recent first.
         let mut rng = crate::rng::Rng::from_words(&[0x10, 0xca]);
-        for cap in [1usize, 2, 5, 17] {
+        for cap in [1usize, 2, 5, 17, 33] {
             let mut c = BlockCache::new(store(40), Some(cap));
             let mut model: Vec<u32> = Vec::new();
             let (mut hits, mut misses) = (0, 0);
