@@ -288,20 +288,16 @@ pub fn trace_pairs_kept(
     // Whether refinement split each kept pair's element since the pilots (the pair then
     // deposits nothing, as `bin` says): the elements' records read first, a run of
     // blocks fetched ahead at a time, rather than one at a time between binnings.
+    let raws: Vec<Option<&RawPair>> = pairs.iter().map(|&(light, element)| kept.raw(light, element)).collect();
     let header = view.header.clone();
     let mut split = vec![false; pairs.len()];
     view.in_prefetched_runs(
         &mut split,
         pairs.len(),
-        |_, i| {
-            let (light, element) = pairs[i];
-            let block = if kept.raw(light, element).is_some() { element_block(&header, element) } else { NO_BLOCK };
-            [block, NO_BLOCK, NO_BLOCK]
-        },
+        |_, i| [if raws[i].is_some() { element_block(&header, pairs[i].1) } else { NO_BLOCK }, NO_BLOCK, NO_BLOCK],
         |view, split, i| {
-            let (light, element) = pairs[i];
-            if kept.raw(light, element).is_some() {
-                split[i] = view.element(element)?.child != 0;
+            if raws[i].is_some() {
+                split[i] = view.element(pairs[i].1)?.child != 0;
             }
             Ok(())
         },
@@ -309,7 +305,7 @@ pub fn trace_pairs_kept(
     // Runs of pairs not kept are traced together (as trace_pairs_each would).
     let mut run = 0;
     for i in 0..=pairs.len() {
-        let binned = match pairs.get(i).and_then(|&(light, element)| kept.raw(light, element)) {
+        let binned = match raws.get(i).copied().flatten() {
             Some(_) if split[i] => Some(PairResult::default()),
             Some(raw) => Some(bin_leaf(view, raw)?),
             None => None,
