@@ -55,7 +55,7 @@ const NIL: u32 = u32::MAX;
 /// A bounded LRU set of blocks without hashing: block ids are dense (`0..total`), so a
 /// table indexed by block id gives each cached block's slot. Recency is a stamp per slot
 /// from a clock that every use advances, so a hit is two table reads and one store (a
-/// linked list's relink was a tenth of the bounded viewing pass's instructions). The
+/// linked list's relinks were about 8% of the bounded viewing pass's instructions). The
 /// least recently used slot is the one of smallest stamp: a scan keeps the smallest
 /// eighth as candidates, and a candidate used since (its stamp changed) is passed over.
 /// Every other slot's stamp was above every candidate's at the scan and has only grown,

@@ -17,7 +17,7 @@ mod layout;
 mod owner;
 mod store;
 
-pub use cache::{BlockCache, CacheStats};
+pub use cache::{BlockCache, CacheStats, PREFETCH_RUN};
 pub use cache_size::{CacheSize, CacheSizeError};
 pub use layout::*;
 pub use owner::{fork_of_block, home_fork_of_node};

@@ -100,9 +100,10 @@ fn compact(raw: RawPair) -> RawPair {
 
 /// Refinement's pilot pairs of point lights, traced once and kept raw (see the module
 /// doc of [`crate::refine`]), read-only: for the render's light pass when it carries
-/// exactly the pilots' light. [`KeptPairs::bin`] gives a kept pair's result on the
-/// render's scene, which is what tracing it there gives, bit for bit (the pair's element
-/// is a leaf there, as it was when the pair was traced, and its rays are the same).
+/// exactly the pilots' light. [`crate::lrt::bin`] of [`KeptPairs::raw`] gives a kept
+/// pair's result on the render's scene, which is what tracing it there gives, bit for
+/// bit (the pair's element is a leaf there, as it was when the pair was traced, and its
+/// rays are the same).
 pub struct KeptPairs {
     shards: Vec<Shard>,
     len: usize,
