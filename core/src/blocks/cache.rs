@@ -210,12 +210,11 @@ impl BlockCache {
     /// on the missed block's fork (no extra G-bus transfers) and, for the element blocks
     /// of a node's home fork, the first of them are the blocks of the pairs it traces
     /// next; those before b would otherwise be missed one at a time when a ray goes back
-    /// to them. A bounded cache ignores this: prefetched blocks would evict ones still in
-    /// use.
-    ///
-    /// A window over one block also lets the kernels fetch ahead what they will read
-    /// next, bounded cache or not ([`BlockCache::prefetch`]); the paper's scheme, a block
-    /// per request, leaves the window at one.
+    /// to them. A bounded cache fetches nothing more on a miss (blocks fetched on a guess
+    /// would evict ones still in use), but with a window over one block its kernels fetch
+    /// ahead what they know they will read next, in runs of at most half the cache
+    /// ([`BlockCache::prefetch`], [`BlockCache::prefetch_room`]). The paper's scheme, a
+    /// block per request, leaves the window at one.
     pub fn with_prefetch(mut self, window: u32, stride: u32, boundaries: Vec<u32>) -> Self {
         self.prefetch = (window.max(1), stride.max(1), boundaries);
         self
