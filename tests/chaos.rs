@@ -256,6 +256,12 @@ struct LossRun {
 }
 
 fn start_loss_run(dir: &Path, stem: &str) -> LossRun {
+    start_loss_run_of(dir, stem, "magg-paper.toml", &[], &["--slow-pair-ms", "2"])
+}
+
+/// A loss run of `scene_name` with `extra` flags for the host; the second node runs
+/// with `second`'s flags (the first, whose log is watched, is always slow).
+fn start_loss_run_of(dir: &Path, stem: &str, scene_name: &str, extra: &[&str], second: &[&str]) -> LossRun {
     let mut procs = Procs(Vec::new());
     let mut forks = Vec::new();
     for i in 0..3 {
@@ -267,17 +273,17 @@ fn start_loss_run(dir: &Path, stem: &str) -> LossRun {
     let out = Rendered::at(dir, stem);
     let host_log = dir.join(format!("{stem}-host.log"));
     let host = out
-        .command(&scene("magg-paper.toml"))
+        .command(&scene(scene_name))
         .args(["--subscreen", "16", "--forks-at", &forks.join(","), "--listen", &host_addr])
+        .args(extra)
         .args(["--external-nodes", "--lease-timeout", LEASE, "--stall-timeout", "30", "--fork-timeout", "10"])
         .args(SMALL)
         .stdout(Stdio::null())
         .stderr(File::create(&host_log).unwrap())
         .spawn()
         .unwrap();
-    let slow = ["--slow-pair-ms", "2"];
-    let (_, node_log) = node(&mut procs, &host_addr, "a", &slow);
-    node(&mut procs, &host_addr, "b", &slow);
+    let (_, node_log) = node(&mut procs, &host_addr, "a", &["--slow-pair-ms", "2"]);
+    node(&mut procs, &host_addr, "b", second);
     LossRun { procs, forks, host, host_log, out, node_log }
 }
 
@@ -347,4 +353,29 @@ fn two_forks_lost_together_in_lrt_give_the_bits_of_a_clean_run() {
         assert!(text.contains(&format!("fork {k} at")), "fork {k}'s loss is not in the log: {text}");
     }
     assert!(text.contains("replay epoch 2"), "not both forks were rebuilt: {text}");
+}
+
+#[test]
+fn a_node_and_a_fork_lost_in_a_pilot_level_lose_nothing() {
+    // Refinement's pilot levels run on the nodes, each a scene of the cluster's own: a
+    // node killed in the first level's light pass and a fork lost there cost its pairs
+    // a lease and a replay, as in the render's own light pass, and the image is the
+    // embedded renderer's.
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let s = scene("cornell.toml");
+    let refined = ["--element-size", "0.5", "--set", "render.refine=2", "--min-nodes", "2"];
+    let base = render(&s, d, "embedded", &[SMALL, &refined[..4], &["--embedded"]].concat());
+    let mut run = start_loss_run_of(d, "pilot", "cornell.toml", &refined, &[]);
+    wait_for(&run.node_log, "tracing a batch of pairs", 1);
+    // Node "a" (after the three forks) dies in its first batch: the first pilot level.
+    run.procs.0[3].kill().unwrap();
+    let addr = run.forks[2].clone();
+    restart(&mut run.procs, 2, d, "pilot-fork2-again", &addr);
+    let stats_path = run.out.stats.clone();
+    let text = finish_loss_run(run, &base, "pilot");
+    assert!(text.contains("restarted"), "fork 2's loss in the pilot level went unseen: {text}");
+    let stats = read_json(&stats_path);
+    assert_eq!(stats["refine"]["pilots_on"], "nodes", "{}", stats["refine"]);
+    assert_eq!(stats["refine"]["levels"], read_json(&base.stats)["refine"]["levels"]);
 }

@@ -9,6 +9,9 @@ use std::time::{Duration, Instant};
 const SMALL: &[&str] = &["--width", "48", "--height", "40", "--light-rays", "4", "--pixel-samples", "1"];
 const SQUARE: &[&str] = &["--width", "64", "--height", "64", "--light-rays", "4", "--pixel-samples", "1"];
 
+/// cornell.toml with two levels of refinement, on elements coarse enough to be quick.
+const REFINED: &[&str] = &["--element-size", "0.25", "--set", "render.refine=2"];
+
 fn with(extra: &[&str]) -> Vec<&'static str> {
     let mut v: Vec<&'static str> = SMALL.to_vec();
     for e in extra {
@@ -113,8 +116,7 @@ fn refined_elements_give_the_same_bits_in_every_shape() {
     // cornell.toml with two levels of refinement: the caustic's and the mirror light's
     // edges split into elements made after the lattice's, on every shape of the cluster.
     let dir = tempfile::tempdir().unwrap();
-    let s = scene("cornell.toml");
-    let refined: &[&str] = &["--element-size", "0.25", "--set", "render.refine=2"];
+    let (s, refined) = (scene("cornell.toml"), REFINED);
     let base = render(&s, dir.path(), "embedded", &with(&[&["--embedded"][..], refined].concat()));
     let unrefined = [&["--embedded"][..], refined, &["--set", "render.refine=0"]].concat();
     let plain = render(&s, dir.path(), "plain", &with(&unrefined));
@@ -144,9 +146,14 @@ fn refined_elements_give_the_same_bits_in_every_shape() {
         if shape.contains(&"--cache-blocks") {
             assert!(stats["cache"]["prefetched"].as_u64().unwrap() > 0, "{}: nothing fetched ahead", shape.join(" "));
         }
+        assert_eq!(stats["refine"]["pilots_on"], "nodes", "{}: the pilots ran on the host", shape.join(" "));
         light_rays.push(stats["work"]["light_rays"].as_u64().unwrap());
     }
-    assert!(light_rays[0] < light_rays[2] && light_rays[1] < light_rays[2], "light rays traced: {light_rays:?}");
+    // cornell's pairs (direct light at VRT) are the mirror's and the glass's, none split:
+    // nodes of the host's process bin every one of them from the pilots' shared table.
+    // (Over sockets each node bins those it traced in the pilots and traces the others:
+    // how many depends on which node took which pair.)
+    assert_eq!(light_rays[..2], [0, 0], "light rays traced: {light_rays:?}");
 }
 
 #[test]
@@ -194,8 +201,13 @@ fn separate_processes_on_localhost_give_the_same_bits_and_slow_nodes_are_redivid
     assert!(stats["work"]["redivisions"].as_u64().unwrap() > 0, "the slow node's rows were not redivided: {stats}");
     assert_eq!(stats["nodes"].as_u64().unwrap(), 2);
     // Both nodes exit by themselves once the host says done.
+    exit_by_themselves(&mut procs.0[3..]);
+}
+
+/// Waits (up to 10 s) for the node processes `nodes` to exit, successfully.
+fn exit_by_themselves(nodes: &mut [Child]) {
     let deadline = Instant::now() + Duration::from_secs(10);
-    for c in procs.0.iter_mut().skip(3) {
+    for c in nodes {
         loop {
             if let Some(st) = c.try_wait().unwrap() {
                 assert!(st.success(), "a node exited with {st}");
@@ -289,4 +301,37 @@ fn a_repeat_node_waits_for_the_next_host_without_warnings() {
     let after = &text[done..];
     assert!(after.contains("no host yet"), "the node did not try the next host within the wait:\n{text}");
     assert!(!after.contains("WARN"), "a warning after the render:\n{after}");
+}
+
+#[test]
+fn external_nodes_run_the_pilot_levels_of_a_refined_scene() {
+    // Refinement's pilot light passes run on the cluster's nodes, each level a scene of
+    // its own on the same host and forks: two magg-node processes register for each
+    // level, then for the render, and the image is the embedded renderer's.
+    let dir = tempfile::tempdir().unwrap();
+    let (s, refined) = (scene("cornell.toml"), REFINED);
+    let base = render(&s, dir.path(), "embedded", &with(&[&["--embedded"][..], refined].concat()));
+    let host_addr = format!("127.0.0.1:{}", free_port());
+    let mut procs = Procs(Vec::new());
+    for i in 0..2 {
+        let args = ["--host".into(), host_addr.clone(), "--name".into(), format!("pilot-{i}")];
+        procs.0.push(spawn("magg-node", &args));
+    }
+    let external = ["--listen", &host_addr, "--external-nodes", "--min-nodes", "2"];
+    let multi = render(&s, dir.path(), "external", &with(&[refined, &external[..]].concat()));
+    same_files(&base, &multi, "refined cornell.toml on two magg-node processes");
+    let stats = read_json(&multi.stats);
+    let refine = &stats["refine"];
+    assert_eq!(refine["pilots_on"], "nodes", "{refine}");
+    assert_eq!(refine["levels"].as_u64().unwrap(), 2, "{refine}");
+    assert_eq!(refine["pilot_nodes"].as_u64().unwrap(), 2, "both nodes traced pilot pairs: {refine}");
+    assert!(refine["split"].as_u64().unwrap() > 0 && refine["pilot_pairs"].as_u64().unwrap() > 0, "{refine}");
+    let embedded = read_json(&base.stats);
+    assert_eq!(embedded["refine"]["pilots_on"], "embedded");
+    for key in ["levels", "split", "pilot_pairs", "kept"] {
+        assert_eq!(embedded["refine"][key], refine[key], "{key}: the same pilots wherever they run");
+    }
+    assert_eq!(stats["nodes"].as_u64().unwrap(), 2);
+    // The nodes went through every scene and exit by themselves at the render's end.
+    exit_by_themselves(&mut procs.0);
 }

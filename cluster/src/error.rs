@@ -4,7 +4,7 @@
 //! | error | code |
 //! | --- | --- |
 //! | [`HostError::ProtocolVersion`], [`HostError::NoViewPass`] | `FAILED_PRECONDITION` |
-//! | [`HostError::RenderOver`] (a node that came after the end: it exits quietly) | `UNAVAILABLE` |
+//! | [`HostError::RenderOver`] (a node that came after the end: it exits quietly), [`HostError::NextScene`] (between two scenes of a render: it registers again) | `UNAVAILABLE` |
 //! | [`HostError::NameTooLong`], [`HostError::UnknownNode`], [`HostError::Report`], [`HostError::Rows`] | `INVALID_ARGUMENT` |
 //! | [`HostError::TooManyNodes`] | `RESOURCE_EXHAUSTED` |
 //! | [`HostError::NotThatNode`] (a request without the node's secret) | `PERMISSION_DENIED` |
@@ -32,6 +32,10 @@ pub enum HostError {
     /// `Register` after the render ended.
     #[error("{}", magg_proto::RENDER_OVER)]
     RenderOver,
+    /// `Register` between two scenes of one render (refinement's pilot levels, then the
+    /// render), while the host prepares the next: the node asks again.
+    #[error("{}", magg_proto::NEXT_SCENE)]
+    NextScene,
     /// `Register` past [`MAX_NODES`].
     #[error("too many nodes registered")]
     TooManyNodes,
@@ -57,7 +61,7 @@ impl From<HostError> for Status {
         let text = e.to_string();
         match e {
             HostError::ProtocolVersion(_) | HostError::NoViewPass => Status::failed_precondition(text),
-            HostError::RenderOver => Status::unavailable(text),
+            HostError::RenderOver | HostError::NextScene => Status::unavailable(text),
             HostError::NameTooLong | HostError::UnknownNode(_) | HostError::Report(_) | HostError::Rows(_) => {
                 Status::invalid_argument(text)
             }
@@ -78,6 +82,7 @@ mod tests {
             (HostError::ProtocolVersion(2), Code::FailedPrecondition, "2"),
             (HostError::NoViewPass, Code::FailedPrecondition, "viewing"),
             (HostError::RenderOver, Code::Unavailable, "over"),
+            (HostError::NextScene, Code::Unavailable, "next scene"),
             (HostError::NameTooLong, Code::InvalidArgument, "256"),
             (HostError::UnknownNode(7), Code::InvalidArgument, "node 7"),
             (HostError::Rows(RowError::UnknownSubscreen(9)), Code::InvalidArgument, "subscreen 9"),

@@ -4,13 +4,11 @@
 use super::emulation::{cpu_share, process_cpu_s};
 use super::forks::EnergyPoll;
 use super::machine::{mark, ClusterMachine};
-use super::service::Phase;
 use magg_core::blocks::{home_fork_of_node, CacheStats};
 use magg_core::cluster::NodeReport;
 use magg_core::lrt::LrtTally;
 use magg_core::machine::{MachineFigures, PhaseTimes};
 use magg_core::stats::{Emulation, NodeStats, Stages, Traffic};
-use std::time::{Duration, Instant};
 
 /// A node's final report as the stats' per-node figures.
 fn node_stats(node: u32, forks: u32, r: &NodeReport) -> NodeStats {
@@ -35,14 +33,7 @@ impl ClusterMachine {
     ) -> Result<MachineFigures, crate::failure::ClusterError> {
         let t_start = self.opts.started;
         // --- Done: every node hears it and sends its final report (bounded wait).
-        self.service.set_phase(Phase::Done);
-        let deadline = Instant::now() + Duration::from_secs(5);
-        while Instant::now() < deadline {
-            if self.service.lock().nodes.iter().all(|n| n.reported_or_gone(Duration::from_secs(2))) {
-                break;
-            }
-            self.service.wait_for(Duration::from_millis(5)).await;
-        }
+        self.done().await;
         mark(t_start, "nodes done");
         let f = self.forks.len();
         let mut traffic = Traffic::default();
@@ -60,7 +51,7 @@ impl ClusterMachine {
         let wall_s = t_start.elapsed().as_secs_f64();
         mark(t_start, "fork figures collected");
         let cpu1 = process_cpu_s();
-        self.server.stop().await;
+        self.endpoint.stop().await;
 
         let st = self.service.lock();
         traffic.link_bytes += st.link_bytes;

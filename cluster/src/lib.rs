@@ -18,7 +18,7 @@
 //! ```no_run
 //! # fn f(prepared: std::sync::Arc<magg_core::preprocess::PreparedScene>, opts: magg_cluster::DriveOptions,
 //! #      listener: tokio::net::TcpListener, rt: tokio::runtime::Runtime) -> anyhow::Result<()> {
-//! let mut machine = rt.block_on(magg_cluster::ClusterMachine::start(&prepared, &opts, listener, rt.handle().clone()))?;
+//! let mut machine = rt.block_on(magg_cluster::ClusterMachine::start(&prepared, &opts, magg_cluster::HostSocket::Listen(listener), rt.handle().clone()))?;
 //! let out = magg_core::phases::run(&mut machine, &prepared, &Default::default(),
 //!     &magg_core::progress::NoProgress, &mut |_, _, _| Ok(()))?;
 //! # Ok(()) }
@@ -39,4 +39,4 @@ pub mod service;
 pub use error::HostError;
 pub use failure::ClusterError;
 pub use faults::FaultPolicy;
-pub use machine::{ClusterMachine, DriveOptions};
+pub use machine::{ClusterMachine, DriveOptions, HostEndpoint, HostSocket, SceneEnd};

@@ -10,7 +10,7 @@
 use super::emulation::{preprocess_time, process_cpu_s};
 use super::events::EventSender;
 use super::forks::ForkSet;
-use super::service::{HostService, HostState, Phase};
+use super::service::{HostService, HostState, Phase, PilotPairs};
 use crate::failure::ClusterError;
 use magg_core::color::Rgb;
 use magg_core::machine::{LightPass, Machine, MachineFigures, PhaseTimes, RenderError, ViewPass, ViewedFrame};
@@ -62,18 +62,8 @@ pub struct DriveOptions {
     pub links: magg_plumbing::transport::InProcess,
 }
 
-/// Sets the phase to [`Phase::Done`] when dropped: a render that fails still lets the
-/// nodes go.
-struct DoneOnDrop(HostService);
-
-impl Drop for DoneOnDrop {
-    fn drop(&mut self) {
-        self.0.set_phase(Phase::Done);
-    }
-}
-
 /// The host's gRPC server while the render runs.
-pub(super) struct HostServerTask {
+struct HostServerTask {
     stop_tx: Option<tokio::sync::oneshot::Sender<()>>,
     task: Option<tokio::task::JoinHandle<Result<(), tonic::transport::Error>>>,
     _in_process: magg_plumbing::transport::Registration,
@@ -83,7 +73,7 @@ impl HostServerTask {
     /// Stops the server. Graceful shutdown waits for clients to hang up; a client that
     /// never does (a stuck or hostile peer) must not keep the host alive: give them a
     /// moment, then stop.
-    pub(super) async fn stop(&mut self) {
+    async fn stop(&mut self) {
         if let Some(tx) = self.stop_tx.take() {
             let _ = tx.send(());
         }
@@ -97,6 +87,74 @@ impl HostServerTask {
     }
 }
 
+/// Where the host serves its nodes: a listener not yet served (the render's first
+/// scene), or the host service of the scene before, which the next one takes over (see
+/// [`ClusterMachine::next_scene`]).
+pub enum HostSocket {
+    /// Serve `Host` here.
+    Listen(TcpListener),
+    /// Already serving: the next scene begins on this service.
+    Serving(HostEndpoint),
+}
+
+/// The host service of a render, serving from its first scene to its last: refinement's
+/// pilot levels, then the render itself, each a session of its own on the same address.
+/// Dropped, it tells the nodes that the render is done, so that they stop whatever
+/// happened to the host.
+pub struct HostEndpoint {
+    service: HostService,
+    server: HostServerTask,
+}
+
+impl Drop for HostEndpoint {
+    fn drop(&mut self) {
+        self.service.lock().next_scene = false;
+        self.service.set_phase(Phase::Done);
+    }
+}
+
+impl HostEndpoint {
+    /// Serves `Host` on `listener` with the first scene's `state`.
+    async fn serve(state: HostState, opts: &DriveOptions, listener: TcpListener) -> Result<HostEndpoint, ClusterError> {
+        let service = HostService::new(state);
+        let (stop_tx, stop_rx) = tokio::sync::oneshot::channel::<()>();
+        let (health, health_service) = magg_plumbing::health::health_service();
+        health.set_serving::<HostServer<HostService>>().await;
+        let host_server = InterceptedService::new(
+            with_message_limits!(HostServer::new(service.clone())),
+            CheckToken { token: opts.faults.token.clone(), server: "host" },
+        );
+        // Nodes of this process reach the host without a socket (see magg_plumbing::transport).
+        let host_addr = listener.local_addr().map_err(ClusterError::Listener)?;
+        let in_process = opts.links.register(&host_addr.to_string(), host_server.clone());
+        let server = magg_plumbing::net::server()
+            .map_err(ClusterError::ServerTls)?
+            .add_service(health_service)
+            .add_service(host_server)
+            .serve_with_incoming_shutdown(magg_plumbing::net::nodelay_incoming(listener), async {
+                let _ = stop_rx.await;
+            });
+        let server =
+            HostServerTask { stop_tx: Some(stop_tx), task: Some(tokio::spawn(server)), _in_process: in_process };
+        Ok(HostEndpoint { service, server })
+    }
+
+    /// Stops serving (see [`HostServerTask::stop`]).
+    pub(super) async fn stop(&mut self) {
+        self.server.stop().await;
+    }
+}
+
+/// How a scene that another follows ended ([`ClusterMachine::next_scene`]).
+#[derive(Clone, Debug, Default)]
+pub struct SceneEnd {
+    /// Pairs each node traced, by node id.
+    pub pairs: Vec<u64>,
+    /// Nodes that heard that the next scene follows: those the next scene gathers (a
+    /// node lost in this one is not waited for again).
+    pub followers: u32,
+}
+
 /// The cluster, started and ready for the light pass: see the module doc.
 pub struct ClusterMachine {
     pub(super) rt: tokio::runtime::Handle,
@@ -104,7 +162,7 @@ pub struct ClusterMachine {
     pub(super) opts: DriveOptions,
     pub(super) forks: ForkSet,
     pub(super) service: HostService,
-    pub(super) server: HostServerTask,
+    pub(super) endpoint: HostEndpoint,
     pub(super) tiles: Vec<Subscreen>,
     /// The process's CPU seconds when the render began (for the emulation's CPU share).
     pub(super) cpu0: Option<f64>,
@@ -117,7 +175,6 @@ pub struct ClusterMachine {
     /// Refinement's pilot pairs shared with the nodes of this process, until the light
     /// pass ends.
     pub(super) kept_pairs: Option<magg_plumbing::transport::Sharing>,
-    _done_on_exit: DoneOnDrop,
 }
 
 /// The render's timeline at debug level (RUST_LOG=magg_host=debug): where the cluster's
@@ -127,13 +184,42 @@ pub(super) fn mark(started: Instant, what: &str) {
 }
 
 impl ClusterMachine {
-    /// Connects the forks, serves `Host` on `listener`, loads every fork's shard and waits
-    /// for the expected nodes (when `opts.gather`). `rt` is the runtime this future runs on.
+    /// Connects the forks, serves `Host` on `host` (or begins this scene on the service
+    /// of the scene before), loads every fork's shard and waits for the expected nodes
+    /// (when `opts.gather`). `rt` is the runtime this future runs on.
+    ///
+    /// `pilot`: this scene is one of refinement's pilot levels, whose point lights' pairs
+    /// the nodes trace through `pairs` (shared with the nodes of this process; a node of
+    /// another process keeps its own): run its light pass, then [`ClusterMachine::next_scene`].
     pub async fn start(
         prepared: &Arc<PreparedScene>,
         opts: &DriveOptions,
-        listener: TcpListener,
+        host: HostSocket,
         rt: tokio::runtime::Handle,
+    ) -> Result<ClusterMachine, ClusterError> {
+        Self::start_scene(prepared, opts, host, rt, None).await
+    }
+
+    /// [`ClusterMachine::start`] for one of refinement's pilot levels: its nodes trace
+    /// the point lights' pairs through `pairs` (shared with the nodes of this process; a
+    /// node of another process keeps its own over the render's levels). Run its light
+    /// pass, then [`ClusterMachine::next_scene`].
+    pub async fn start_pilot(
+        prepared: &Arc<PreparedScene>,
+        opts: &DriveOptions,
+        host: HostSocket,
+        rt: tokio::runtime::Handle,
+        pairs: Arc<magg_core::refine::KeptPairs>,
+    ) -> Result<ClusterMachine, ClusterError> {
+        Self::start_scene(prepared, opts, host, rt, Some(pairs)).await
+    }
+
+    async fn start_scene(
+        prepared: &Arc<PreparedScene>,
+        opts: &DriveOptions,
+        host: HostSocket,
+        rt: tokio::runtime::Handle,
+        pilot: Option<Arc<magg_core::refine::KeptPairs>>,
     ) -> Result<ClusterMachine, ClusterError> {
         let t_start = opts.started;
         let cpu0 = process_cpu_s();
@@ -159,11 +245,19 @@ impl ClusterMachine {
             node_key.clone(),
         );
 
-        // Refinement's pilot pairs, for the nodes of this process (see
-        // magg_core::refine::KeptPairs); shared until the light pass ends.
-        let kept_pairs = prepared.kept_pairs.take().and_then(|k| opts.links.share(k));
-        // Serve the host service.
-        let service = HostService::new(HostState {
+        // Refinement's pairs, for the nodes of this process (see
+        // magg_core::refine::KeptPairs); shared until the light pass ends. A pilot level
+        // traces them, the render's light pass bins those the pilots kept.
+        let pilot_pairs = match (&pilot, prepared.refinement.kept) {
+            (Some(_), _) => PilotPairs::Trace,
+            (None, true) => PilotPairs::Bin,
+            (None, false) => PilotPairs::None,
+        };
+        let kept_pairs = match pilot {
+            Some(pairs) => opts.links.share(pairs),
+            None => prepared.kept_pairs.take().and_then(|k| opts.links.share(k)),
+        };
+        let state = HostState {
             node_key,
             phase: Phase::Gather,
             nodes: Vec::new(),
@@ -179,29 +273,19 @@ impl ClusterMachine {
             events: opts.events.clone(),
             pairs_epoch: 0,
             kept_pairs: kept_pairs.as_ref().map_or(0, |k| k.key()),
-        });
-        let (stop_tx, stop_rx) = tokio::sync::oneshot::channel::<()>();
-        let (health, health_service) = magg_plumbing::health::health_service();
-        health.set_serving::<HostServer<HostService>>().await;
-        let host_server = InterceptedService::new(
-            with_message_limits!(HostServer::new(service.clone())),
-            CheckToken { token: opts.faults.token.clone(), server: "host" },
-        );
-        // Nodes of this process reach the host without a socket (see magg_plumbing::transport).
-        let host_addr = listener.local_addr().map_err(ClusterError::Listener)?;
-        let in_process = opts.links.register(&host_addr.to_string(), host_server.clone());
-        let server = magg_plumbing::net::server()
-            .map_err(ClusterError::ServerTls)?
-            .add_service(health_service)
-            .add_service(host_server)
-            .serve_with_incoming_shutdown(magg_plumbing::net::nodelay_incoming(listener), async {
-                let _ = stop_rx.await;
-            });
-        let server =
-            HostServerTask { stop_tx: Some(stop_tx), task: Some(tokio::spawn(server)), _in_process: in_process };
-        // However the render ends, nodes asking for work hear "done" and exit.
-        let done_on_exit = DoneOnDrop(service.clone());
-
+            pilot_pairs,
+            next_scene: false,
+            previous_key: None,
+        };
+        let endpoint = match host {
+            HostSocket::Listen(listener) => HostEndpoint::serve(state, opts, listener).await?,
+            HostSocket::Serving(endpoint) => {
+                endpoint.service.begin(state);
+                endpoint
+            }
+        };
+        let service = endpoint.service.clone();
+        mark(t_start, "host serving");
         // The shards load while the nodes register (they wait for the light pass).
         forks.load_all().await?;
         mark(t_start, "shards loaded");
@@ -232,14 +316,43 @@ impl ClusterMachine {
             opts: opts.clone(),
             forks,
             service,
-            server,
             cpu0,
             preprocess_wall,
             gather_s,
             busy: EmulatedBusy { preprocess_s: preprocess_model.as_secs_f64(), ..Default::default() },
             kept_pairs,
-            _done_on_exit: done_on_exit,
+            endpoint,
         })
+    }
+
+    /// Tells every node that this scene is done and waits (bounded) for their final
+    /// reports; a node silent for 2 s is not waited for.
+    pub(super) async fn done(&self) {
+        self.service.set_phase(Phase::Done);
+        let deadline = Instant::now() + Duration::from_secs(5);
+        while Instant::now() < deadline {
+            if self.service.lock().nodes.iter().all(|n| n.reported_or_gone(Duration::from_secs(2))) {
+                break;
+            }
+            self.service.wait_for(Duration::from_millis(5)).await;
+        }
+    }
+
+    /// Ends this scene with another of the render to follow (after a pilot level's light
+    /// pass): the nodes hear that the next scene follows, send their final reports and
+    /// register again with the next scene's [`ClusterMachine::start`], which takes the
+    /// host service returned here.
+    pub fn next_scene(self) -> (HostSocket, SceneEnd) {
+        self.service.lock().next_scene = true;
+        let rt = self.rt.clone();
+        rt.block_on(self.done());
+        let s = self.service.lock();
+        let end = SceneEnd {
+            pairs: s.nodes.iter().map(|n| n.report.pairs).collect(),
+            followers: s.nodes.iter().filter(|n| n.finished()).count() as u32,
+        };
+        drop(s);
+        (HostSocket::Serving(self.endpoint), end)
     }
 
     /// Whether the profile throttles (stage times are then modelled seconds).

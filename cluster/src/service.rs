@@ -7,6 +7,7 @@ use magg_core::blocks::home_fork_of_node;
 use magg_core::cluster::NodeReport;
 use magg_proto::v1::host_server::Host;
 use magg_proto::v1::next_work_reply::Kind;
+pub use magg_proto::v1::register_reply::PilotPairs;
 use magg_proto::v1::{
     self, NextWorkReply, NextWorkRequest, RegisterReply, RegisterRequest, SubmitRowsReply, SubmitRowsRequest,
 };
@@ -115,6 +116,15 @@ pub struct HostState {
     /// The key refinement's pilot pairs are shared under in this process, told to nodes
     /// at registration (0: none; see `magg_core::refine::KeptPairs`).
     pub kept_pairs: u64,
+    /// How this session's light pass treats the pilots' pairs, told to nodes at
+    /// registration.
+    pub pilot_pairs: PilotPairs,
+    /// Another scene of the render follows this session's (refinement's next level, or
+    /// the render after its pilots): DONE says so, and the nodes register again.
+    pub next_scene: bool,
+    /// The previous session's node key: a node of that session that asks for work late
+    /// hears that the next scene has begun.
+    pub previous_key: Option<magg_plumbing::auth::NodeKey>,
 }
 
 impl HostState {
@@ -170,6 +180,18 @@ impl HostService {
         }
     }
 
+    /// Begins the next scene of the render on this service: `state` replaces the last
+    /// scene's (its nodes register again; those of the last scene that ask for work late
+    /// hear that it is over and the next has begun). Events go where `state` says.
+    pub fn begin(&self, mut state: HostState) {
+        {
+            let mut s = self.lock();
+            state.previous_key = Some(s.node_key.clone());
+            *s = state;
+        }
+        self.bump();
+    }
+
     /// Wakes the nodes held waiting, to ask for their work again.
     pub fn bump(&self) {
         self.version.send_modify(|v| *v += 1);
@@ -202,13 +224,13 @@ impl HostService {
     /// that end a subscreen).
     fn assign(&self, s: &mut HostState, node: u32, phase: Phase) -> NextWorkReply {
         let epoch = s.pairs_epoch;
-        let wait = NextWorkReply { kind: Kind::Wait as i32, subscreen: None, wait_ms: WAIT_MS };
+        let wait = NextWorkReply { kind: Kind::Wait as i32, wait_ms: WAIT_MS, ..Default::default() };
         match phase {
             Phase::Lrt => match s.nodes.get_mut(node as usize) {
                 Some(e) if !e.told_pairs || e.pairs_epoch < epoch => {
                     e.told_pairs = true;
                     e.pairs_epoch = epoch;
-                    NextWorkReply { kind: Kind::Pairs as i32, subscreen: None, wait_ms: 0 }
+                    NextWorkReply { kind: Kind::Pairs as i32, ..Default::default() }
                 }
                 _ => wait,
             },
@@ -220,7 +242,7 @@ impl HostService {
                     NextWorkReply {
                         kind: Kind::Subscreen as i32,
                         subscreen: Some(v1::Subscreen { x: t.x, y: t.y, w: t.w, h: t.h, id, camera }),
-                        wait_ms: 0,
+                        ..Default::default()
                     }
                 }
                 Some(Next::Wait) | None => wait,
@@ -234,7 +256,7 @@ impl HostService {
                     e.told_done += 1;
                 }
                 self.changed.notify_one();
-                NextWorkReply { kind: Kind::Done as i32, subscreen: None, wait_ms: 0 }
+                NextWorkReply { kind: Kind::Done as i32, subscreen: None, wait_ms: 0, next_scene: s.next_scene }
             }
         }
     }
@@ -250,9 +272,27 @@ impl Host for HostService {
         if r.name.len() > MAX_NODE_NAME {
             return Err(HostError::NameTooLong.into());
         }
+        // Between two scenes of the render the call is held (up to LONG_POLL) until the
+        // next one begins.
+        let mut version = self.version.subscribe();
+        let deadline = Instant::now() + LONG_POLL;
+        loop {
+            version.borrow_and_update();
+            let between = {
+                let s = self.lock();
+                s.phase == Phase::Done && s.next_scene
+            };
+            let left = deadline.saturating_duration_since(Instant::now());
+            if !between {
+                break;
+            }
+            if left.is_zero() || !matches!(tokio::time::timeout(left, version.changed()).await, Ok(Ok(()))) {
+                return Err(HostError::NextScene.into());
+            }
+        }
         let mut s = self.lock();
         if s.phase == Phase::Done {
-            return Err(HostError::RenderOver.into());
+            return Err(if s.next_scene { HostError::NextScene } else { HostError::RenderOver }.into());
         }
         if s.nodes.len() >= MAX_NODES {
             return Err(HostError::TooManyNodes.into());
@@ -280,6 +320,7 @@ impl Host for HostService {
             scheme: s.scheme.clone(),
             node_secret: secret,
             kept_pairs: s.kept_pairs,
+            pilot_pairs: s.pilot_pairs as i32,
         }))
     }
 
@@ -289,6 +330,17 @@ impl Host for HostService {
         let deadline = Instant::now() + LONG_POLL;
         {
             let mut s = self.lock();
+            if !s.node_key.admits(r.node, r.node_secret)
+                && s.previous_key.as_ref().is_some_and(|k| k.admits(r.node, r.node_secret))
+            {
+                // A node of the last scene that missed its end: that scene is over.
+                s.rpcs += 1;
+                return Ok(Response::new(NextWorkReply {
+                    kind: Kind::Done as i32,
+                    next_scene: true,
+                    ..Default::default()
+                }));
+            }
             let entry = s.count_request(r.node, r.node_secret, prost::Message::encoded_len(&r))?;
             if let Some(rep) = &r.report {
                 entry.report = NodeReport::try_from(rep).map_err(HostError::Report)?;
@@ -362,5 +414,89 @@ impl Host for HostService {
             entry.link_bytes += reply_len;
         }
         Ok(Response::new(reply))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A scene's state: no node yet, in `phase`.
+    fn scene(phase: Phase) -> HostState {
+        HostState {
+            phase,
+            nodes: Vec::new(),
+            schedule: None,
+            header: v1::SceneHeader::default(),
+            fork_addrs: vec!["127.0.0.1:1".into()],
+            profile: String::new(),
+            scheme: "magg".into(),
+            node_key: magg_plumbing::auth::NodeKey::random(),
+            cache_blocks: magg_core::blocks::CacheSize::Unlimited,
+            link_bytes: 0,
+            rpcs: 0,
+            frame_camera: None,
+            events: None,
+            pairs_epoch: 0,
+            kept_pairs: 0,
+            pilot_pairs: PilotPairs::Trace,
+            next_scene: false,
+            previous_key: None,
+        }
+    }
+
+    fn register_request() -> Request<RegisterRequest> {
+        Request::new(RegisterRequest { protocol_version: PROTOCOL_VERSION, name: "n".into(), threads: 1 })
+    }
+
+    fn work(node: u32, node_secret: u64) -> Request<NextWorkRequest> {
+        Request::new(NextWorkRequest { node, report: None, node_secret })
+    }
+
+    #[tokio::test]
+    async fn between_two_scenes_a_node_is_told_to_register_again_and_a_late_one_that_the_scene_is_over() {
+        let host = HostService::new(scene(Phase::Lrt));
+        let first = host.register(register_request()).await.unwrap().into_inner();
+        assert_eq!(first.pilot_pairs, PilotPairs::Trace as i32);
+        // The pilot level ends with another scene to follow: DONE says so.
+        host.lock().next_scene = true;
+        host.set_phase(Phase::Done);
+        let done = host.next_work(work(first.node, first.node_secret)).await.unwrap().into_inner();
+        assert_eq!((done.kind, done.next_scene), (Kind::Done as i32, true));
+        // Registering before the next scene begins is held, then refused for a while.
+        let e = host.register(register_request()).await.unwrap_err();
+        assert_eq!(e.code(), tonic::Code::Unavailable);
+        assert_eq!(e.message(), magg_proto::NEXT_SCENE);
+        // A registration held while the next scene begins gets that scene.
+        let held = {
+            let host = host.clone();
+            tokio::spawn(async move { host.register(register_request()).await })
+        };
+        tokio::time::sleep(Duration::from_millis(20)).await;
+        let mut next = scene(Phase::Gather);
+        next.pilot_pairs = PilotPairs::Bin;
+        // The render's scene has a watcher (the live view); the pilot levels had none.
+        let (events, mut watcher) = tokio::sync::mpsc::unbounded_channel();
+        next.events = Some(events);
+        host.begin(next);
+        let again = held.await.unwrap().unwrap().into_inner();
+        assert_eq!((again.node, again.pilot_pairs), (0, PilotPairs::Bin as i32));
+        assert!(
+            matches!(watcher.try_recv(), Ok(ClusterEvent::Registered { node: 0, .. })),
+            "the watcher of the render's scene hears of its nodes"
+        );
+        assert_ne!(again.node_secret, first.node_secret, "each scene has a key of its own");
+        // The first scene's node 0, asking late under its old secret, hears that its scene
+        // is over, not an error; a secret of neither scene is refused.
+        let late = host.next_work(work(first.node, first.node_secret)).await.unwrap().into_inner();
+        assert_eq!((late.kind, late.next_scene), (Kind::Done as i32, true));
+        let e = host.next_work(work(0, first.node_secret ^ 1)).await.unwrap_err();
+        assert_eq!(e.code(), tonic::Code::PermissionDenied);
+        // The render's last scene ends: DONE without another, and registering is over.
+        host.set_phase(Phase::Done);
+        let done = host.next_work(work(again.node, again.node_secret)).await.unwrap().into_inner();
+        assert_eq!((done.kind, done.next_scene), (Kind::Done as i32, false));
+        let e = host.register(register_request()).await.unwrap_err();
+        assert_eq!(e.message(), magg_proto::RENDER_OVER);
     }
 }

@@ -288,7 +288,8 @@ pub fn trace_pairs_kept(
     // Whether refinement split each kept pair's element since the pilots (the pair then
     // deposits nothing, as `bin` says): the elements' records read first, a run of
     // blocks fetched ahead at a time, rather than one at a time between binnings.
-    let raws: Vec<Option<&RawPair>> = pairs.iter().map(|&(light, element)| kept.raw(light, element)).collect();
+    let raws: Vec<Option<std::sync::Arc<RawPair>>> =
+        pairs.iter().map(|&(light, element)| kept.raw(light, element)).collect();
     let header = view.header.clone();
     let mut split = vec![false; pairs.len()];
     view.in_prefetched_runs(
@@ -305,7 +306,7 @@ pub fn trace_pairs_kept(
     // Runs of pairs not kept are traced together (as trace_pairs_each would).
     let mut run = 0;
     for i in 0..=pairs.len() {
-        let binned = match raws.get(i).copied().flatten() {
+        let binned = match raws.get(i).and_then(Option::as_deref) {
             Some(_) if split[i] => Some(PairResult::default()),
             Some(raw) => Some(bin_leaf(view, raw)?),
             None => None,

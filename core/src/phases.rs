@@ -6,7 +6,8 @@
 //! comes between the passes (checking given energies, interpolating, timing the phases,
 //! handing frames to the sink, assembling [`RenderStats`]) lives here. A new pass (a
 //! second light pass) is added to [`run`] and to the trait; adaptive refinement runs its
-//! pilot passes while preparing the scene ([`crate::refine`]), before any machine.
+//! pilot passes while preparing the scene ([`crate::refine`]), before the render's
+//! machine starts its phases (a cluster runs each pilot level as a scene of its own).
 
 use crate::energy::{gather_vertices, interpolate, Fixed};
 use crate::machine::{FrameSink, Machine, PhaseTimes, RenderError, RenderOutput, Sequence, ViewPass};
@@ -131,6 +132,7 @@ pub fn run(
         work: Work { pairs, tiles, redivisions, light_rays: ops.light_rays, view_rays: ops.view_rays },
         plan: (&header.plan).into(),
         counts: header.counts,
+        refine: prepared.refinement.clone(),
         light: m.light,
         per_node: m.per_node,
         emulation: m.emulation,

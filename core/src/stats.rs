@@ -153,6 +153,29 @@ impl From<&EffectsPlan> for PlanSummary {
     }
 }
 
+/// Adaptive refinement (`[render] refine`, [`crate::refine`]): what its pilot light
+/// passes did, in preprocessing. All zero when the scene is not refined.
+#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+pub struct Refinement {
+    /// Pilot levels run.
+    pub levels: u32,
+    /// Elements split, each into four, over all levels.
+    pub split: u64,
+    /// Pairs the pilots' light passes handed out, over all levels (a pair traced at an
+    /// earlier level is binned from its kept deposits, not traced again).
+    pub pilot_pairs: u64,
+    /// Seconds of the pilots' light passes (part of preprocessing).
+    pub pilot_s: f64,
+    /// Where the pilots ran: `embedded` (this process's cores) or `nodes` (the
+    /// cluster's); empty when none ran.
+    pub pilots_on: String,
+    /// The most nodes (the embedded machine's threads) that traced pairs of one level.
+    pub pilot_nodes: u32,
+    /// The render's light pass carries the pilots' light: it bins the pairs they kept
+    /// instead of tracing them again.
+    pub kept: bool,
+}
+
 /// Everything a run reports.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct RenderStats {
@@ -182,6 +205,8 @@ pub struct RenderStats {
     pub plan: PlanSummary,
     /// Scene counts.
     pub counts: Counts,
+    /// Adaptive refinement's pilot passes.
+    pub refine: Refinement,
     /// Where the light went (W per channel).
     pub light: LrtTally,
     /// Per-node figures.

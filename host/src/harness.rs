@@ -5,11 +5,14 @@
 //! (encoded, intercepted, size-checked) without sockets, unless `--transport tcp`.
 
 use anyhow::Context;
-use magg_cluster::{ClusterMachine, DriveOptions, FaultPolicy};
+use magg_cluster::{ClusterMachine, DriveOptions, FaultPolicy, HostSocket};
 use magg_core::machine::{FrameSink, RenderOutput, Sequence};
+use magg_core::machine::{LightPass, Machine, RenderError};
 use magg_core::preprocess::PreparedScene;
 use magg_core::progress::Progress;
+use magg_core::refine::{KeptPairs, Pilots};
 use magg_plumbing::transport::{InProcess, Mode as TransportMode};
+use std::sync::Arc;
 use std::time::Duration;
 use tokio::net::TcpListener;
 
@@ -58,17 +61,29 @@ pub struct ClusterShape {
 /// A harness started ahead of its render: the async runtime, the forks of this process
 /// (serving, empty), the host's bound listener. `magg-host render` starts it on another
 /// thread while the scene is preprocessed (the paper's conclusion asks for preprocessing
-/// in parallel; the forks have nothing to wait for meanwhile). Dropped unused, it stops
-/// its forks.
+/// in parallel; the forks have nothing to wait for meanwhile), or first, when refinement's
+/// pilot passes run on it ([`StartedCluster::prepare`]). Dropped, it stops its forks, and
+/// its nodes hear that the render is done.
 pub struct StartedCluster {
-    rt: tokio::runtime::Runtime,
+    /// Taken only when dropped (see `Drop`): the node threads' calls run on it.
+    rt: Option<tokio::runtime::Runtime>,
     stop_tx: tokio::sync::broadcast::Sender<()>,
     fork_addrs: Vec<String>,
     fork_tasks: Vec<tokio::task::JoinHandle<Result<(), tonic::transport::Error>>>,
     _registrations: Vec<magg_plumbing::transport::Registration>,
     links: InProcess,
-    listener: TcpListener,
+    /// The listener, until the first scene serves on it; then that scene's host service.
+    host: Option<HostSocket>,
     host_addr: String,
+    /// The nodes of this process, each on a thread of its own, once started (the first
+    /// scene, a pilot level or the render, starts them; they stay for the render's scenes).
+    node_threads: Vec<std::thread::JoinHandle<Result<magg_node::NodeSummary, magg_node::NodeError>>>,
+    /// Whether the nodes of this process are pinned to cores.
+    pinned: bool,
+    /// The nodes that went on from the last scene to the next (a pilot level's
+    /// [`magg_cluster::SceneEnd::followers`]): the next scene gathers those, not the
+    /// nodes the render asked for, some of which may have been lost.
+    followers: Option<u32>,
 }
 
 impl StartedCluster {
@@ -121,102 +136,199 @@ impl StartedCluster {
         }
         tracing::info!("host serving nodes on {host_addr}, forks at {}", fork_addrs.join(","));
         Ok(StartedCluster {
-            rt,
+            rt: Some(rt),
             stop_tx,
             fork_addrs,
             fork_tasks,
             _registrations: registrations,
             links,
-            listener,
+            host: Some(HostSocket::Listen(listener)),
             host_addr,
+            node_threads: Vec::new(),
+            pinned: false,
+            followers: None,
         })
+    }
+
+    fn rt(&self) -> &tokio::runtime::Runtime {
+        self.rt.as_ref().expect("the runtime lives until the harness is dropped")
+    }
+
+    /// Starts the nodes of this process, unless they run already.
+    fn start_nodes(&mut self, opts: &InProcessOptions) -> anyhow::Result<()> {
+        if !self.node_threads.is_empty() || opts.nodes == 0 {
+            return Ok(());
+        }
+        // When the nodes are as many as the cores, node i is pinned to core i (see
+        // magg_core::placement).
+        let cores = magg_core::placement::worker_cores(opts.nodes as usize);
+        self.pinned = !cores.is_empty();
+        for i in 0..opts.nodes {
+            let cfg = magg_node::NodeConfig {
+                host: self.host_addr.clone(),
+                threads: 1,
+                cache_blocks: Some(opts.cache_blocks),
+                name: format!("in-process-{i}"),
+                backoff: magg_plumbing::retry::Backoff::default(),
+                row_delay: Duration::ZERO,
+                profile: None,
+                pair_delay: Duration::ZERO,
+                token: opts.faults.token.clone(),
+                cores: cores.get(i as usize).map(|&c| vec![c]).unwrap_or_default(),
+                links: self.links.clone(),
+            };
+            let handle = self.rt().handle().clone();
+            let thread = std::thread::Builder::new()
+                .name(format!("magg-node-{i}"))
+                .spawn(move || {
+                    // The host service registers for in-process calls when the first
+                    // scene starts serving: connect after that, not over the socket
+                    // before it.
+                    cfg.links.wait_registered(&cfg.host, Duration::from_secs(10));
+                    magg_node::run_with_runtime(handle, &cfg)
+                })
+                .context("starting node threads")?;
+            self.node_threads.push(thread);
+        }
+        Ok(())
+    }
+
+    /// How a scene of this render is driven: `events` go to a watcher (none for a
+    /// pilot level), the stats' total counts from `started`.
+    fn drive_options(
+        &self,
+        opts: &InProcessOptions,
+        events: Option<magg_cluster::events::EventSender>,
+        started: std::time::Instant,
+    ) -> DriveOptions {
+        DriveOptions {
+            forks: self.fork_addrs.clone(),
+            cache_blocks: opts.cache_blocks,
+            subscreen: opts.subscreen,
+            nodes: self.followers.filter(|&n| n > 0).unwrap_or(opts.nodes + opts.external_nodes),
+            // With a core each, nodes register within a fraction of a millisecond: the light
+            // pass need not wait for them (one that arrives late joins it). Many nodes on few
+            // cores are all waited for, so that they all take part.
+            gather: !opts.profile.is_native() || opts.external_nodes > 0 || !self.pinned,
+            stall_timeout: opts.stall_timeout,
+            profile: opts.profile.clone(),
+            scheme: opts.scheme,
+            events,
+            faults: opts.faults.clone(),
+            started,
+            links: self.links.clone(),
+        }
+    }
+
+    /// Prepares `scene` with `plan` ([`magg_core::refine::prepare_with`]), refinement's
+    /// pilot light passes run on this cluster's nodes: each level a scene of its own
+    /// on the forks and the host service, the nodes registering for each.
+    pub fn prepare(
+        &mut self,
+        scene: &magg_core::scene::Scene,
+        plan: magg_core::plan::EffectsPlan,
+        opts: &InProcessOptions,
+    ) -> anyhow::Result<PreparedScene> {
+        let mut pilots = ClusterPilots { cluster: self, opts, nodes: 0 };
+        Ok(magg_core::refine::prepare_with(scene, plan, &mut pilots)?)
+    }
+}
+
+/// Refinement's pilot light passes on the harness's nodes.
+struct ClusterPilots<'a> {
+    cluster: &'a mut StartedCluster,
+    opts: &'a InProcessOptions,
+    /// Nodes that traced pairs of the last level.
+    nodes: u32,
+}
+
+impl ClusterPilots<'_> {
+    fn light_pass(
+        &mut self,
+        pilot: &Arc<PreparedScene>,
+        pairs: &Arc<magg_core::refine::KeptPairs>,
+    ) -> anyhow::Result<LightPass> {
+        let c = &mut *self.cluster;
+        c.start_nodes(self.opts)?;
+        let host = c.host.take().context("the host service was lost to an earlier failure")?;
+        let drive = c.drive_options(self.opts, None, std::time::Instant::now());
+        let rt = c.rt().handle().clone();
+        let mut machine = rt.block_on(ClusterMachine::start_pilot(pilot, &drive, host, rt.clone(), pairs.clone()))?;
+        let light = machine.light_pass(&magg_core::progress::NoProgress)?;
+        let (host, end) = machine.next_scene();
+        tracing::debug!(pairs = ?end.pairs, "pilot level: pairs traced per node");
+        c.host = Some(host);
+        c.followers = Some(end.followers);
+        self.nodes = end.pairs.iter().filter(|&&p| p > 0).count() as u32;
+        Ok(light)
+    }
+}
+
+impl Pilots for ClusterPilots<'_> {
+    fn light_pass(&mut self, pilot: &Arc<PreparedScene>, pairs: &Arc<KeptPairs>) -> Result<LightPass, RenderError> {
+        ClusterPilots::light_pass(self, pilot, pairs).map_err(|e| RenderError::Machine(e.into()))
+    }
+
+    fn place(&self) -> &'static str {
+        "nodes"
+    }
+
+    fn nodes(&self) -> u32 {
+        self.nodes
+    }
+}
+
+impl Drop for StartedCluster {
+    fn drop(&mut self) {
+        // The host service goes first: its nodes hear that the render is done.
+        drop(self.host.take());
+        let _ = self.stop_tx.send(());
+        let threads = std::mem::take(&mut self.node_threads);
+        if threads.is_empty() {
+            return;
+        }
+        // Nodes may still be starting, or retrying a host that is gone; they end on their
+        // own (retry deadline). The runtime they run on must outlive them (a timer made on
+        // a runtime being shut down panics), so it is dropped on a thread of its own once
+        // they have ended.
+        let rt = self.rt.take();
+        let _ = std::thread::Builder::new().name("magg-host-cleanup".into()).spawn(move || {
+            for t in threads {
+                let _ = t.join();
+            }
+            drop(rt);
+        });
     }
 }
 
 impl StartedCluster {
-    /// Runs the render on this cluster: starts the nodes, drives the phases, stops
-    /// everything. The stats' total counts from `started` (the end of preprocessing, or
-    /// earlier).
+    /// Runs the render on this cluster: starts the nodes (unless its pilot levels did),
+    /// drives the phases, stops everything. The stats' total counts from `started` (the
+    /// end of preprocessing, or earlier).
     pub fn render(
-        self,
+        mut self,
         prepared: &std::sync::Arc<PreparedScene>,
         opts: &InProcessOptions,
         started: std::time::Instant,
         progress: &dyn Progress,
         sink: &mut FrameSink<'_>,
     ) -> anyhow::Result<RenderOutput> {
-        let StartedCluster { rt, stop_tx, fork_addrs, fork_tasks, _registrations, links, listener, host_addr } = self;
-        // Nodes, each on a thread of its own. When they are as many as the cores, node i
-        // is pinned to core i (see magg_core::placement).
-        let cores = magg_core::placement::worker_cores(opts.nodes as usize);
-        let node_threads: Vec<_> = (0..opts.nodes)
-            .map(|i| {
-                let cfg = magg_node::NodeConfig {
-                    host: host_addr.clone(),
-                    threads: 1,
-                    cache_blocks: Some(opts.cache_blocks),
-                    name: format!("in-process-{i}"),
-                    backoff: magg_plumbing::retry::Backoff::default(),
-                    row_delay: Duration::ZERO,
-                    profile: None,
-                    pair_delay: Duration::ZERO,
-                    token: opts.faults.token.clone(),
-                    cores: cores.get(i as usize).map(|&c| vec![c]).unwrap_or_default(),
-                    links: links.clone(),
-                };
-                let handle = rt.handle().clone();
-                std::thread::Builder::new().name(format!("magg-node-{i}")).spawn(move || {
-                    // The host service registers for in-process calls when `drive` starts
-                    // serving: connect after that, not over the socket before it.
-                    cfg.links.wait_registered(&cfg.host, Duration::from_secs(10));
-                    magg_node::run_with_runtime(handle, &cfg)
-                })
-            })
-            .collect::<Result<_, _>>()
-            .context("starting node threads")?;
-
-        let drive_opts = DriveOptions {
-            forks: fork_addrs,
-            cache_blocks: opts.cache_blocks,
-            subscreen: opts.subscreen,
-            nodes: opts.nodes + opts.external_nodes,
-            // With a core each, nodes register within a fraction of a millisecond: the light
-            // pass need not wait for them (one that arrives late joins it). Many nodes on few
-            // cores are all waited for, so that they all take part.
-            gather: !opts.profile.is_native() || opts.external_nodes > 0 || cores.is_empty(),
-            stall_timeout: opts.stall_timeout,
-            profile: opts.profile.clone(),
-            scheme: opts.scheme,
-            events: opts.events.clone(),
-            faults: opts.faults.clone(),
-            started,
-            links,
-        };
+        self.start_nodes(opts)?;
+        let host = self.host.take().context("the host service was lost to an earlier failure")?;
+        let drive_opts = self.drive_options(opts, opts.events.clone(), started);
         // The phases run on this thread; the machine's passes run on the runtime.
-        let result = rt
-            .block_on(ClusterMachine::start(prepared, &drive_opts, listener, rt.handle().clone()))
+        let rt = self.rt().handle().clone();
+        let out = rt
+            .block_on(ClusterMachine::start(prepared, &drive_opts, host, rt.clone()))
             .map_err(anyhow::Error::from)
             .and_then(|mut machine| {
                 magg_core::phases::run(&mut machine, prepared, &opts.sequence, progress, sink)
                     .map_err(anyhow::Error::from)
-            });
-        if result.is_err() {
-            // The render failed: its nodes may still be starting, or retrying a host that is
-            // gone. Stop the forks and report; the node threads end on their own (retry
-            // deadline). The runtime they run on must outlive them (a timer made on a
-            // runtime being shut down panics), so it is dropped on a thread of its own once
-            // they have ended.
-            let _ = stop_tx.send(());
-            let _ = std::thread::Builder::new().name("magg-host-cleanup".into()).spawn(move || {
-                for t in node_threads {
-                    let _ = t.join();
-                }
-                drop(rt);
-            });
-            return result;
-        }
+            })?;
+        // (A failed render returned above: dropping the harness stops its forks and
+        // lets its nodes go.)
         let mut node_err = None;
-        for t in node_threads {
+        for t in std::mem::take(&mut self.node_threads) {
             match t.join() {
                 Ok(Ok(_)) => {}
                 // Nodes join as they register: one that came after the end had nothing to do.
@@ -225,14 +337,13 @@ impl StartedCluster {
                 Err(_) => node_err = node_err.or(Some(anyhow::anyhow!("a node thread panicked"))),
             }
         }
-        let _ = stop_tx.send(());
-        for t in fork_tasks {
+        let _ = self.stop_tx.send(());
+        for t in std::mem::take(&mut self.fork_tasks) {
             let abort = t.abort_handle();
             if rt.block_on(async { tokio::time::timeout(Duration::from_secs(1), t).await }).is_err() {
                 abort.abort();
             }
         }
-        let out = result?;
         if let Some(e) = node_err {
             return Err(e.context("a node failed"));
         }

@@ -8,14 +8,16 @@ use crate::work::Worker;
 use crate::NodeError;
 use magg_core::blocks::{BlockCache, BlockSource, CacheSize};
 use magg_core::header::SceneHeader;
+use magg_core::refine::KeptPairs;
 use magg_core::view::SceneView;
-use magg_plumbing::auth::{AddToken, Token};
+use magg_plumbing::auth::{AddToken, Authed, Token};
 use magg_plumbing::retry::Backoff;
 use magg_plumbing::transport::InProcess;
 use magg_proto::convert::cache_size_from_wire;
 use magg_proto::v1::fork_client::ForkClient;
 use magg_proto::v1::host_client::HostClient;
-use magg_proto::v1::RegisterRequest;
+use magg_proto::v1::register_reply::PilotPairs;
+use magg_proto::v1::{RegisterReply, RegisterRequest};
 use magg_proto::PROTOCOL_VERSION;
 use magg_throttle::{Profile, Scheme};
 use prost::Message;
@@ -100,22 +102,80 @@ pub fn run(cfg: &NodeConfig) -> Result<NodeSummary, NodeError> {
 
 /// Runs a node whose RPCs go through `rt`. Must be called from a thread that is not one
 /// of the runtime's (the kernels block on it).
+///
+/// A render may be several scenes on one host (refinement's pilot levels, then the
+/// render): the node registers for each, until the host's DONE says no other follows.
+/// The pairs it traced for the pilots are kept over those scenes (where its process
+/// shares none: see [`magg_core::refine::KeptPairs`]).
 pub fn run_with_runtime(rt: Handle, cfg: &NodeConfig) -> Result<NodeSummary, NodeError> {
     let channel = rt.block_on(connect_with_backoff(&cfg.links, &cfg.host, cfg.backoff))?;
     let auth = AddToken(cfg.token.clone());
-    let mut host = magg_plumbing::with_message_limits!(HostClient::with_interceptor(channel, auth.clone()));
+    let host = magg_plumbing::with_message_limits!(HostClient::with_interceptor(channel, auth.clone()));
+    let own_pairs = Arc::new(KeptPairs::default());
+    let mut summary = NodeSummary::default();
+    loop {
+        let reg = register(&rt, host.clone(), cfg)?;
+        let scene = run_scene(&rt, cfg, host.clone(), &auth, reg, &own_pairs)?;
+        summary.node = scene.node;
+        summary.pairs += scene.pairs;
+        summary.tiles += scene.tiles;
+        if !scene.next_scene {
+            return Ok(summary);
+        }
+        tracing::debug!(node = scene.node, "the render goes on with another scene: registering again");
+    }
+}
+
+/// Registers with the host, asking again (with backoff) while it prepares the next
+/// scene of its render.
+fn register(rt: &Handle, mut host: HostClient<Authed>, cfg: &NodeConfig) -> Result<RegisterReply, NodeError> {
     let req =
         RegisterRequest { protocol_version: PROTOCOL_VERSION, name: cfg.name.clone(), threads: cfg.threads.max(1) };
-    // A listener that accepts and never answers (not a magg-host) is given up on at the
-    // connection deadline, naming it.
-    let reg = rt
-        .block_on(async { tokio::time::timeout(cfg.backoff.deadline, host.register(req)).await })
-        .map_err(|_| NodeError::Connect {
-            addr: cfg.host.clone(),
-            reason: format!("no answer to Register within {:?} (is it a magg-host?)", cfg.backoff.deadline),
-        })?
-        .map_err(NodeError::rpc("Register"))?
-        .into_inner();
+    let t0 = std::time::Instant::now();
+    let mut delay = cfg.backoff.initial;
+    loop {
+        // A listener that accepts and never answers (not a magg-host) is given up on at
+        // the connection deadline, naming it.
+        let reply = rt
+            .block_on(async { tokio::time::timeout(cfg.backoff.deadline, host.register(req.clone())).await })
+            .map_err(|_| NodeError::Connect {
+                addr: cfg.host.clone(),
+                reason: format!("no answer to Register within {:?} (is it a magg-host?)", cfg.backoff.deadline),
+            })?;
+        match reply {
+            Ok(r) => return Ok(r.into_inner()),
+            Err(status)
+                if status.code() == tonic::Code::Unavailable
+                    && status.message() == magg_proto::NEXT_SCENE
+                    && t0.elapsed() < cfg.backoff.deadline =>
+            {
+                std::thread::sleep(delay);
+                delay = (delay * 2).min(cfg.backoff.max);
+            }
+            Err(status) => return Err(NodeError::rpc("Register")(status)),
+        }
+    }
+}
+
+/// What a node did in one scene.
+struct SceneSummary {
+    node: u32,
+    pairs: u64,
+    tiles: u64,
+    /// The host said that another scene of the render follows.
+    next_scene: bool,
+}
+
+/// Runs the workers on the scene of registration `reg` until the host says done.
+fn run_scene(
+    rt: &Handle,
+    cfg: &NodeConfig,
+    host: HostClient<Authed>,
+    auth: &AddToken,
+    reg: RegisterReply,
+    own_pairs: &Arc<KeptPairs>,
+) -> Result<SceneSummary, NodeError> {
+    let rt = rt.clone();
     let profile = if reg.profile.is_empty() {
         Profile::native()
     } else {
@@ -154,11 +214,19 @@ pub fn run_with_runtime(rt: Handle, cfg: &NodeConfig) -> Result<NodeSummary, Nod
     let totals = Arc::new(Totals::new(threads).paced(pace.clone()));
     tracing::info!(node = reg.node, home, threads, ?cache_blocks, "registered with {}", cfg.host);
     let overlap = crate::work::overlap_pays(pace.is_some(), &cfg.links, &reg.fork_addrs);
-    // Refinement's pilot pairs, where the host runs in this process and shares them.
-    let kept_pairs = (reg.kept_pairs != 0)
+    // Refinement's pairs: those the host of this process shares, or else this node's own.
+    let pilot_pairs = PilotPairs::try_from(reg.pilot_pairs).unwrap_or(PilotPairs::None);
+    let shared = (reg.kept_pairs != 0)
         .then(|| cfg.links.shared(reg.kept_pairs))
         .flatten()
-        .and_then(|v| v.downcast::<magg_core::refine::KeptPairs>().ok());
+        .and_then(|v| v.downcast::<KeptPairs>().ok());
+    let kept_pairs = match pilot_pairs {
+        PilotPairs::None => None,
+        PilotPairs::Trace => Some(shared.unwrap_or_else(|| own_pairs.clone())),
+        // Nothing to bin where this node traced no pilot pair.
+        PilotPairs::Bin => shared.or_else(|| (!own_pairs.is_empty()).then(|| own_pairs.clone())),
+    };
+    let pilot = pilot_pairs == PilotPairs::Trace;
 
     let handles: Vec<_> = (0..threads)
         .map(|index| {
@@ -201,6 +269,7 @@ pub fn run_with_runtime(rt: Handle, cfg: &NodeConfig) -> Result<NodeSummary, Nod
                 vrt: Default::default(),
                 fetching,
                 kept_pairs: kept_pairs.clone(),
+                pilot,
             };
             let cores = cfg.cores.clone();
             std::thread::Builder::new()
@@ -214,16 +283,16 @@ pub fn run_with_runtime(rt: Handle, cfg: &NodeConfig) -> Result<NodeSummary, Nod
                 .map_err(|e| NodeError::Worker(e.to_string()))
         })
         .collect::<Result<_, _>>()?;
-    let mut first_err = None;
+    let (mut first_err, mut next_scene) = (None, false);
     for h in handles {
-        let r = h.join().unwrap_or_else(|_| Err(NodeError::Worker("a worker panicked".into())));
-        if let (Err(e), None) = (r, &first_err) {
-            first_err = Some(e);
+        match h.join().unwrap_or_else(|_| Err(NodeError::Worker("a worker panicked".into()))) {
+            Ok(next) => next_scene |= next,
+            Err(e) => first_err = first_err.or(Some(e)),
         }
     }
     if let Some(e) = first_err {
         return Err(e);
     }
     let s = totals.sum();
-    Ok(NodeSummary { node: reg.node, pairs: s.pairs, tiles: s.tiles })
+    Ok(SceneSummary { node: reg.node, pairs: s.pairs, tiles: s.tiles, next_scene })
 }

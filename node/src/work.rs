@@ -10,7 +10,7 @@ use crate::timing::PassTimes;
 use crate::NodeError;
 use magg_core::camera::CameraRig;
 use magg_core::cluster::PairLease;
-use magg_core::lrt::trace_pairs_kept;
+use magg_core::lrt::{trace_pairs_kept, PairResult};
 use magg_core::trace::TraceScratch;
 use magg_core::view::SceneView;
 use magg_core::vrt::{shade_pixels, Subscreen};
@@ -115,9 +115,12 @@ pub struct Worker {
     pub vrt: PassTimes,
     /// Nanoseconds its block cache has spent fetching blocks so far.
     pub fetching: Arc<std::sync::atomic::AtomicU64>,
-    /// Refinement's pilot pairs, shared by a host of this process: binned instead of
-    /// traced during the light pass, dropped when the viewing pass begins.
+    /// Refinement's pairs of point lights ([`magg_core::refine::KeptPairs`]): traced
+    /// through it in a pilot level (`pilot`), binned from it where kept in the render's
+    /// light pass; dropped when the viewing pass begins.
     pub kept_pairs: Option<Arc<magg_core::refine::KeptPairs>>,
+    /// This scene is one of refinement's pilot levels: pairs go through `kept_pairs`.
+    pub pilot: bool,
 }
 
 /// Whether a node gains by overlapping communication with tracing: when a link is
@@ -149,8 +152,9 @@ impl Worker {
         self.totals.set(self.index, self.mine);
     }
 
-    /// Asks the host for work until it says done.
-    pub fn run(mut self) -> Result<(), NodeError> {
+    /// Asks the host for work until it says done; returns whether the host said that
+    /// another scene of the render follows.
+    pub fn run(mut self) -> Result<bool, NodeError> {
         let mut handed: Option<v1::NextWorkReply> = None;
         loop {
             self.publish();
@@ -210,7 +214,7 @@ impl Worker {
                         node_secret: self.secret,
                     };
                     let _ = self.rt.block_on(host.next_work(req));
-                    return Ok(());
+                    return Ok(reply.next_scene);
                 }
             }
         }
@@ -300,7 +304,7 @@ impl Worker {
             let (layout, forks) = (self.view.header.layout, self.forks.len());
             let owner_of = |e: u32| element_owner(&layout, forks, e);
             let (delay, mine) = (self.pair_delay, &mut self.mine);
-            trace_pairs_kept(&mut self.view, &mut scratch, &leased, self.kept_pairs.as_deref(), |i, r| {
+            let each = |i: usize, r: PairResult| {
                 let (pair, (_, element)) = (got.pairs[i], leased[i]);
                 if !delay.is_zero() {
                     std::thread::sleep(delay);
@@ -309,7 +313,11 @@ impl Worker {
                 mine.tally = mine.tally.add(r.tally);
                 (traced, deposited) = (traced + 1, deposited + r.deposits.len() as u64);
                 rounds.add(pair, owner_of(element), r.deposits, owner_of);
-            })?;
+            };
+            match (&self.kept_pairs, self.pilot) {
+                (Some(store), true) => store.trace_each(&mut self.view, &mut scratch, &leased, each)?,
+                (kept, _) => trace_pairs_kept(&mut self.view, &mut scratch, &leased, kept.as_deref(), each)?,
+            }
             self.compute();
             let (round1, round2) = rounds.into_writers();
             let t = PassTimes::lap(&mut times.tracing, t);

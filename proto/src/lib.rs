@@ -27,12 +27,19 @@ pub mod v1 {
 /// The host's answer (`UNAVAILABLE`) to a node that registers after the render ended.
 pub const RENDER_OVER: &str = "the render is over: this host takes no more nodes";
 
+/// The host's answer (`UNAVAILABLE`) to a node that registers between two scenes of one
+/// render (refinement's pilot levels, then the render): the node registers again shortly.
+pub const NEXT_SCENE: &str = "the host is preparing the next scene of the render: register again";
+
 /// A fork's answer (`UNAVAILABLE`) to any call but `LoadShard` before it holds a shard: it
 /// has just started or restarted. Callers retry; the host, seeing it from a fork it had
 /// loaded, knows the fork restarted and loads it again.
 pub const NOT_LOADED: &str = "no scene loaded";
 
 /// Version of the protocol; processes with another version are refused at registration.
+/// 13: a registration says whether its session is one of refinement's pilot light passes
+/// or a light pass that bins the pilots' kept pairs (`pilot_pairs`), and a DONE may say
+/// that another scene of the render follows (`next_scene`: the node registers again);
 /// 12: a registration may carry the key of refinement's pilot pairs shared in the
 /// host's process (`kept_pairs`); 11: render settings carry `gather_rays` (gather rays per viewing ray beside unlit elements), and a
 /// vertex-energy record's first channel its gather mark (sign bit); 10: render settings carry `bounce_rays` (bounce rays per light ray); 9: BVH node records hold four children (16 records per node block), patch records
@@ -49,4 +56,4 @@ pub const NOT_LOADED: &str = "no scene loaded";
 /// replies carry the ledger's digests, checked by the host before it interpolates; 3: a
 /// batch's deposits on a fork are packed arrays and may carry the next `TakePairs`
 /// ([`deposits`]); 2: packed deposits per pair, `Replay` names the lost fork.
-pub const PROTOCOL_VERSION: u32 = 12;
+pub const PROTOCOL_VERSION: u32 = 13;

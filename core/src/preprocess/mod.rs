@@ -133,6 +133,8 @@ pub struct PreparedScene {
     /// it carries exactly the pilots' light ([`crate::refine::KeptPairs`]); empty
     /// otherwise.
     pub kept_pairs: crate::refine::KeptSlot,
+    /// What refinement's pilot passes did (all zero without refinement).
+    pub refinement: crate::stats::Refinement,
     /// Operations preprocessing did (for the throttling layer's cost model).
     pub ops: PrepareOps,
 }
@@ -252,5 +254,6 @@ fn prepare_here(
         splits: splits.to_vec(),
         preprocess_s: start.elapsed().as_secs_f64(),
         kept_pairs: Default::default(),
+        refinement: Default::default(),
     })
 }

@@ -4,26 +4,27 @@
 //! one element of blur is too much, so those elements are split in four on their patch's
 //! lattice and the light pass is run on the finer elements.
 //!
-//! [`prepare`] does it as part of preprocessing: it prepares the scene, runs a pilot light
-//! pass on this process's cores (the embedded machine: the same energies, bit for bit, as
-//! any cluster would compute) with the light that makes edges (direct light and light via
-//! mirrors and glass; diffuse bounces are smooth), chooses the elements to split
+//! [`prepare_with`] does it as part of preprocessing: it prepares the scene, runs a pilot
+//! light pass with the light that makes edges (direct light and light via mirrors and
+//! glass; diffuse bounces are smooth) on the machine its [`Pilots`] name (this process's
+//! cores for [`prepare`]; a cluster's nodes for `magg-host`, each level a scene of the
+//! cluster's own: the same energies, bit for bit), chooses the elements to split
 //! ([`choose`]), prepares the scene again with them split, and repeats up to
 //! `[render] refine` times. A pilot traces each pair once: refinement splits diffuse
 //! elements and leaves every other element, and so every pair's rays, as they were, so
 //! a pair's deposits are kept raw (where in which lattice element) and binned again to
-//! the leaves at each level (`pairs::PilotPairs`); only the new elements' pairs are traced.
-//! The result is
-//! an ordinary prepared scene whose split elements are elements like any other: they get
-//! owners, pairs and vertex-energy blocks, so the final render runs unchanged in the
-//! embedded renderer and in the cluster, the same bits in every shape.
+//! the leaves at each level ([`KeptPairs`]); only the new elements' pairs are traced.
+//! The result is an ordinary prepared scene whose split elements are elements like any
+//! other: they get owners, pairs and vertex-energy blocks, so the final render runs
+//! unchanged in the embedded renderer and in the cluster, the same bits in every shape.
 //!
 //! Where the render's light pass carries exactly the pilots' light (no diffuse bounce,
 //! the same effects plan), its pairs are the last pilot's and those of the elements the
 //! last level split: the pilots' raw pairs are then kept with the prepared scene
-//! ([`KeptPairs`]), and the light pass bins them instead of tracing them again
-//! ([`crate::lrt::trace_pairs_kept`]), in the embedded renderer and on the cluster's
-//! nodes of the host's process; only the new elements' pairs are traced. The result is
+//! ([`KeptPairs`], [`crate::stats::Refinement::kept`]), and the light pass bins them
+//! instead of tracing them again ([`crate::lrt::trace_pairs_kept`]): in the embedded
+//! renderer and on the cluster's nodes of the host's process all of them, on a node of
+//! a process of its own those it traced itself; the others are traced. The result is
 //! the same, bit for bit, as tracing every pair.
 //!
 //! ```
@@ -40,30 +41,76 @@
 
 use crate::color::Rgb;
 use crate::energy::{element_irradiance, interpolate, Fixed};
-use crate::machine::RenderError;
+use crate::machine::{LightPass, RenderError};
 use crate::plan::EffectsPlan;
 use crate::preprocess::{prepare_split, PreparedScene};
 use crate::progress::NoProgress;
 use crate::render::{EmbeddedMachine, RenderOptions};
 use crate::scene::Scene;
+use crate::stats::Refinement;
 use crate::trace::TraceScratch;
 use crate::view::SceneView;
 use std::sync::Arc;
 use std::time::Instant;
 
 mod pairs;
-use pairs::PilotPairs;
 pub use pairs::{KeptPairs, KeptSlot};
 
 /// Most levels of refinement (`[render] refine`).
 pub const MAX_LEVELS: u32 = 6;
 
-/// Prepares `scene` with `plan`, refined `scene.settings.refine` times (see the module
-/// doc); preprocessing time includes the pilot passes.
+/// Where refinement's pilot light passes run: this process's cores ([`EmbeddedPilots`],
+/// what [`prepare`] uses), or a cluster's nodes (the host's, which runs each level as a
+/// session of the cluster). Wherever they run, a level's energies are the same bits.
+pub trait Pilots {
+    /// The light pass of one pilot level on `pilot` (the scene prepared with the pilots'
+    /// plan and the splits so far), its point lights' pairs traced through `pairs`
+    /// ([`KeptPairs::trace`]: each traced once over the levels).
+    fn light_pass(&mut self, pilot: &Arc<PreparedScene>, pairs: &Arc<KeptPairs>) -> Result<LightPass, RenderError>;
+
+    /// Where they run, for the stats: `embedded` or `nodes`.
+    fn place(&self) -> &'static str;
+
+    /// How many nodes traced pairs of the last level (the embedded machine's threads).
+    fn nodes(&self) -> u32;
+}
+
+/// Pilots on this process's cores: the embedded machine with its default options.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct EmbeddedPilots;
+
+impl Pilots for EmbeddedPilots {
+    fn light_pass(&mut self, pilot: &Arc<PreparedScene>, pairs: &Arc<KeptPairs>) -> Result<LightPass, RenderError> {
+        let trace = |view: &mut SceneView, scratch: &mut TraceScratch, batch: &[(u32, u32)]| {
+            let mut results = Vec::with_capacity(batch.len());
+            pairs.trace_each(view, scratch, batch, |_, r| results.push(r))?;
+            Ok(results)
+        };
+        EmbeddedMachine::new(pilot, &RenderOptions::default()).light_pass_with(&trace, &NoProgress)
+    }
+
+    fn place(&self) -> &'static str {
+        "embedded"
+    }
+
+    fn nodes(&self) -> u32 {
+        RenderOptions::default().node_count()
+    }
+}
+
+/// Prepares `scene` with `plan`, refined `scene.settings.refine` times with pilots on
+/// this process's cores (see the module doc); preprocessing time includes the pilot
+/// passes.
 pub fn prepare(scene: &Scene, plan: EffectsPlan) -> Result<PreparedScene, RenderError> {
+    prepare_with(scene, plan, &mut EmbeddedPilots)
+}
+
+/// [`prepare`] with the pilot light passes run by `pilots`.
+pub fn prepare_with(scene: &Scene, plan: EffectsPlan, pilots: &mut dyn Pilots) -> Result<PreparedScene, RenderError> {
     let start = Instant::now();
     let mut splits: Vec<Vec<u32>> = Vec::new();
     let mut kept = None;
+    let mut figures = Refinement::default();
     if scene.settings.refine > 0 {
         // The pilot carries the light that makes edges: direct light from the lights and
         // light via mirrors and glass. Diffuse interreflection is smooth (and noisy in a
@@ -71,33 +118,39 @@ pub fn prepare(scene: &Scene, plan: EffectsPlan) -> Result<PreparedScene, Render
         let mut pilot_scene = scene.clone();
         pilot_scene.settings.diffuse_bounces = 0;
         let pilot_plan = EffectsPlan::for_scene(&pilot_scene);
-        let pairs = PilotPairs::default();
+        let pairs = Arc::new(KeptPairs::default());
         // The render's light pass carries the pilots' light when the scene has no
         // diffuse bounce to drop and the plan is the pilots'.
         let keep = scene.settings.diffuse_bounces == 0 && plan == pilot_plan;
         for _ in 0..scene.settings.refine.min(MAX_LEVELS) {
-            let pilot = prepare_split(&pilot_scene, pilot_plan.clone(), &splits)?;
+            let pilot = Arc::new(prepare_split(&pilot_scene, pilot_plan.clone(), &splits)?);
             if !pilot.header.plan.lrt {
                 break;
             }
-            let trace = |view: &mut SceneView, scratch: &mut TraceScratch, batch: &[(u32, u32)]| {
-                batch.iter().map(|&(light, element)| pairs.trace(view, scratch, light, element)).collect()
-            };
-            let light = EmbeddedMachine::new(&pilot, &RenderOptions::default()).light_pass_with(&trace, &NoProgress)?;
+            let t = Instant::now();
+            let light = pilots.light_pass(&pilot, &pairs)?;
+            figures.levels += 1;
+            figures.pilot_pairs += light.pairs;
+            figures.pilot_s += t.elapsed().as_secs_f64();
+            figures.pilot_nodes = figures.pilot_nodes.max(pilots.nodes());
             let room = scene.settings.max_elements.saturating_sub(pilot.elements.len() as u64) / 4;
             let split = choose(scene, &pilot, &light.element_flux, room as usize);
             if split.is_empty() {
                 break;
             }
+            figures.split += split.len() as u64;
             splits.push(split);
         }
+        figures.pilots_on = pilots.place().to_string();
+        figures.kept = keep;
         if keep {
-            kept = Some(Arc::new(pairs.into_kept()));
+            kept = Some(pairs);
         }
     }
     let mut prepared = prepare_split(scene, plan, &splits)?;
     prepared.preprocess_s = start.elapsed().as_secs_f64();
     prepared.kept_pairs = KeptSlot::new(kept.filter(|k| !k.is_empty()));
+    prepared.refinement = figures;
     Ok(prepared)
 }
 

@@ -1,13 +1,13 @@
-//! The pilots' pairs of point lights, traced once and kept raw ([`PilotPairs`] while the
-//! pilots run, [`KeptPairs`] for the render's light pass), in a table indexed by light
-//! and element id: no hashing, and the table is split into [`SHARDS`] by element id so
-//! that the node threads of a pilot seldom wait for one another.
+//! Refinement's pairs of point lights, traced once and kept raw ([`KeptPairs`]), in a
+//! table indexed by light and element id: no hashing, and the table is split into
+//! [`SHARDS`] by element id so that the threads tracing pairs seldom wait for one another.
 
 use crate::blocks::BlockError;
 use crate::lrt::{bin, trace_pair, trace_pair_raw, PairResult, RawDeposit, RawPair};
 use crate::trace::TraceScratch;
 use crate::view::SceneView;
-use std::sync::{Arc, Mutex};
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::{Arc, Mutex, MutexGuard};
 
 /// Parts of the table: element `e`'s pairs are in part `e % SHARDS`, at `e / SHARDS`.
 const SHARDS: usize = 64;
@@ -24,34 +24,45 @@ fn get(shard: &Shard, light: u32, at: usize) -> Option<&Arc<RawPair>> {
     shard.get(light as usize)?.get(at)?.as_ref()
 }
 
-/// The pilots' pairs of point lights, traced once and kept raw: every level's pilot has
-/// the same lights and, for every element not split since, the same element ids and
-/// rays ([`crate::lrt::bin`] gives exactly the result a new trace would). A pair whose
-/// deposits all fall on its own element keeps their sum (the same sum, in the same
-/// order, as binning them would make), so the pairs of direct light carried by light
-/// rays cost one entry each. Pairs of area lights are traced at every level.
-pub(super) struct PilotPairs {
+/// Refinement's pairs of point lights, traced once and kept raw (see the module doc of
+/// [`crate::refine`]).
+///
+/// While the pilots run, [`KeptPairs::trace`] gives a pair's result on the level's
+/// scene, tracing (and keeping) it the first time only: every level's pilot has the same
+/// lights and, for every element not split since, the same element ids and rays, so
+/// [`crate::lrt::bin`] of the kept deposits is exactly what a new trace would give. A
+/// pair whose deposits all fall on its own element keeps their sum (the same sum, in the
+/// same order, as binning them would make), so the pairs of direct light carried by
+/// light rays cost one entry each. Pairs of area lights are traced every time.
+///
+/// When the render's light pass carries exactly the pilots' light, it reads the kept
+/// pairs ([`KeptPairs::raw`], through [`crate::lrt::trace_pairs_kept`]): the pair's
+/// element is a leaf there, as it was when the pair was traced, or split (the pair then
+/// deposits nothing), so binning gives what tracing it there gives, bit for bit.
+///
+/// The pilots' workers share one table in a process (the embedded machine's threads,
+/// the nodes of the host's process); a node of a process of its own keeps its own, with
+/// the pairs it traced.
+pub struct KeptPairs {
     shards: Vec<Mutex<Shard>>,
+    /// Pairs traced into the table.
+    traced: AtomicU64,
 }
 
-impl Default for PilotPairs {
+impl Default for KeptPairs {
     fn default() -> Self {
-        PilotPairs { shards: (0..SHARDS).map(|_| Mutex::default()).collect() }
+        KeptPairs { shards: (0..SHARDS).map(|_| Mutex::default()).collect(), traced: AtomicU64::new(0) }
     }
 }
 
-impl PilotPairs {
-    /// The pairs traced, read-only.
-    pub(super) fn into_kept(self) -> KeptPairs {
-        let shards: Vec<Shard> =
-            self.shards.into_iter().map(|m| m.into_inner().unwrap_or_else(|e| e.into_inner())).collect();
-        let len = shards.iter().flatten().flatten().filter(|s| s.is_some()).count();
-        KeptPairs { shards, len }
+impl KeptPairs {
+    fn lock(&self, part: usize) -> MutexGuard<'_, Shard> {
+        self.shards[part].lock().unwrap_or_else(|e| e.into_inner())
     }
 
     /// The result of pair (`light`, `element`) on `view`'s scene: its kept raw deposits
     /// binned, traced (and kept) first if it was not yet.
-    pub(super) fn trace(
+    pub fn trace(
         &self,
         view: &mut SceneView,
         scratch: &mut TraceScratch,
@@ -61,14 +72,12 @@ impl PilotPairs {
         if light as usize >= view.header.lights.len() {
             return trace_pair(view, scratch, light, element);
         }
-        let (part, at) = slot(element);
-        let lock = || self.shards[part].lock().unwrap_or_else(|e| e.into_inner());
-        let kept = get(&lock(), light, at).cloned();
-        let raw = match kept {
+        let raw = match self.raw(light, element) {
             Some(raw) => raw,
             None => {
                 let raw = Arc::new(compact(trace_pair_raw(view, scratch, light, element)?));
-                let mut shard = lock();
+                let (part, at) = slot(element);
+                let mut shard = self.lock(part);
                 if shard.len() <= light as usize {
                     shard.resize_with(light as usize + 1, Vec::new);
                 }
@@ -77,10 +86,49 @@ impl PilotPairs {
                     lights.resize(at + 1, None);
                 }
                 lights[at] = Some(raw.clone());
+                self.traced.fetch_add(1, Ordering::Relaxed);
                 raw
             }
         };
         bin(view, element, &raw)
+    }
+
+    /// [`KeptPairs::trace`] of each of `pairs` (light, element), handed to `each` in
+    /// order (a pilot level's batch).
+    pub fn trace_each(
+        &self,
+        view: &mut SceneView,
+        scratch: &mut TraceScratch,
+        pairs: &[(u32, u32)],
+        mut each: impl FnMut(usize, PairResult),
+    ) -> Result<(), BlockError> {
+        for (i, &(light, element)) in pairs.iter().enumerate() {
+            each(i, self.trace(view, scratch, light, element)?);
+        }
+        Ok(())
+    }
+
+    /// The kept raw deposits of pair (`light`, `element`), `None` when it was not kept
+    /// (not traced yet, or an area light's): [`crate::lrt::bin`] gives its result on a
+    /// later level's scene or the render's.
+    pub fn raw(&self, light: u32, element: u32) -> Option<Arc<RawPair>> {
+        let (part, at) = slot(element);
+        get(&self.lock(part), light, at).cloned()
+    }
+
+    /// Pairs kept.
+    pub fn len(&self) -> usize {
+        (0..SHARDS).map(|p| self.lock(p).iter().flatten().filter(|s| s.is_some()).count()).sum()
+    }
+
+    /// No pair kept.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// Pairs traced into the table so far (each once).
+    pub fn traced(&self) -> u64 {
+        self.traced.load(Ordering::Relaxed)
     }
 }
 
@@ -98,40 +146,9 @@ fn compact(raw: RawPair) -> RawPair {
     RawPair { deposits: vec![RawDeposit::On(first, sum)], tally: raw.tally }
 }
 
-/// Refinement's pilot pairs of point lights, traced once and kept raw (see the module
-/// doc of [`crate::refine`]), read-only: for the render's light pass when it carries
-/// exactly the pilots' light. [`crate::lrt::bin`] of [`KeptPairs::raw`] gives a kept
-/// pair's result on the render's scene, which is what tracing it there gives, bit for
-/// bit (the pair's element is a leaf there, as it was when the pair was traced, and its
-/// rays are the same).
-pub struct KeptPairs {
-    shards: Vec<Shard>,
-    len: usize,
-}
-
-impl KeptPairs {
-    /// Pairs kept.
-    pub fn len(&self) -> usize {
-        self.len
-    }
-
-    /// No pair kept.
-    pub fn is_empty(&self) -> bool {
-        self.len == 0
-    }
-
-    /// The kept raw deposits of pair (`light`, `element`), `None` when it was not kept
-    /// (a new element's pair, or an area light's): [`crate::lrt::bin`] gives its result
-    /// on the render's scene.
-    pub fn raw(&self, light: u32, element: u32) -> Option<&RawPair> {
-        let (part, at) = slot(element);
-        get(&self.shards[part], light, at).map(|raw| &**raw)
-    }
-}
-
 impl std::fmt::Debug for KeptPairs {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        write!(f, "KeptPairs({} pairs)", self.len)
+        write!(f, "KeptPairs({} pairs)", self.len())
     }
 }
 

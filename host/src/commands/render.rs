@@ -51,10 +51,30 @@ pub fn run(cfg: RenderConfig, files: &scene_file::SceneFiles, partial: &partial:
     };
     crate::memory::check(&scene, cfg.max_memory_mb, forks_here)?;
     let plan = if cfg.all_effects { EffectsPlan::forced_on(&scene) } else { EffectsPlan::for_scene(&scene) };
-    // The cluster's runtime, forks and listener start while the scene is preprocessed.
-    let (prepared, cluster) = match &cfg.mode {
-        Mode::Embedded => (magg_core::refine::prepare(&scene, plan)?, None),
-        Mode::Cluster { forks_at, listen, external_nodes, faults, .. } => {
+    let opts = render::RenderOptions {
+        nodes: cfg.nodes,
+        forks: cfg.forks,
+        cache_blocks: cfg.cache_blocks,
+        subscreen: cfg.subscreen,
+    };
+    // How the cluster's nodes run, for refinement's pilot levels and for the render.
+    let mut in_process = match &cfg.mode {
+        Mode::Embedded => None,
+        Mode::Cluster { external_nodes, min_nodes, stall_timeout, faults, .. } => Some(InProcessOptions {
+            nodes: if *external_nodes { 0 } else { opts.node_count() },
+            external_nodes: if *external_nodes { *min_nodes } else { 0 },
+            cache_blocks: cfg.cache_blocks,
+            subscreen: cfg.subscreen,
+            stall_timeout: *stall_timeout,
+            profile: cfg.profile.clone(),
+            scheme: cfg.scheme,
+            sequence: Sequence::default(),
+            events: None,
+            faults: faults.clone(),
+        }),
+    };
+    let (prepared, cluster) = match (&cfg.mode, &in_process) {
+        (Mode::Cluster { forks_at, listen, external_nodes, faults, .. }, Some(nodes)) => {
             faults.install_tls(!forks_at.is_empty() || *external_nodes)?;
             let shape = ClusterShape {
                 forks: cfg.forks,
@@ -63,17 +83,26 @@ pub fn run(cfg: RenderConfig, files: &scene_file::SceneFiles, partial: &partial:
                 token: faults.token.clone(),
                 transport: cfg.transport,
             };
-            std::thread::scope(|s| {
-                let cluster = std::thread::Builder::new()
-                    .name("magg-host-start".into())
-                    .spawn_scoped(s, || StartedCluster::start(&shape))
-                    .context("starting the cluster's start-up thread")?;
-                let prepared = magg_core::refine::prepare(&scene, plan);
-                let cluster = cluster.join().map_err(|_| anyhow::anyhow!("starting the cluster panicked"))?;
-                // A scene error first: it is what the user has to fix.
-                anyhow::Ok((prepared?, Some(cluster?)))
-            })?
+            if scene.settings.refine > 0 {
+                // Refinement's pilot light passes run on the cluster's nodes.
+                let mut cluster = StartedCluster::start(&shape)?;
+                (cluster.prepare(&scene, plan, nodes)?, Some(cluster))
+            } else {
+                // The cluster's runtime, forks and listener start while the scene is
+                // preprocessed.
+                std::thread::scope(|s| {
+                    let cluster = std::thread::Builder::new()
+                        .name("magg-host-start".into())
+                        .spawn_scoped(s, || StartedCluster::start(&shape))
+                        .context("starting the cluster's start-up thread")?;
+                    let prepared = magg_core::refine::prepare(&scene, plan);
+                    let cluster = cluster.join().map_err(|_| anyhow::anyhow!("starting the cluster panicked"))?;
+                    // A scene error first: it is what the user has to fix.
+                    anyhow::Ok((prepared?, Some(cluster?)))
+                })?
+            }
         }
+        _ => (magg_core::refine::prepare(&scene, plan)?, None),
     };
     if !prepared.splits.is_empty() {
         let (elements, pairs) = (prepared.elements.len() as u64, prepared.header.pair_count());
@@ -96,12 +125,6 @@ pub fn run(cfg: RenderConfig, files: &scene_file::SceneFiles, partial: &partial:
     let cameras = path_cameras.get(frame_numbers.clone()).map(<[_]>::to_vec).unwrap_or_default();
     let sequence = Sequence { energies, cameras, window };
     let n_frames = sequence.cameras.len().max(1);
-    let opts = render::RenderOptions {
-        nodes: cfg.nodes,
-        forks: cfg.forks,
-        cache_blocks: cfg.cache_blocks,
-        subscreen: cfg.subscreen,
-    };
     let bars = Bars::new(cfg.quiet);
     let exposure = scene.settings.exposure;
     // Time spent waiting for a viewer (--view-wait) is not the render's: the stats'
@@ -152,24 +175,15 @@ pub fn run(cfg: RenderConfig, files: &scene_file::SceneFiles, partial: &partial:
     };
     let out = match &cfg.mode {
         Mode::Embedded => render::render_sequence(&prepared, &opts, progress, &sequence, &mut sink)?,
-        Mode::Cluster { external_nodes, min_nodes, stall_timeout, faults, .. } => {
-            let in_process = InProcessOptions {
-                nodes: if *external_nodes { 0 } else { opts.node_count() },
-                external_nodes: if *external_nodes { *min_nodes } else { 0 },
-                cache_blocks: cfg.cache_blocks,
-                subscreen: cfg.subscreen,
-                stall_timeout: *stall_timeout,
-                profile: cfg.profile.clone(),
-                scheme: cfg.scheme,
-                sequence: sequence.clone(),
-                // The partial image sees every event first, then the live view.
-                events: Some(
-                    image
-                        .cluster_events(live.as_ref().map(|l| l.cluster_events()))
-                        .context("starting the partial image's thread")?,
-                ),
-                faults: faults.clone(),
-            };
+        Mode::Cluster { .. } => {
+            let mut in_process = in_process.take().context("the cluster's options were not set")?;
+            in_process.sequence = sequence.clone();
+            // The partial image sees every event first, then the live view.
+            in_process.events = Some(
+                image
+                    .cluster_events(live.as_ref().map(|l| l.cluster_events()))
+                    .context("starting the partial image's thread")?,
+            );
             let cluster = cluster.context("the cluster was not started")?;
             cluster.render(&prepared, &in_process, preprocessed + viewer_wait, progress, &mut sink)?
         }
