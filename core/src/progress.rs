@@ -34,3 +34,27 @@ pub trait Progress: Sync {
 /// Reports nothing.
 pub struct NoProgress;
 impl Progress for NoProgress {}
+
+/// `inner` with every stage shown under the name `stage` (refinement's pilot light
+/// passes show as "refinement 1/3", not as the render's light pass). Only the stages'
+/// progress is passed on: no frame, subscreen or light snapshot.
+pub struct Renamed<'a> {
+    /// Where the progress goes.
+    pub inner: &'a dyn Progress,
+    /// The name every stage takes.
+    pub stage: String,
+}
+
+impl Progress for Renamed<'_> {
+    fn begin(&self, _stage: &str, total: u64) {
+        self.inner.begin(&self.stage, total);
+    }
+
+    fn advance(&self, n: u64) {
+        self.inner.advance(n);
+    }
+
+    fn end(&self) {
+        self.inner.end();
+    }
+}

@@ -222,15 +222,17 @@ impl StartedCluster {
 
     /// Prepares `scene` with `plan` ([`magg_core::refine::prepare_with`]), refinement's
     /// pilot light passes run on this cluster's nodes: each level a scene of its own
-    /// on the forks and the host service, the nodes registering for each.
+    /// on the forks and the host service, the nodes registering for each. `progress`
+    /// hears of each level.
     pub fn prepare(
         &mut self,
         scene: &magg_core::scene::Scene,
         plan: magg_core::plan::EffectsPlan,
         opts: &InProcessOptions,
+        progress: &dyn Progress,
     ) -> anyhow::Result<PreparedScene> {
         let mut pilots = ClusterPilots { cluster: self, opts, nodes: 0 };
-        Ok(magg_core::refine::prepare_with(scene, plan, &mut pilots)?)
+        Ok(magg_core::refine::prepare_with(scene, plan, &mut pilots, progress)?)
     }
 }
 
@@ -247,6 +249,7 @@ impl ClusterPilots<'_> {
         &mut self,
         pilot: &Arc<PreparedScene>,
         pairs: &Arc<magg_core::refine::KeptPairs>,
+        progress: &dyn Progress,
     ) -> anyhow::Result<LightPass> {
         let c = &mut *self.cluster;
         c.start_nodes(self.opts)?;
@@ -254,7 +257,7 @@ impl ClusterPilots<'_> {
         let drive = c.drive_options(self.opts, None, std::time::Instant::now());
         let rt = c.rt().handle().clone();
         let mut machine = rt.block_on(ClusterMachine::start_pilot(pilot, &drive, host, rt.clone(), pairs.clone()))?;
-        let light = machine.light_pass(&magg_core::progress::NoProgress)?;
+        let light = machine.light_pass(progress)?;
         let (host, end) = machine.next_scene();
         tracing::debug!(pairs = ?end.pairs, "pilot level: pairs traced per node");
         c.host = Some(host);
@@ -265,8 +268,13 @@ impl ClusterPilots<'_> {
 }
 
 impl Pilots for ClusterPilots<'_> {
-    fn light_pass(&mut self, pilot: &Arc<PreparedScene>, pairs: &Arc<KeptPairs>) -> Result<LightPass, RenderError> {
-        ClusterPilots::light_pass(self, pilot, pairs).map_err(|e| RenderError::Machine(e.into()))
+    fn light_pass(
+        &mut self,
+        pilot: &Arc<PreparedScene>,
+        pairs: &Arc<KeptPairs>,
+        progress: &dyn Progress,
+    ) -> Result<LightPass, RenderError> {
+        ClusterPilots::light_pass(self, pilot, pairs, progress).map_err(|e| RenderError::Machine(e.into()))
     }
 
     fn place(&self) -> &'static str {

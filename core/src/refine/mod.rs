@@ -44,7 +44,7 @@ use crate::energy::{element_irradiance, interpolate, Fixed};
 use crate::machine::{LightPass, RenderError};
 use crate::plan::EffectsPlan;
 use crate::preprocess::{prepare_split, PreparedScene};
-use crate::progress::NoProgress;
+use crate::progress::{NoProgress, Progress, Renamed};
 use crate::render::{EmbeddedMachine, RenderOptions};
 use crate::scene::Scene;
 use crate::stats::Refinement;
@@ -66,7 +66,13 @@ pub trait Pilots {
     /// The light pass of one pilot level on `pilot` (the scene prepared with the pilots'
     /// plan and the splits so far), its point lights' pairs traced through `pairs`
     /// ([`KeptPairs::trace`]: each traced once over the levels).
-    fn light_pass(&mut self, pilot: &Arc<PreparedScene>, pairs: &Arc<KeptPairs>) -> Result<LightPass, RenderError>;
+    /// `progress` hears of the pass (as a stage of its own).
+    fn light_pass(
+        &mut self,
+        pilot: &Arc<PreparedScene>,
+        pairs: &Arc<KeptPairs>,
+        progress: &dyn Progress,
+    ) -> Result<LightPass, RenderError>;
 
     /// Where they run, for the stats: `embedded` or `nodes`.
     fn place(&self) -> &'static str;
@@ -80,13 +86,18 @@ pub trait Pilots {
 pub struct EmbeddedPilots;
 
 impl Pilots for EmbeddedPilots {
-    fn light_pass(&mut self, pilot: &Arc<PreparedScene>, pairs: &Arc<KeptPairs>) -> Result<LightPass, RenderError> {
+    fn light_pass(
+        &mut self,
+        pilot: &Arc<PreparedScene>,
+        pairs: &Arc<KeptPairs>,
+        progress: &dyn Progress,
+    ) -> Result<LightPass, RenderError> {
         let trace = |view: &mut SceneView, scratch: &mut TraceScratch, batch: &[(u32, u32)]| {
             let mut results = Vec::with_capacity(batch.len());
             pairs.trace_each(view, scratch, batch, |_, r| results.push(r))?;
             Ok(results)
         };
-        EmbeddedMachine::new(pilot, &RenderOptions::default()).light_pass_with(&trace, &NoProgress)
+        EmbeddedMachine::new(pilot, &RenderOptions::default()).light_pass_with(&trace, progress)
     }
 
     fn place(&self) -> &'static str {
@@ -102,11 +113,17 @@ impl Pilots for EmbeddedPilots {
 /// this process's cores (see the module doc); preprocessing time includes the pilot
 /// passes.
 pub fn prepare(scene: &Scene, plan: EffectsPlan) -> Result<PreparedScene, RenderError> {
-    prepare_with(scene, plan, &mut EmbeddedPilots)
+    prepare_with(scene, plan, &mut EmbeddedPilots, &NoProgress)
 }
 
-/// [`prepare`] with the pilot light passes run by `pilots`.
-pub fn prepare_with(scene: &Scene, plan: EffectsPlan, pilots: &mut dyn Pilots) -> Result<PreparedScene, RenderError> {
+/// [`prepare`] with the pilot light passes run by `pilots`; `progress` hears of each
+/// (level `k` of `n` as the stage "refinement k/n").
+pub fn prepare_with(
+    scene: &Scene,
+    plan: EffectsPlan,
+    pilots: &mut dyn Pilots,
+    progress: &dyn Progress,
+) -> Result<PreparedScene, RenderError> {
     let start = Instant::now();
     let mut splits: Vec<Vec<u32>> = Vec::new();
     let mut kept = None;
@@ -122,13 +139,15 @@ pub fn prepare_with(scene: &Scene, plan: EffectsPlan, pilots: &mut dyn Pilots) -
         // The render's light pass carries the pilots' light when the scene has no
         // diffuse bounce to drop and the plan is the pilots'.
         let keep = scene.settings.diffuse_bounces == 0 && plan == pilot_plan;
-        for _ in 0..scene.settings.refine.min(MAX_LEVELS) {
+        let levels = scene.settings.refine.min(MAX_LEVELS);
+        for level in 1..=levels {
             let pilot = Arc::new(prepare_split(&pilot_scene, pilot_plan.clone(), &splits)?);
             if !pilot.header.plan.lrt {
                 break;
             }
             let t = Instant::now();
-            let light = pilots.light_pass(&pilot, &pairs)?;
+            let shown = Renamed { inner: progress, stage: format!("refinement {level}/{levels}") };
+            let light = pilots.light_pass(&pilot, &pairs, &shown)?;
             figures.levels += 1;
             figures.pilot_pairs += light.pairs;
             figures.pilot_s += t.elapsed().as_secs_f64();

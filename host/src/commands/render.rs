@@ -15,6 +15,7 @@ use magg_core::fingerprint::EnergyInputs;
 use magg_core::frame::Frame;
 use magg_core::machine::{Energies, Sequence};
 use magg_core::plan::EffectsPlan;
+use magg_core::refine::EmbeddedPilots;
 use magg_core::render;
 use std::sync::Arc;
 
@@ -57,6 +58,7 @@ pub fn run(cfg: RenderConfig, files: &scene_file::SceneFiles, partial: &partial:
         cache_blocks: cfg.cache_blocks,
         subscreen: cfg.subscreen,
     };
+    let bars = Bars::new(cfg.quiet);
     // How the cluster's nodes run, for refinement's pilot levels and for the render.
     let mut in_process = match &cfg.mode {
         Mode::Embedded => None,
@@ -86,7 +88,7 @@ pub fn run(cfg: RenderConfig, files: &scene_file::SceneFiles, partial: &partial:
             if scene.settings.refine > 0 {
                 // Refinement's pilot light passes run on the cluster's nodes.
                 let mut cluster = StartedCluster::start(&shape)?;
-                (cluster.prepare(&scene, plan, nodes)?, Some(cluster))
+                (cluster.prepare(&scene, plan, nodes, &bars)?, Some(cluster))
             } else {
                 // The cluster's runtime, forks and listener start while the scene is
                 // preprocessed.
@@ -102,7 +104,7 @@ pub fn run(cfg: RenderConfig, files: &scene_file::SceneFiles, partial: &partial:
                 })?
             }
         }
-        _ => (magg_core::refine::prepare(&scene, plan)?, None),
+        _ => (magg_core::refine::prepare_with(&scene, plan, &mut EmbeddedPilots, &bars)?, None),
     };
     if !prepared.splits.is_empty() {
         let (elements, pairs) = (prepared.elements.len() as u64, prepared.header.pair_count());
@@ -125,7 +127,6 @@ pub fn run(cfg: RenderConfig, files: &scene_file::SceneFiles, partial: &partial:
     let cameras = path_cameras.get(frame_numbers.clone()).map(<[_]>::to_vec).unwrap_or_default();
     let sequence = Sequence { energies, cameras, window };
     let n_frames = sequence.cameras.len().max(1);
-    let bars = Bars::new(cfg.quiet);
     let exposure = scene.settings.exposure;
     // Time spent waiting for a viewer (--view-wait) is not the render's: the stats'
     // total leaves it out.
