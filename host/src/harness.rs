@@ -244,29 +244,6 @@ struct ClusterPilots<'a> {
     nodes: u32,
 }
 
-impl ClusterPilots<'_> {
-    fn light_pass(
-        &mut self,
-        pilot: &Arc<PreparedScene>,
-        pairs: &Arc<magg_core::refine::KeptPairs>,
-        progress: &dyn Progress,
-    ) -> anyhow::Result<LightPass> {
-        let c = &mut *self.cluster;
-        c.start_nodes(self.opts)?;
-        let host = c.host.take().context("the host service was lost to an earlier failure")?;
-        let drive = c.drive_options(self.opts, None, std::time::Instant::now());
-        let rt = c.rt().handle().clone();
-        let mut machine = rt.block_on(ClusterMachine::start_pilot(pilot, &drive, host, rt.clone(), pairs.clone()))?;
-        let light = machine.light_pass(progress)?;
-        let (host, end) = machine.next_scene();
-        tracing::debug!(pairs = ?end.pairs, "pilot level: pairs traced per node");
-        c.host = Some(host);
-        c.followers = Some(end.followers);
-        self.nodes = end.pairs.iter().filter(|&&p| p > 0).count() as u32;
-        Ok(light)
-    }
-}
-
 impl Pilots for ClusterPilots<'_> {
     fn light_pass(
         &mut self,
@@ -274,7 +251,23 @@ impl Pilots for ClusterPilots<'_> {
         pairs: &Arc<KeptPairs>,
         progress: &dyn Progress,
     ) -> Result<LightPass, RenderError> {
-        ClusterPilots::light_pass(self, pilot, pairs, progress).map_err(|e| RenderError::Machine(e.into()))
+        let mut level = || -> anyhow::Result<LightPass> {
+            let c = &mut *self.cluster;
+            c.start_nodes(self.opts)?;
+            let host = c.host.take().context("the host service was lost to an earlier failure")?;
+            let drive = c.drive_options(self.opts, None, std::time::Instant::now());
+            let rt = c.rt().handle().clone();
+            let mut machine =
+                rt.block_on(ClusterMachine::start_pilot(pilot, &drive, host, rt.clone(), pairs.clone()))?;
+            let light = machine.light_pass(progress)?;
+            let (host, end) = machine.next_scene();
+            tracing::debug!(pairs = ?end.pairs, "pilot level: pairs traced per node");
+            c.host = Some(host);
+            c.followers = Some(end.followers);
+            self.nodes = end.pairs.iter().filter(|&&p| p > 0).count() as u32;
+            Ok(light)
+        };
+        level().map_err(|e| RenderError::Machine(e.into()))
     }
 
     fn place(&self) -> &'static str {
