@@ -53,7 +53,7 @@ impl ClusterMachine {
         let cpu1 = process_cpu_s();
         self.endpoint.stop().await;
 
-        let st = self.service.lock();
+        let st = self.service().lock();
         traffic.link_bytes += st.link_bytes;
         traffic.rpcs += st.rpcs;
         let (mut per_node, mut cache, mut light) = (Vec::new(), CacheStats::default(), LrtTally::default());

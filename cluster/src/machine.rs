@@ -161,7 +161,6 @@ pub struct ClusterMachine {
     pub(super) prepared: Arc<PreparedScene>,
     pub(super) opts: DriveOptions,
     pub(super) forks: ForkSet,
-    pub(super) service: HostService,
     pub(super) endpoint: HostEndpoint,
     pub(super) tiles: Vec<Subscreen>,
     /// The process's CPU seconds when the render began (for the emulation's CPU share).
@@ -184,13 +183,14 @@ pub(super) fn mark(started: Instant, what: &str) {
 }
 
 impl ClusterMachine {
+    /// The host service of this scene.
+    pub(super) fn service(&self) -> &HostService {
+        &self.endpoint.service
+    }
+
     /// Connects the forks, serves `Host` on `host` (or begins this scene on the service
     /// of the scene before), loads every fork's shard and waits for the expected nodes
     /// (when `opts.gather`). `rt` is the runtime this future runs on.
-    ///
-    /// `pilot`: this scene is one of refinement's pilot levels, whose point lights' pairs
-    /// the nodes trace through `pairs` (shared with the nodes of this process; a node of
-    /// another process keeps its own): run its light pass, then [`ClusterMachine::next_scene`].
     pub async fn start(
         prepared: &Arc<PreparedScene>,
         opts: &DriveOptions,
@@ -284,7 +284,7 @@ impl ClusterMachine {
                 endpoint
             }
         };
-        let service = endpoint.service.clone();
+        let service = &endpoint.service;
         mark(t_start, "host serving");
         // The shards load while the nodes register (they wait for the light pass).
         forks.load_all().await?;
@@ -315,7 +315,6 @@ impl ClusterMachine {
             tiles: magg_core::phases::subscreens(s.width, s.height, opts.subscreen),
             opts: opts.clone(),
             forks,
-            service,
             cpu0,
             preprocess_wall,
             gather_s,
@@ -328,13 +327,13 @@ impl ClusterMachine {
     /// Tells every node that this scene is done and waits (bounded) for their final
     /// reports; a node silent for 2 s is not waited for.
     pub(super) async fn done(&self) {
-        self.service.set_phase(Phase::Done);
+        self.service().set_phase(Phase::Done);
         let deadline = Instant::now() + Duration::from_secs(5);
         while Instant::now() < deadline {
-            if self.service.lock().nodes.iter().all(|n| n.reported_or_gone(Duration::from_secs(2))) {
+            if self.service().lock().nodes.iter().all(|n| n.reported_or_gone(Duration::from_secs(2))) {
                 break;
             }
-            self.service.wait_for(Duration::from_millis(5)).await;
+            self.service().wait_for(Duration::from_millis(5)).await;
         }
     }
 
@@ -343,10 +342,10 @@ impl ClusterMachine {
     /// register again with the next scene's [`ClusterMachine::start`], which takes the
     /// host service returned here.
     pub fn next_scene(self) -> (HostSocket, SceneEnd) {
-        self.service.lock().next_scene = true;
+        self.service().lock().next_scene = true;
         let rt = self.rt.clone();
         rt.block_on(self.done());
-        let s = self.service.lock();
+        let s = self.service().lock();
         let end = SceneEnd {
             pairs: s.nodes.iter().map(|n| n.report.pairs).collect(),
             followers: s.nodes.iter().filter(|n| n.finished()).count() as u32,

@@ -55,7 +55,7 @@ impl ClusterMachine {
         let n_el = self.prepared.header.counts.elements as usize;
         // The clock (in the phase sequence) started before the nodes hear of the pass
         // (this thread may lose its core to them at once).
-        self.service.set_phase(Phase::Lrt);
+        self.service().set_phase(Phase::Lrt);
         let poll = if self.throttled() { LRT_POLL_THROTTLED } else { LRT_POLL };
         let mut total_pairs = 0;
         for i in 0..f {
@@ -91,11 +91,11 @@ impl ClusterMachine {
                 }
                 (returned_seen, epoch_seen) = (returned, self.forks.epoch);
                 {
-                    let mut st = self.service.lock();
+                    let mut st = self.service().lock();
                     st.pairs_epoch += 1;
                     st.phase = Phase::Lrt;
                 }
-                self.service.bump();
+                self.service().bump();
             }
             tracing::debug!(done, total_pairs, "light pass: pairs done");
             if done > last.0 {
@@ -104,7 +104,7 @@ impl ClusterMachine {
             }
             if done >= total_pairs {
                 // Collect the energies (interpolation time, as the paper's host spends it).
-                self.service.set_phase(Phase::Interp);
+                self.service().set_phase(Phase::Interp);
                 let t_collect = Instant::now();
                 let mut ledgers = Vec::with_capacity(f);
                 let mut complete = true;
@@ -148,12 +148,12 @@ impl ClusterMachine {
             }
             // One RPC per fork per poll: keep it gentle, but look at once when a node runs
             // out of pairs (the pass may be over).
-            self.service.wait_for(poll).await;
+            self.service().wait_for(poll).await;
         };
         progress.end();
         // Nodes that register from now on trace no pairs: the pilot pairs are withdrawn
         // (those that hold them drop them when the viewing pass begins).
-        self.service.lock().kept_pairs = 0;
+        self.service().lock().kept_pairs = 0;
         self.kept_pairs = None;
         Ok(LightPass { element_flux, pairs: total_pairs, collect_s })
     }
@@ -165,7 +165,7 @@ impl ClusterMachine {
         gather: &[bool],
     ) -> Result<(), ClusterError> {
         // Given energies skip the light pass: the nodes wait meanwhile.
-        self.service.set_phase(Phase::Interp);
+        self.service().set_phase(Phase::Interp);
         let f = self.forks.len();
         let mut per_fork: Vec<Vec<v1::Block>> = vec![Vec::new(); f];
         for (id, block) in vertex_energy_blocks(vertex_irradiance, gather, &self.prepared.header.layout) {
@@ -192,7 +192,7 @@ impl ClusterMachine {
             let _ = tx.send(ClusterEvent::FrameBegins { index: pass.index, count: pass.count });
         }
         {
-            let mut st = self.service.lock();
+            let mut st = self.service().lock();
             let schedule = Scheduler::new(s.width, s.height, tiles.clone());
             let nodes = st.nodes.len() as u32;
             st.schedule = Some(if self.opts.scheme == Scheme::Magg { schedule.merging(nodes) } else { schedule });
@@ -200,7 +200,7 @@ impl ClusterMachine {
             st.frame_camera = (*pass.camera != h.camera).then(|| v1::Camera::from(pass.camera));
             st.phase = Phase::Vrt;
         }
-        self.service.bump();
+        self.service().bump();
         progress.begin(magg_core::progress::VIEW_PASS, magg_core::phases::pixels(&tiles));
         let mut last_rows = (0u64, Instant::now());
         let mut last_check = Instant::now();
@@ -213,7 +213,7 @@ impl ClusterMachine {
                 last_check = Instant::now();
             }
             let (done, px) = {
-                let mut st = self.service.lock();
+                let mut st = self.service().lock();
                 if let Some(sc) = st.schedule.as_mut() {
                     let lost = sc.expire(self.opts.faults.lease);
                     if !lost.is_empty() {
@@ -237,12 +237,12 @@ impl ClusterMachine {
             if last_rows.1.elapsed() > self.opts.stall_timeout {
                 return Err(ClusterError::ViewStalled { pixels: px, after: self.opts.stall_timeout });
             }
-            self.service.wait_for(VRT_POLL).await;
+            self.service().wait_for(VRT_POLL).await;
         }
         progress.end();
         mark(self.opts.started, "viewing pass done");
         let (frame, redivisions) = {
-            let mut st = self.service.lock();
+            let mut st = self.service().lock();
             match st.schedule.as_mut() {
                 Some(sc) => (sc.take_frame(), sc.redivisions),
                 None => return Err(ClusterError::LostSchedule),
@@ -251,7 +251,7 @@ impl ClusterMachine {
         if pass.is_last() {
             // The last frame is in: the nodes hear "done" and send their final reports
             // while the image is written.
-            self.service.set_phase(Phase::Done);
+            self.service().set_phase(Phase::Done);
         }
         Ok(ViewedFrame { frame, tiles: tiles.len() as u64, redivisions })
     }

@@ -6,7 +6,6 @@ use crate::blocks::BlockError;
 use crate::lrt::{bin, trace_pair, trace_pair_raw, PairResult, RawDeposit, RawPair};
 use crate::trace::TraceScratch;
 use crate::view::SceneView;
-use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex, MutexGuard};
 
 /// Parts of the table: element `e`'s pairs are in part `e % SHARDS`, at `e / SHARDS`.
@@ -45,13 +44,11 @@ fn get(shard: &Shard, light: u32, at: usize) -> Option<&Arc<RawPair>> {
 /// the pairs it traced.
 pub struct KeptPairs {
     shards: Vec<Mutex<Shard>>,
-    /// Pairs traced into the table.
-    traced: AtomicU64,
 }
 
 impl Default for KeptPairs {
     fn default() -> Self {
-        KeptPairs { shards: (0..SHARDS).map(|_| Mutex::default()).collect(), traced: AtomicU64::new(0) }
+        KeptPairs { shards: (0..SHARDS).map(|_| Mutex::default()).collect() }
     }
 }
 
@@ -86,7 +83,6 @@ impl KeptPairs {
                     lights.resize(at + 1, None);
                 }
                 lights[at] = Some(raw.clone());
-                self.traced.fetch_add(1, Ordering::Relaxed);
                 raw
             }
         };
@@ -124,11 +120,6 @@ impl KeptPairs {
     /// No pair kept.
     pub fn is_empty(&self) -> bool {
         self.len() == 0
-    }
-
-    /// Pairs traced into the table so far (each once).
-    pub fn traced(&self) -> u64 {
-        self.traced.load(Ordering::Relaxed)
     }
 }
 
