@@ -5,6 +5,7 @@
 
 use super::layout::{Block, BLOCK_SIZE};
 use super::owner::fork_of_block;
+use super::resident::Resident;
 use super::store::{BlockError, BlockSource};
 use std::sync::Arc;
 
@@ -173,11 +174,12 @@ impl Lru {
     }
 }
 
-/// Storage of the cached blocks: an LRU list when bounded; a table indexed by block id
-/// when unlimited (nothing is ever evicted, so no recency needs tracking).
+/// Storage of the cached blocks: an LRU list when bounded; the blocks side by side,
+/// indexed by block id, when unlimited (nothing is ever evicted, so no recency needs
+/// tracking).
 enum Slots {
     Bounded(Lru),
-    Unlimited { table: Vec<Option<Box<Block>>>, held: usize },
+    Unlimited(Resident),
 }
 
 /// An LRU cache of blocks in front of a [`BlockSource`]. Capacity `None` is unlimited.
@@ -198,7 +200,7 @@ impl BlockCache {
     pub fn new(source: Arc<dyn BlockSource>, capacity: Option<usize>) -> Self {
         let slots = match capacity {
             Some(c) => Slots::Bounded(Lru::new(c)),
-            None => Slots::Unlimited { table: Vec::new(), held: 0 },
+            None => Slots::Unlimited(Resident::default()),
         };
         BlockCache { source, slots, stats: CacheStats::default(), home: (0, 1), prefetch: (1, 1, Vec::new()) }
     }
@@ -233,13 +235,12 @@ impl BlockCache {
     /// own.
     #[inline(always)]
     pub fn get(&mut self, id: u32) -> Result<&Block, BlockError> {
-        let i = id as usize;
         let cached: Option<*const Block> = match &mut self.slots {
             Slots::Bounded(lru) => lru.slot(id).map(|s| {
                 lru.touch(s);
                 &*lru.blocks[s as usize] as *const Block
             }),
-            Slots::Unlimited { table, .. } => table.get(i).and_then(|b| b.as_deref()).map(|b| b as *const Block),
+            Slots::Unlimited(resident) => resident.get(id).map(|b| b as *const Block),
         };
         if let Some(block) = cached {
             self.stats.hits += 1;
@@ -265,7 +266,7 @@ impl BlockCache {
                 let s = lru.slot(id).ok_or_else(lost)?;
                 Ok(&*lru.blocks[s as usize])
             }
-            Slots::Unlimited { table, .. } => table.get(id as usize).and_then(|b| b.as_deref()).ok_or_else(lost),
+            Slots::Unlimited(resident) => resident.get(id).ok_or_else(lost),
         }
     }
 
@@ -287,14 +288,14 @@ impl BlockCache {
                 lru.bind(s, id);
                 Ok(())
             }
-            Slots::Unlimited { table, held } => {
+            Slots::Unlimited(resident) => {
                 // The missed block and the uncached ones after it, then those before
                 // it, up to the window, within the same kind of block.
                 let (window, stride) = (self.prefetch.0 as usize, self.prefetch.1);
                 let kinds = &self.prefetch.2;
                 let limit = kinds.iter().copied().filter(|&b| b > id).min().unwrap_or(u32::MAX);
                 let start = kinds.iter().copied().filter(|&b| b <= id).max().unwrap_or(0);
-                let uncached = |b: u32| !table.get(b as usize).is_some_and(|s| s.is_some());
+                let uncached = |b: u32| !resident.contains(b);
                 let mut ids = vec![id];
                 let mut next = id.saturating_add(stride);
                 while ids.len() < window && next < limit {
@@ -315,14 +316,8 @@ impl BlockCache {
                 self.stats.misses += 1;
                 self.stats.remote_misses += (fork_of_block(id, self.home.1) != self.home.0) as u64;
                 self.stats.prefetched += ids.len() as u64 - 1;
-                for (b, buf) in ids.iter().zip(bufs) {
-                    let k = *b as usize;
-                    if table.len() <= k {
-                        table.resize_with(k + 1, || None);
-                    }
-                    if table[k].replace(buf).is_none() {
-                        *held += 1;
-                    }
+                for (&b, buf) in ids.iter().zip(&bufs) {
+                    resident.put(b, buf);
                 }
                 Ok(())
             }
@@ -371,9 +366,7 @@ impl BlockCache {
                     None => true,
                 })
                 .collect(),
-            Slots::Unlimited { table, .. } => {
-                wanted.iter().copied().filter(|&id| !table.get(id as usize).is_some_and(|b| b.is_some())).collect()
-            }
+            Slots::Unlimited(resident) => wanted.iter().copied().filter(|&id| !resident.contains(id)).collect(),
         };
         if missing.is_empty() {
             return Ok(());
@@ -388,15 +381,7 @@ impl BlockCache {
                     lru.blocks[s as usize] = buf;
                     lru.bind(s, id);
                 }
-                Slots::Unlimited { table, held } => {
-                    let k = id as usize;
-                    if table.len() <= k {
-                        table.resize_with(k + 1, || None);
-                    }
-                    if table[k].replace(buf).is_none() {
-                        *held += 1;
-                    }
-                }
+                Slots::Unlimited(resident) => resident.put(id, &buf),
             }
         }
         Ok(())
@@ -411,13 +396,9 @@ impl BlockCache {
                     lru.forget(id);
                 }
             }
-            Slots::Unlimited { table, held } => {
+            Slots::Unlimited(resident) => {
                 for id in ids {
-                    if let Some(slot) = table.get_mut(id as usize) {
-                        if slot.take().is_some() {
-                            *held -= 1;
-                        }
-                    }
+                    resident.forget(id);
                 }
             }
         }
@@ -437,7 +418,7 @@ impl BlockCache {
     pub fn len(&self) -> usize {
         match &self.slots {
             Slots::Bounded(lru) => lru.len(),
-            Slots::Unlimited { held, .. } => *held,
+            Slots::Unlimited(resident) => resident.len(),
         }
     }
 

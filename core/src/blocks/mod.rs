@@ -15,6 +15,7 @@ mod cache;
 mod cache_size;
 mod layout;
 mod owner;
+mod resident;
 mod store;
 
 pub use cache::{BlockCache, CacheStats, PREFETCH_RUN};
