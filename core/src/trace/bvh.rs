@@ -86,8 +86,21 @@ struct Narrow {
     o_near: [[f32; 4]; 3],
     o_far: [[f32; 4]; 3],
     inv: [[f32; 4]; 3],
-    /// Per axis, the record rows (see [`SlabRay::negative`]) of the near and far faces.
-    rows: [(usize, usize); 3],
+    /// The ray's octant: bit `a` set when it runs towards lower coordinates on axis `a`
+    /// (see [`SlabRay::negative`] and [`rows`]).
+    octant: u8,
+}
+
+/// Of a ray in `octant` (see [`Narrow::octant`]), the node record's rows of the near and
+/// far faces on axis `a`: the walk is compiled once per octant, so that these are
+/// constants rather than loads at every node.
+#[inline(always)]
+const fn rows(octant: u8, a: usize) -> (usize, usize) {
+    if octant >> a & 1 == 1 {
+        (3 + a, a)
+    } else {
+        (a, 3 + a)
+    }
 }
 
 impl Narrow {
@@ -121,22 +134,19 @@ impl Narrow {
             o_near: [pick(n0, 0), pick(n1, 1), pick(n2, 2)],
             o_far: [pick(!n0, 0), pick(!n1, 1), pick(!n2, 2)],
             inv: [[inv32[0]; 4], [inv32[1]; 4], [inv32[2]; 4]],
-            rows: [
-                if n0 { (3, 0) } else { (0, 3) },
-                if n1 { (4, 1) } else { (1, 4) },
-                if n2 { (5, 2) } else { (2, 5) },
-            ],
+            octant: n0 as u8 | (n1 as u8) << 1 | (n2 as u8) << 2,
         })
     }
 
     /// Which of the child boxes of the node `record` the ray enters within `[t0, t1]`
     /// (rounded outward to f32), and at what distance (a lower bound).
+    /// `OCTANT` is the ray's [`Narrow::octant`].
     #[cfg(target_arch = "x86_64")]
     #[inline]
-    fn enter(&self, record: &[u8; BVH_NODE_RECORD], t0: f32, t1: f32) -> Entered<f32> {
+    fn enter<const OCTANT: u8>(&self, record: &[u8; BVH_NODE_RECORD], t0: f32, t1: f32) -> Entered<f32> {
         // SAFETY: SSE2 is part of the x86_64 baseline, so every processor that runs this
         // build has it; the function reads nothing but its arguments.
-        unsafe { self.enter_sse2(record, t0, t1) }
+        unsafe { self.enter_sse2::<OCTANT>(record, t0, t1) }
     }
 
     /// [`Narrow::enter`] with SSE2, four children at once: the same operations on the
@@ -144,7 +154,7 @@ impl Narrow {
     /// their second operand when either is NaN, as the scalar comparisons do).
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "sse2")]
-    fn enter_sse2(&self, record: &[u8; BVH_NODE_RECORD], t0: f32, t1: f32) -> Entered<f32> {
+    fn enter_sse2<const OCTANT: u8>(&self, record: &[u8; BVH_NODE_RECORD], t0: f32, t1: f32) -> Entered<f32> {
         use std::arch::x86_64::*;
         // Row r of the record's bounds (lo x, y, z, then hi x, y, z: four f32 each, little
         // endian like the processor).
@@ -157,7 +167,7 @@ impl Narrow {
         let mut near = _mm_set1_ps(f32::NEG_INFINITY);
         let mut far = _mm_set1_ps(f32::INFINITY);
         for a in 0..3 {
-            let (near_row, far_row) = self.rows[a];
+            let (near_row, far_row) = rows(OCTANT, a);
             let inv = lanes(&self.inv[a]);
             let n = _mm_mul_ps(_mm_sub_ps(row(near_row), lanes(&self.o_near[a])), inv);
             let f = _mm_mul_ps(_mm_sub_ps(row(far_row), lanes(&self.o_far[a])), inv);
@@ -177,7 +187,7 @@ impl Narrow {
         let mut far = [f32::INFINITY; BVH_WIDTH];
         for a in 0..3 {
             let (near_face, far_face) =
-                if self.rows[a].0 > a { (&node.hi[a], &node.lo[a]) } else { (&node.lo[a], &node.hi[a]) };
+                if rows(self.octant, a).0 > a { (&node.hi[a], &node.lo[a]) } else { (&node.lo[a], &node.hi[a]) };
             let (o_near, o_far, inv) = (self.o_near[a][0], self.o_far[a][0], self.inv[a][0]);
             for k in 0..BVH_WIDTH {
                 let tn = (near_face[k] - o_near) * inv;
@@ -192,7 +202,7 @@ impl Narrow {
     /// [`Narrow::enter`] on processors without SSE2 code here.
     #[cfg(not(target_arch = "x86_64"))]
     #[inline]
-    fn enter(&self, record: &[u8; BVH_NODE_RECORD], t0: f32, t1: f32) -> Entered<f32> {
+    fn enter<const OCTANT: u8>(&self, record: &[u8; BVH_NODE_RECORD], t0: f32, t1: f32) -> Entered<f32> {
         self.enter_scalar(record, t0, t1)
     }
 }
@@ -389,12 +399,20 @@ struct Entered<T> {
 /// what distance (a lower bound: a node is skipped only when it is entered beyond the
 /// best hit).
 trait BoxTest {
-    /// The far bound as the test takes it.
+    /// The far bound as the test takes it, and the type of its distances.
     type Bound: Copy;
     /// The far bound `t` (the best hit's distance, or the query's `tmax`).
     fn bound(&self, t: f64) -> Self::Bound;
     /// The children of node `record` entered within the query's `tmin` and `bound`.
-    fn enter(&self, record: &[u8; BVH_NODE_RECORD], bound: Self::Bound) -> Entered<f64>;
+    fn enter(&self, record: &[u8; BVH_NODE_RECORD], bound: Self::Bound) -> Entered<Self::Bound>;
+    /// A distance of [`BoxTest::enter`] in f64 (exactly).
+    fn wide(t: Self::Bound) -> f64;
+    /// A key that orders child `k` entered at `t` among its siblings by distance, ties
+    /// by `k`: the distance's bits (a non-negative float's bits order as the float; a
+    /// distance below zero, from a `tmin` rounded down, is taken as zero) above the
+    /// child's slot. An f64 distance loses its lowest two bits to the slot; the order
+    /// is only the walk's guess at what to visit first, and changes no answer.
+    fn key(t: Self::Bound, k: usize) -> u64;
 }
 
 /// The f64 test, from `t0`.
@@ -410,21 +428,36 @@ impl BoxTest for Wide<'_> {
     fn enter(&self, record: &[u8; BVH_NODE_RECORD], bound: f64) -> Entered<f64> {
         self.0.enter_f64(record, self.1, bound)
     }
+    #[inline(always)]
+    fn wide(t: f64) -> f64 {
+        t
+    }
+    #[inline(always)]
+    fn key(t: f64, k: usize) -> u64 {
+        (t.max(0.0).to_bits() & !3) | k as u64
+    }
 }
 
-/// The f32 test, from `t0` rounded down.
-struct Narrowed<'a>(&'a Narrow, f32);
+/// The f32 test, from `t0` rounded down, of a ray in `OCTANT` (its [`Narrow::octant`]).
+struct Narrowed<'a, const OCTANT: u8>(&'a Narrow, f32);
 
-impl BoxTest for Narrowed<'_> {
+impl<const OCTANT: u8> BoxTest for Narrowed<'_, OCTANT> {
     type Bound = f32;
     #[inline(always)]
     fn bound(&self, t: f64) -> f32 {
         f32_above(t)
     }
     #[inline(always)]
-    fn enter(&self, record: &[u8; BVH_NODE_RECORD], bound: f32) -> Entered<f64> {
-        let e = self.0.enter(record, self.1, bound);
-        Entered { near: e.near.map(f64::from), mask: e.mask }
+    fn enter(&self, record: &[u8; BVH_NODE_RECORD], bound: f32) -> Entered<f32> {
+        self.0.enter::<OCTANT>(record, self.1, bound)
+    }
+    #[inline(always)]
+    fn wide(t: f32) -> f64 {
+        t as f64
+    }
+    #[inline(always)]
+    fn key(t: f32, k: usize) -> u64 {
+        ((t.max(0.0).to_bits() as u64) << 2) | k as u64
     }
 }
 
@@ -439,8 +472,21 @@ pub(super) fn cast(view: &mut SceneView, scratch: &mut TraceScratch, q: &Query) 
     match &slab.narrow {
         // A tmin beyond f32's range rounds to infinity, which no box is entered within:
         // no hit of a ray the f32 test takes lies that far (see FAST_ORIGIN).
-        Some(n) => walk(view, scratch, q, t0, &Narrowed(n, f32_below(t0))),
-        None => walk(view, scratch, q, t0, &Wide(&slab, t0)),
+        // (One walk per octant: see `rows`.)
+        Some(n) => {
+            let t = f32_below(t0);
+            match n.octant {
+                0 => walk(view, scratch, q, &Narrowed::<0>(n, t)),
+                1 => walk(view, scratch, q, &Narrowed::<1>(n, t)),
+                2 => walk(view, scratch, q, &Narrowed::<2>(n, t)),
+                3 => walk(view, scratch, q, &Narrowed::<3>(n, t)),
+                4 => walk(view, scratch, q, &Narrowed::<4>(n, t)),
+                5 => walk(view, scratch, q, &Narrowed::<5>(n, t)),
+                6 => walk(view, scratch, q, &Narrowed::<6>(n, t)),
+                _ => walk(view, scratch, q, &Narrowed::<7>(n, t)),
+            }
+        }
+        None => walk(view, scratch, q, &Wide(&slab, t0)),
     }
 }
 
@@ -475,12 +521,18 @@ pub(super) fn cast_packet(
 
 /// The depth-first walk from the root, with the slab test `boxes` (a function of its own
 /// for each test, so that each keeps its own registers).
+///
+/// A node whose ray enters one child goes straight on to it; of two or more, the
+/// nearest is visited next and the others are stacked farthest first (their order from
+/// [`BoxTest::key`]). An entry taken from the stack is skipped when it was entered
+/// beyond the best hit found since. An `any` query (occlusion) is walked the same way:
+/// taking the children in the node's order instead was measured slower (an occluder
+/// is found later).
 #[inline(never)]
 fn walk<B: BoxTest>(
     view: &mut SceneView,
     scratch: &mut TraceScratch,
     q: &Query,
-    t0: f64,
     boxes: &B,
 ) -> Result<Option<Hit>, BlockError> {
     let mut best: Option<Hit> = None;
@@ -492,17 +544,11 @@ fn walk<B: BoxTest>(
     let (mut steps, mut tests) = (0u64, 0u64);
     let mut stack = std::mem::take(&mut scratch.stack);
     stack.clear();
-    // (node index or first triangle address, leaf triangle count (0: a node), entry t):
-    // the entry visited next (the nearer child of the last node), then the stack.
-    let mut next = Some((0, 0, t0));
     let (max_steps, bvh_base) = (view.header.bvh.nodes as u64, view.header.layout.bvh_base);
+    // The entry visited now: a node index (count 0), or a leaf's first triangle address
+    // and triangle count.
+    let (mut index, mut count) = (0u32, 0u32);
     let result = 'walk: loop {
-        let Some((index, count, near)) = next.take().or_else(|| stack.pop()) else {
-            break Ok(best);
-        };
-        if near > bound.0 {
-            continue;
-        }
         if count > 0 {
             let leaf = match view.bvh_leaf(index, count) {
                 Ok(l) => l,
@@ -516,43 +562,73 @@ fn walk<B: BoxTest>(
                     bound = (b.t, boxes.bound(b.t));
                 }
             }
-            continue;
-        }
-        let record = match visit(view, index, &mut steps, (max_steps, bvh_base)) {
-            Ok(r) => r,
-            Err(e) => break Err(e),
-        };
-        // The children entered, nearest first (ties in the node's order): the nearest
-        // is visited next, the others stacked farthest first.
-        let Entered { near: t, mut mask } = boxes.enter(record, bound.1);
-        let mut entered = [(0.0f64, 0u32, 0u32); BVH_WIDTH];
-        let mut n = 0;
-        while mask != 0 {
-            let k = mask.trailing_zeros() as usize;
-            mask &= mask - 1;
+        } else {
+            let record = match visit(view, index, &mut steps, (max_steps, bvh_base)) {
+                Ok(r) => r,
+                Err(e) => break Err(e),
+            };
             // Nodes are written depth first, so a ray visits each node at most once; a
             // corrupt block whose child points back up the tree is caught by the step
-            // limit above (more visits than nodes), not by a check per child.
-            let (child, count) = (child_index(record, k), child_count(record, k));
-            let mut i = n;
-            while i > 0 && entered[i - 1].0 > t[k] {
-                entered[i] = entered[i - 1];
-                i -= 1;
+            // limit of `visit` (more visits than nodes), not by a check per child.
+            let Entered { near, mask } = boxes.enter(record, bound.1);
+            if mask != 0 {
+                let first = mask.trailing_zeros() as usize;
+                let k = if mask & (mask - 1) == 0 {
+                    first
+                } else {
+                    let mut keys = [u64::MAX; BVH_WIDTH];
+                    let (mut rest, mut n) = (mask, 0);
+                    while rest != 0 {
+                        let k = rest.trailing_zeros() as usize;
+                        rest &= rest - 1;
+                        keys[n] = B::key(near[k], k);
+                        n += 1;
+                    }
+                    sort_keys(&mut keys, n);
+                    for &key in keys[1..n].iter().rev() {
+                        let k = (key & 3) as usize;
+                        stack.push((child_index(record, k), child_count(record, k), B::wide(near[k])));
+                    }
+                    (keys[0] & 3) as usize
+                };
+                (index, count) = (child_index(record, k), child_count(record, k));
+                continue;
             }
-            entered[i] = (t[k], child, count);
-            n += 1;
         }
-        if n > 0 {
-            for &(t, index, count) in entered[1..n].iter().rev() {
-                stack.push((index, count, t));
+        // The nearest entry stacked that is not beyond the best hit.
+        loop {
+            match stack.pop() {
+                None => break 'walk Ok(best),
+                Some((i, c, near)) if !(near > bound.0) => {
+                    (index, count) = (i, c);
+                    break;
+                }
+                Some(_) => {}
             }
-            next = Some((entered[0].1, entered[0].2, entered[0].0));
         }
     };
     scratch.stack = stack;
     view.counters.grid_steps += steps;
     view.counters.patch_tests += tests;
     result
+}
+
+/// Sorts the first `n` (2 to 4) of `keys` ascending, the others being `u64::MAX`: one
+/// exchange for two, a network of five for more.
+#[inline(always)]
+fn sort_keys(keys: &mut [u64; BVH_WIDTH], n: usize) {
+    let mut exchange = |a: usize, b: usize| {
+        let (x, y) = (keys[a], keys[b]);
+        keys[a] = x.min(y);
+        keys[b] = x.max(y);
+    };
+    exchange(0, 1);
+    if n > 2 {
+        exchange(2, 3);
+        exchange(0, 2);
+        exchange(1, 3);
+        exchange(1, 2);
+    }
 }
 
 /// Tests query `q` against the triangle records of `leaf` (each read in place: the
@@ -698,6 +774,20 @@ pub(super) mod tests {
         block
     }
 
+    /// [`Narrow::enter`] as compiled for `n`'s octant (the walk's).
+    pub(super) fn enter_in_octant(n: &Narrow, r: &[u8; BVH_NODE_RECORD], t0: f32, t1: f32) -> Entered<f32> {
+        match n.octant {
+            0 => n.enter::<0>(r, t0, t1),
+            1 => n.enter::<1>(r, t0, t1),
+            2 => n.enter::<2>(r, t0, t1),
+            3 => n.enter::<3>(r, t0, t1),
+            4 => n.enter::<4>(r, t0, t1),
+            5 => n.enter::<5>(r, t0, t1),
+            6 => n.enter::<6>(r, t0, t1),
+            _ => n.enter::<7>(r, t0, t1),
+        }
+    }
+
     /// The SSE2 slab tests answer as the scalar ones, bit for bit.
     #[test]
     fn the_sse2_slab_tests_give_the_scalar_bits() {
@@ -709,7 +799,7 @@ pub(super) mod tests {
             let bits = |e: Entered<f64>| (e.near.map(f64::to_bits), e.mask);
             assert_eq!(bits(ray.enter_f64(r, t0, t1)), bits(ray.enter_f64_scalar(r, t0, t1)), "case {c}: {node:?}");
             if let Some(n) = narrow {
-                let fast = n.enter(r, f32_below(t0), f32_above(t1));
+                let fast = enter_in_octant(&n, r, f32_below(t0), f32_above(t1));
                 let slow = n.enter_scalar(r, f32_below(t0), f32_above(t1));
                 let bits = |e: Entered<f32>| (e.near.map(f32::to_bits), e.mask);
                 assert_eq!(bits(fast), bits(slow), "case {c}: {node:?}");
@@ -731,12 +821,12 @@ pub(super) mod tests {
             let block = record(&node);
             let r = crate::blocks::bvh::node_record(&block, 0);
             let exact = ray.enter_f64_scalar(r, t0, t1);
-            let boxes = Narrowed(&n, f32_below(t0));
-            let wide = boxes.enter(r, boxes.bound(t1));
+            let (boxes, t0) = (Narrowed::<0>(&n, f32_below(t0)), f32_below(t0));
+            let wide = enter_in_octant(&n, r, t0, boxes.bound(t1));
             assert_eq!(wide.mask & exact.mask, exact.mask, "case {c}: {node:?}");
             for k in 0..BVH_WIDTH {
                 if exact.mask >> k & 1 == 1 {
-                    assert!(wide.near[k] <= exact.near[k], "case {c}, child {k}: {node:?}");
+                    assert!(wide.near[k] as f64 <= exact.near[k], "case {c}, child {k}: {node:?}");
                 }
             }
         }
