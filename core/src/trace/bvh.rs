@@ -66,8 +66,6 @@ struct SlabRay {
     /// on that axis is its `hi` and its far face its `lo`, for every box, so the slab
     /// test needs no comparison to order them.
     negative: [bool; 3],
-    /// The f32 test's data, `None` where it does not apply or is not worth it.
-    narrow: Option<Narrow>,
 }
 
 /// The f32 test's per-ray data. Per axis the origin is rounded to f32 in the direction
@@ -108,7 +106,8 @@ impl Narrow {
     /// inverse direction component that is neither a normal f32 nor infinite (in f64
     /// too), an origin beyond 2^100, or a direction whose largest component is below
     /// 2^-25.
-    fn of(origin: [f64; 3], direction: [f64; 3], inv: [f64; 3], negative: [bool; 3]) -> Option<Narrow> {
+    fn of(ray: &SlabRay, direction: [f64; 3]) -> Option<Narrow> {
+        let (origin, inv, negative) = (ray.origin, ray.inv, ray.negative);
         let inv32 = [inv[0] as f32, inv[1] as f32, inv[2] as f32];
         let bounded = |a: usize| inv32[a].is_normal() || (inv32[a].is_infinite() && inv[a].is_infinite());
         let largest = direction[0].abs().max(direction[1].abs()).max(direction[2].abs());
@@ -243,12 +242,13 @@ fn widened_scalar(mut near: [f32; BVH_WIDTH], far: [f32; BVH_WIDTH], t0: f32, t1
 }
 
 impl SlabRay {
-    /// The ray's slab data; with `narrow`, the f32 test's too (when it applies).
-    fn new(origin: [f64; 3], direction: [f64; 3], narrow: bool) -> SlabRay {
+    /// The ray's slab data (the f32 test's is [`Narrow::of`] it, kept apart so that it
+    /// is built where it is used, not moved).
+    #[inline(always)]
+    fn new(origin: [f64; 3], direction: [f64; 3]) -> SlabRay {
         let inv = [1.0 / direction[0], 1.0 / direction[1], 1.0 / direction[2]];
         let negative = [inv[0].is_sign_negative(), inv[1].is_sign_negative(), inv[2].is_sign_negative()];
-        let narrow = if narrow { Narrow::of(origin, direction, inv, negative) } else { None };
-        SlabRay { origin, inv, negative, narrow }
+        SlabRay { origin, inv, negative }
     }
 
     /// The f64 test: the four boxes side by side, in f64 from the f32 bounds, the far
@@ -465,11 +465,11 @@ impl<const OCTANT: u8> BoxTest for Narrowed<'_, OCTANT> {
 /// [`SlabRay`]), the f64 test otherwise; the walk is compiled for each.
 #[inline(never)]
 pub(super) fn cast(view: &mut SceneView, scratch: &mut TraceScratch, q: &Query) -> Result<Option<Hit>, BlockError> {
-    let (o, d) = (q.ray.origin, q.ray.direction);
+    let (o, d) = (q.ray.origin.to_array(), q.ray.direction.to_array());
     let t0 = q.tmin.max(0.0);
-    let narrow = view.header.bvh.nodes >= NARROW_MIN_NODES;
-    let slab = SlabRay::new(o.to_array(), d.to_array(), narrow);
-    match &slab.narrow {
+    let slab = SlabRay::new(o, d);
+    let narrow = if view.header.bvh.nodes >= NARROW_MIN_NODES { Narrow::of(&slab, d) } else { None };
+    match &narrow {
         // A tmin beyond f32's range rounds to infinity, which no box is entered within:
         // no hit of a ray the f32 test takes lies that far (see FAST_ORIGIN).
         // (One walk per octant: see `rows`.)
@@ -738,8 +738,8 @@ pub(super) mod tests {
         if case % 17 == 0 {
             direction[(case + 1) % 3] *= 1e-30;
         }
-        let ray = SlabRay::new(origin, direction, case % 2 == 0);
-        let narrow = Narrow::of(origin, direction, ray.inv, ray.negative);
+        let ray = SlabRay::new(origin, direction);
+        let narrow = Narrow::of(&ray, direction);
         let (t0, t1) = (
             if case % 4 == 0 { 0.0 } else { rng.next_f64() * 0.1 * scale },
             if case % 3 == 0 { f64::INFINITY } else { rng.next_f64() * 5.0 * scale },
@@ -837,7 +837,7 @@ pub(super) mod tests {
     /// Rays the f32 test cannot bound take the f64 one.
     #[test]
     fn extreme_rays_take_the_f64_test() {
-        let narrow = |o: [f64; 3], d: [f64; 3]| SlabRay::new(o, d, true).narrow.is_some();
+        let narrow = |o: [f64; 3], d: [f64; 3]| Narrow::of(&SlabRay::new(o, d), d).is_some();
         assert!(narrow([0.0; 3], [1.0, 0.5, 0.0]));
         assert!(narrow([1e29, -1e29, 0.0], [0.0, -0.0, 1.0]));
         assert!(!narrow([1e31, 0.0, 0.0], [1.0, 0.0, 0.0]));

@@ -345,7 +345,7 @@ mod tests {
     use crate::geometry::{Ray, WatertightRay};
     use crate::rng::Rng;
     use crate::trace::bvh::tests::{random_node, record};
-    use crate::trace::bvh::SlabRay;
+    use crate::trace::bvh::{Narrow, SlabRay};
     use glam::DVec3;
 
     /// A random node, and up to eight rays from one origin whose directions lie in a
@@ -400,7 +400,7 @@ mod tests {
             let scalar = enter_scalar(&spread, &spread.inv_lo, &spread.inv_hi, r, t0, t1);
             assert_eq!(bits(wide), bits(scalar), "case {c}");
             for (i, (d, t0, t1)) in rays.iter().enumerate() {
-                let alone = SlabRay::new(origin.to_array(), d.to_array(), true);
+                let alone = SlabRay::new(origin.to_array(), d.to_array());
                 let exact = alone.enter_f64_scalar(r, *t0, *t1);
                 assert_eq!(wide.mask & exact.mask, exact.mask, "case {c}: {node:?}");
                 for k in 0..BVH_WIDTH {
@@ -408,7 +408,7 @@ mod tests {
                         assert!(wide.near[k] as f64 <= exact.near[k], "case {c}, child {k}");
                     }
                 }
-                let narrow = alone.narrow.expect("packed rays take the f32 test");
+                let narrow = Narrow::of(&alone, d.to_array()).expect("packed rays take the f32 test");
                 let (a, b) = (f32_below(*t0), f32_above(*t1));
                 assert_eq!(
                     bits(spread.enter_one(i, r, a, b)),
