@@ -37,6 +37,7 @@ pub const NEXT_SCENE: &str = "the host is preparing the next scene of the render
 pub const NOT_LOADED: &str = "no scene loaded";
 
 /// Version of the protocol; processes with another version are refused at registration.
+/// 14: BVH node records hold eight children (256 bytes, 8 records per node block);
 /// 13: a registration says whether its session is one of refinement's pilot light passes
 /// or a light pass that bins the pilots' kept pairs (`pilot_pairs`), and a DONE may say
 /// that another scene of the render follows (`next_scene`: the node registers again);
@@ -56,4 +57,4 @@ pub const NOT_LOADED: &str = "no scene loaded";
 /// replies carry the ledger's digests, checked by the host before it interpolates; 3: a
 /// batch's deposits on a fork are packed arrays and may carry the next `TakePairs`
 /// ([`deposits`]); 2: packed deposits per pair, `Replay` names the lost fork.
-pub const PROTOCOL_VERSION: u32 = 13;
+pub const PROTOCOL_VERSION: u32 = 14;

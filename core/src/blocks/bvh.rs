@@ -1,10 +1,11 @@
 //! Byte layout of the BVH blocks: node blocks, then leaf-triangle blocks.
 //!
-//! A node record holds up to [`BVH_WIDTH`] children, their bounds side by side (f32,
-//! rounded outward; all children's `lo.x`, then all `lo.y`, ...) so that a ray tests the
-//! four boxes of a node together, and a reference to each: an inner node (by node index),
-//! a leaf (a run of triangle records in one block) or nothing. Node `n` is record
-//! `n & 15` of node block `n >> 4`; leaf triangle address `a` is record `a & 31` of
+//! A node record holds up to [`BVH_WIDTH`] (eight) children, their bounds side by side
+//! (f32, rounded outward; all children's `lo.x`, then all `lo.y`, ...) so that a ray
+//! tests the boxes of a node together, four to a vector register, and a reference to
+//! each: an inner node (by node index), a leaf (a run of triangle records in one block)
+//! or nothing. Node `n` is record `n & 7` of node block `n >> 3`; leaf triangle address
+//! `a` is record `a & 31` of
 //! triangle block `a >> 5` (a block holds [`BVH_TRIANGLES_PER_BLOCK`] of them, so some
 //! addresses are unused): shifts and masks, no division on the traversal path. A triangle
 //! record carries the patch's corners in f64, exactly as the patch block does, so the
@@ -13,14 +14,23 @@
 use super::layout::{get_corners, get_u32, put_corners, put_u32, Block};
 use glam::DVec3;
 
-/// Children of a node record.
-pub const BVH_WIDTH: usize = 4;
-/// Bytes of one node record: 6 x 4 f32 bounds, 4 indices, 4 counts.
-pub const BVH_NODE_RECORD: usize = 128;
+/// Children of a node record (a multiple of four: the slab tests take four at a time).
+pub const BVH_WIDTH: usize = 8;
+/// `log2(BVH_WIDTH)`: the bits of a child's slot.
+pub const BVH_WIDTH_SHIFT: u32 = BVH_WIDTH.trailing_zeros();
+/// Bytes of one row of a node record's bounds: one coordinate of every child, in f32.
+pub const BVH_ROW: usize = 4 * BVH_WIDTH;
+/// Byte offset of the children's indices in a node record (after the six rows of
+/// bounds: `lo` x, y, z, then `hi` x, y, z).
+pub const BVH_INDEX_AT: usize = 6 * BVH_ROW;
+/// Byte offset of the children's triangle counts in a node record.
+pub const BVH_COUNT_AT: usize = BVH_INDEX_AT + 4 * BVH_WIDTH;
+/// Bytes of one node record: 6 x [`BVH_WIDTH`] f32 bounds, the indices, the counts.
+pub const BVH_NODE_RECORD: usize = BVH_COUNT_AT + 4 * BVH_WIDTH;
 /// Node records per block.
-pub const BVH_NODES_PER_BLOCK: usize = 16;
+pub const BVH_NODES_PER_BLOCK: usize = crate::blocks::BLOCK_SIZE / BVH_NODE_RECORD;
 /// `log2(BVH_NODES_PER_BLOCK)`: node `n` lives in node block `n >> BVH_NODE_SHIFT`.
-pub const BVH_NODE_SHIFT: u32 = 4;
+pub const BVH_NODE_SHIFT: u32 = BVH_NODES_PER_BLOCK.trailing_zeros();
 /// Bytes of one leaf-triangle record: 3 corners (9 x f64), patch id, padding.
 pub const BVH_TRIANGLE_RECORD: usize = 80;
 /// Leaf-triangle records per block.
@@ -77,14 +87,13 @@ impl BvhNodeLanes {
     /// Reads the record `r` (one node record's bytes).
     #[inline]
     pub fn read(r: &[u8; BVH_NODE_RECORD]) -> BvhNodeLanes {
-        let f = |i: usize| f32::from_le_bytes([r[4 * i], r[4 * i + 1], r[4 * i + 2], r[4 * i + 3]]);
-        let u = |i: usize| u32::from_le_bytes([r[4 * i], r[4 * i + 1], r[4 * i + 2], r[4 * i + 3]]);
-        let row = |base: usize| [f(base), f(base + 1), f(base + 2), f(base + 3)];
+        let word = |at: usize| [r[at], r[at + 1], r[at + 2], r[at + 3]];
+        let row = |row: usize| std::array::from_fn(|k| f32::from_le_bytes(word(BVH_ROW * row + 4 * k)));
         BvhNodeLanes {
-            lo: [row(0), row(4), row(8)],
-            hi: [row(12), row(16), row(20)],
-            index: [u(24), u(25), u(26), u(27)],
-            count: [u(28), u(29), u(30), u(31)],
+            lo: [row(0), row(1), row(2)],
+            hi: [row(3), row(4), row(5)],
+            index: std::array::from_fn(|k| u32::from_le_bytes(word(BVH_INDEX_AT + 4 * k))),
+            count: std::array::from_fn(|k| u32::from_le_bytes(word(BVH_COUNT_AT + 4 * k))),
         }
     }
 
@@ -102,16 +111,16 @@ impl BvhNodeLanes {
 impl BvhNode {
     /// Writes the record at byte offset `at`.
     pub fn encode(&self, b: &mut Block, at: usize) {
-        let mut put_f32 = |i: usize, v: f32| b[at + 4 * i..at + 4 * i + 4].copy_from_slice(&v.to_le_bytes());
+        let mut put_f32 = |o: usize, v: f32| b[at + o..at + o + 4].copy_from_slice(&v.to_le_bytes());
         for (k, c) in self.children.iter().enumerate() {
             for a in 0..3 {
-                put_f32(4 * a + k, c.lo[a]);
-                put_f32(12 + 4 * a + k, c.hi[a]);
+                put_f32(BVH_ROW * a + 4 * k, c.lo[a]);
+                put_f32(BVH_ROW * (3 + a) + 4 * k, c.hi[a]);
             }
         }
         for (k, c) in self.children.iter().enumerate() {
-            put_u32(b, at + 4 * (24 + k), c.index);
-            put_u32(b, at + 4 * (28 + k), c.count);
+            put_u32(b, at + BVH_INDEX_AT + 4 * k, c.index);
+            put_u32(b, at + BVH_COUNT_AT + 4 * k, c.count);
         }
     }
 
@@ -201,6 +210,8 @@ mod tests {
     fn records_fit_and_addresses_are_shifts() {
         assert_eq!(BVH_NODES_PER_BLOCK * BVH_NODE_RECORD, BLOCK_SIZE);
         assert_eq!(1 << BVH_NODE_SHIFT, BVH_NODES_PER_BLOCK);
+        assert_eq!(1 << BVH_WIDTH_SHIFT, BVH_WIDTH);
+        assert_eq!(BVH_WIDTH % 4, 0);
         assert!(BVH_TRIANGLES_PER_BLOCK * BVH_TRIANGLE_RECORD <= BLOCK_SIZE);
         assert!(BVH_TRIANGLES_PER_BLOCK <= 1 << BVH_TRIANGLE_SHIFT);
         assert!(BVH_MAX_LEAF as usize <= BVH_TRIANGLES_PER_BLOCK);

@@ -4,7 +4,7 @@
 //! The build splits the two halves of a large node on two threads (rayon), but every
 //! split depends only on the primitives of its node, in the order the partition left
 //! them, so the tree and its blocks are the same whatever the number of threads. The
-//! binary tree is then widened to nodes of four children (the two levels below a node
+//! binary tree is then widened to nodes of eight children (the levels below a node
 //! opened by surface area), written in depth-first order (a node's first inner child
 //! follows it) with the leaves in the same order, a leaf never straddling two triangle
 //! blocks.

@@ -1,4 +1,4 @@
-//! Ray casting through the BVH: a depth-first walk over nodes of four children, the
+//! Ray casting through the BVH: a depth-first walk over nodes of eight children, the
 //! nearest child first, that skips every node entered beyond the best hit so far.
 //!
 //! Node bounds are f32 rounded outward and padded at build time. The reference slab test
@@ -11,12 +11,15 @@
 //! records: the grid's answer, bit for bit, whatever order the nodes are visited in.
 //!
 //! The slab test reads a node's bounds in place from its record and, on x86_64, runs
-//! the four children at once in an SSE register (the scalar code elsewhere gives the
+//! the children four at a time in an SSE register (the scalar code elsewhere gives the
 //! same bits); a ray in the plane of a face (0 x inf = NaN) is not limited by that slab,
 //! so it can only enter more boxes, never fewer.
 
 use super::{Hit, NextUp, Query, TraceScratch};
-use crate::blocks::bvh::{BvhNodeLanes, BvhTriangle, BVH_NODE_RECORD, BVH_NODE_SHIFT, BVH_TRIANGLE_RECORD, BVH_WIDTH};
+use crate::blocks::bvh::{
+    BvhNodeLanes, BvhTriangle, BVH_COUNT_AT, BVH_INDEX_AT, BVH_NODE_RECORD, BVH_NODE_SHIFT, BVH_ROW,
+    BVH_TRIANGLE_RECORD, BVH_WIDTH, BVH_WIDTH_SHIFT,
+};
 use crate::blocks::BlockError;
 use crate::view::SceneView;
 
@@ -49,7 +52,7 @@ const NARROW_MIN_NODES: u32 = crate::blocks::bvh::BVH_NODES_PER_BLOCK as u32;
 /// The ray as the slab tests want it.
 ///
 /// The reference test runs in f64 on the f32 bounds ([`SlabRay::enter_f64`]). The walk's
-/// usual test runs in f32, four children in one SSE register ([`Narrow`]), and is
+/// usual test runs in f32, four children to an SSE register ([`Narrow`]), and is
 /// conservative against the f64 one: every box that test enters, this one enters too, at
 /// a distance no greater. A widened box can only add nodes to the walk, never drop one,
 /// and the hit kept (nearest, ties to the lower patch id) does not depend on the order
@@ -148,32 +151,31 @@ impl Narrow {
         unsafe { self.enter_sse2::<OCTANT>(record, t0, t1) }
     }
 
-    /// [`Narrow::enter`] with SSE2, four children at once: the same operations on the
+    /// [`Narrow::enter`] with SSE2, four children at a time: the same operations on the
     /// same values as [`Narrow::enter_scalar`], so the same bits (`max` and `min` keep
     /// their second operand when either is NaN, as the scalar comparisons do).
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "sse2")]
     fn enter_sse2<const OCTANT: u8>(&self, record: &[u8; BVH_NODE_RECORD], t0: f32, t1: f32) -> Entered<f32> {
         use std::arch::x86_64::*;
-        // Row r of the record's bounds (lo x, y, z, then hi x, y, z: four f32 each, little
-        // endian like the processor).
-        // SAFETY: r < 6, so the 16 bytes read, from byte 16 r, lie in the record's 128
-        // (an unaligned load).
-        let row = |r: usize| unsafe { _mm_loadu_ps(record.as_ptr().add(16 * r).cast::<f32>()) };
         // SAFETY: `v` is four f32, 16-byte aligned (`Narrow` is `align(16)` and its fields
         // are arrays of them).
         let lanes = |v: &[f32; 4]| unsafe { _mm_load_ps(v.as_ptr()) };
-        let mut near = _mm_set1_ps(f32::NEG_INFINITY);
-        let mut far = _mm_set1_ps(f32::INFINITY);
-        for a in 0..3 {
-            let (near_row, far_row) = rows(OCTANT, a);
-            let inv = lanes(&self.inv[a]);
-            let n = _mm_mul_ps(_mm_sub_ps(row(near_row), lanes(&self.o_near[a])), inv);
-            let f = _mm_mul_ps(_mm_sub_ps(row(far_row), lanes(&self.o_far[a])), inv);
-            near = _mm_max_ps(n, near);
-            far = _mm_min_ps(f, far);
+        let mut out = Entered { near: [0.0; BVH_WIDTH], mask: 0 };
+        for quad in 0..BVH_WIDTH / 4 {
+            let mut near = _mm_set1_ps(f32::NEG_INFINITY);
+            let mut far = _mm_set1_ps(f32::INFINITY);
+            for a in 0..3 {
+                let (near_row, far_row) = rows(OCTANT, a);
+                let inv = lanes(&self.inv[a]);
+                let n = _mm_mul_ps(_mm_sub_ps(row_quad(record, near_row, quad), lanes(&self.o_near[a])), inv);
+                let f = _mm_mul_ps(_mm_sub_ps(row_quad(record, far_row, quad), lanes(&self.o_far[a])), inv);
+                near = _mm_max_ps(n, near);
+                far = _mm_min_ps(f, far);
+            }
+            widened_sse2(near, far, t0, t1, quad, &mut out);
         }
-        widened_sse2(near, far, t0, t1)
+        out
     }
 
     /// [`Narrow::enter`] one lane at a time (other processors; the SSE2 version's oracle
@@ -206,13 +208,33 @@ impl Narrow {
     }
 }
 
-/// The f32 slab test's end, in SSE2: the farthest near and nearest far distances of
-/// four boxes widened by [`WIDEN`] and [`TINY`], clamped to `[t0, t1]`, and the boxes
-/// entered (within the interval, not only at infinity).
+/// Row `r` of node `record`'s bounds (`lo` x, y, z, then `hi` x, y, z), children
+/// `4 quad` to `4 quad + 3`, in an SSE register (f32, little endian like the processor).
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "sse2")]
 #[inline]
-fn widened_sse2(near: std::arch::x86_64::__m128, far: std::arch::x86_64::__m128, t0: f32, t1: f32) -> Entered<f32> {
+fn row_quad(record: &[u8; BVH_NODE_RECORD], r: usize, quad: usize) -> std::arch::x86_64::__m128 {
+    let at = (BVH_ROW * r + 16 * quad).min(BVH_NODE_RECORD - 16);
+    // SAFETY: `at + 16` is within the record's bytes (clamped above; for r < 6 and
+    // quad < BVH_WIDTH / 4 the clamp changes nothing); an unaligned load.
+    unsafe { std::arch::x86_64::_mm_loadu_ps(record.as_ptr().add(at).cast::<f32>()) }
+}
+
+/// The f32 slab test's end, in SSE2, for children `4 quad` to `4 quad + 3`: their
+/// farthest near and nearest far distances widened by [`WIDEN`] and [`TINY`], clamped to
+/// `[t0, t1]`, written to `out` with the boxes entered (within the interval, not only at
+/// infinity).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "sse2")]
+#[inline]
+fn widened_sse2(
+    near: std::arch::x86_64::__m128,
+    far: std::arch::x86_64::__m128,
+    t0: f32,
+    t1: f32,
+    quad: usize,
+    out: &mut Entered<f32>,
+) {
     use std::arch::x86_64::*;
     let tiny = _mm_set1_ps(TINY);
     let near = _mm_sub_ps(_mm_mul_ps(near, _mm_set1_ps(1.0 - WIDEN)), tiny);
@@ -220,10 +242,13 @@ fn widened_sse2(near: std::arch::x86_64::__m128, far: std::arch::x86_64::__m128,
     let near = _mm_max_ps(near, _mm_set1_ps(t0));
     let far = _mm_min_ps(far, _mm_set1_ps(t1));
     let inside = _mm_and_ps(_mm_cmple_ps(near, far), _mm_cmplt_ps(near, _mm_set1_ps(f32::INFINITY)));
-    let mut out = [0.0f32; BVH_WIDTH];
-    // SAFETY: `out` holds four f32 (an unaligned store).
-    unsafe { _mm_storeu_ps(out.as_mut_ptr(), near) };
-    Entered { near: out, mask: _mm_movemask_ps(inside) as u32 }
+    let mut four = [0.0f32; 4];
+    // SAFETY: `four` holds four f32 (an unaligned store).
+    unsafe { _mm_storeu_ps(four.as_mut_ptr(), near) };
+    if let Some(slots) = out.near.get_mut(4 * quad..4 * quad + 4) {
+        slots.copy_from_slice(&four);
+    }
+    out.mask |= (_mm_movemask_ps(inside) as u32) << (4 * quad);
 }
 
 /// [`widened_sse2`] one lane at a time: the same bits.
@@ -251,7 +276,7 @@ impl SlabRay {
         SlabRay { origin, inv, negative }
     }
 
-    /// The f64 test: the four boxes side by side, in f64 from the f32 bounds, the far
+    /// The f64 test: the boxes side by side, in f64 from the f32 bounds, the far
     /// distance widened by [`FAR_SLACK`] (Ize 2013), two lanes at a time in SSE2
     /// registers.
     #[cfg(target_arch = "x86_64")]
@@ -269,38 +294,42 @@ impl SlabRay {
     #[target_feature(enable = "sse2")]
     fn enter_f64_sse2(&self, record: &[u8; BVH_NODE_RECORD], t0: f64, t1: f64) -> Entered<f64> {
         use std::arch::x86_64::*;
-        // Row r of the record's bounds (lo x, y, z, then hi x, y, z: four f32 each, little
-        // endian like the processor), children 0 and 1, and 2 and 3, widened to f64.
-        let row = |r: usize| {
-            // SAFETY: r < 6, so the 16 bytes read, from byte 16 r, lie in the record's 128
-            // (an unaligned load).
-            let v = unsafe { _mm_loadu_ps(record.as_ptr().add(16 * r).cast::<f32>()) };
+        // Row r of the record's bounds, children 4 quad and 4 quad + 1, and 4 quad + 2 and
+        // 4 quad + 3, widened to f64.
+        let row = |r: usize, quad: usize| {
+            let v = row_quad(record, r, quad);
             (_mm_cvtps_pd(v), _mm_cvtps_pd(_mm_movehl_ps(v, v)))
         };
-        let (mut near01, mut near23) = (_mm_set1_pd(t0), _mm_set1_pd(t0));
-        let (mut far01, mut far23) = (_mm_set1_pd(f64::INFINITY), _mm_set1_pd(f64::INFINITY));
-        for a in 0..3 {
-            let (near_row, far_row) = if self.negative[a] { (3 + a, a) } else { (a, 3 + a) };
-            let (o, inv) = (_mm_set1_pd(self.origin[a]), _mm_set1_pd(self.inv[a]));
-            let (n01, n23) = row(near_row);
-            let (f01, f23) = row(far_row);
-            near01 = _mm_max_pd(_mm_mul_pd(_mm_sub_pd(n01, o), inv), near01);
-            near23 = _mm_max_pd(_mm_mul_pd(_mm_sub_pd(n23, o), inv), near23);
-            far01 = _mm_min_pd(_mm_mul_pd(_mm_sub_pd(f01, o), inv), far01);
-            far23 = _mm_min_pd(_mm_mul_pd(_mm_sub_pd(f23, o), inv), far23);
+        let mut out = Entered { near: [0.0; BVH_WIDTH], mask: 0 };
+        for quad in 0..BVH_WIDTH / 4 {
+            let (mut near01, mut near23) = (_mm_set1_pd(t0), _mm_set1_pd(t0));
+            let (mut far01, mut far23) = (_mm_set1_pd(f64::INFINITY), _mm_set1_pd(f64::INFINITY));
+            for a in 0..3 {
+                let (near_row, far_row) = if self.negative[a] { (3 + a, a) } else { (a, 3 + a) };
+                let (o, inv) = (_mm_set1_pd(self.origin[a]), _mm_set1_pd(self.inv[a]));
+                let (n01, n23) = row(near_row, quad);
+                let (f01, f23) = row(far_row, quad);
+                near01 = _mm_max_pd(_mm_mul_pd(_mm_sub_pd(n01, o), inv), near01);
+                near23 = _mm_max_pd(_mm_mul_pd(_mm_sub_pd(n23, o), inv), near23);
+                far01 = _mm_min_pd(_mm_mul_pd(_mm_sub_pd(f01, o), inv), far01);
+                far23 = _mm_min_pd(_mm_mul_pd(_mm_sub_pd(f23, o), inv), far23);
+            }
+            let (slack, t1) = (_mm_set1_pd(FAR_SLACK), _mm_set1_pd(t1));
+            let far01 = _mm_min_pd(_mm_mul_pd(far01, slack), t1);
+            let far23 = _mm_min_pd(_mm_mul_pd(far23, slack), t1);
+            // Entered within the interval, and not only at infinity.
+            let inf = _mm_set1_pd(f64::INFINITY);
+            let in01 = _mm_and_pd(_mm_cmple_pd(near01, far01), _mm_cmplt_pd(near01, inf));
+            let in23 = _mm_and_pd(_mm_cmple_pd(near23, far23), _mm_cmplt_pd(near23, inf));
+            let mask = _mm_movemask_pd(in01) | (_mm_movemask_pd(in23) << 2);
+            out.mask |= (mask as u32) << (4 * quad);
+            let lanes = |v: __m128d| [_mm_cvtsd_f64(v), _mm_cvtsd_f64(_mm_unpackhi_pd(v, v))];
+            let ([n0, n1], [n2, n3]) = (lanes(near01), lanes(near23));
+            if let Some(slots) = out.near.get_mut(4 * quad..4 * quad + 4) {
+                slots.copy_from_slice(&[n0, n1, n2, n3]);
+            }
         }
-        let (slack, t1) = (_mm_set1_pd(FAR_SLACK), _mm_set1_pd(t1));
-        let far01 = _mm_min_pd(_mm_mul_pd(far01, slack), t1);
-        let far23 = _mm_min_pd(_mm_mul_pd(far23, slack), t1);
-        // Entered within the interval, and not only at infinity.
-        let inf = _mm_set1_pd(f64::INFINITY);
-        let in01 = _mm_and_pd(_mm_cmple_pd(near01, far01), _mm_cmplt_pd(near01, inf));
-        let in23 = _mm_and_pd(_mm_cmple_pd(near23, far23), _mm_cmplt_pd(near23, inf));
-        let mask = _mm_movemask_pd(in01) | (_mm_movemask_pd(in23) << 2);
-        let lanes = |v: __m128d| [_mm_cvtsd_f64(v), _mm_cvtsd_f64(_mm_unpackhi_pd(v, v))];
-        let [n0, n1] = lanes(near01);
-        let [n2, n3] = lanes(near23);
-        Entered { near: [n0, n1, n2, n3], mask: mask as u32 }
+        out
     }
 
     /// [`SlabRay::enter_f64`] one lane at a time (other processors; the SSE2 version's
@@ -410,7 +439,7 @@ trait BoxTest {
     /// A key that orders child `k` entered at `t` among its siblings by distance, ties
     /// by `k`: the distance's bits (a non-negative float's bits order as the float; a
     /// distance below zero, from a `tmin` rounded down, is taken as zero) above the
-    /// child's slot. An f64 distance loses its lowest two bits to the slot; the order
+    /// child's slot. An f64 distance loses its lowest bits to the slot; the order
     /// is only the walk's guess at what to visit first, and changes no answer.
     fn key(t: Self::Bound, k: usize) -> u64;
 }
@@ -434,7 +463,7 @@ impl BoxTest for Wide<'_> {
     }
     #[inline(always)]
     fn key(t: f64, k: usize) -> u64 {
-        (t.max(0.0).to_bits() & !3) | k as u64
+        (t.max(0.0).to_bits() & !(BVH_WIDTH as u64 - 1)) | k as u64
     }
 }
 
@@ -457,7 +486,7 @@ impl<const OCTANT: u8> BoxTest for Narrowed<'_, OCTANT> {
     }
     #[inline(always)]
     fn key(t: f32, k: usize) -> u64 {
-        ((t.max(0.0).to_bits() as u64) << 2) | k as u64
+        ((t.max(0.0).to_bits() as u64) << BVH_WIDTH_SHIFT) | k as u64
     }
 }
 
@@ -586,10 +615,10 @@ fn walk<B: BoxTest>(
                     }
                     sort_keys(&mut keys, n);
                     for &key in keys[1..n].iter().rev() {
-                        let k = (key & 3) as usize;
+                        let k = key as usize & (BVH_WIDTH - 1);
                         stack.push((child_index(record, k), child_count(record, k), B::wide(near[k])));
                     }
-                    (keys[0] & 3) as usize
+                    keys[0] as usize & (BVH_WIDTH - 1)
                 };
                 (index, count) = (child_index(record, k), child_count(record, k));
                 continue;
@@ -613,21 +642,23 @@ fn walk<B: BoxTest>(
     result
 }
 
-/// Sorts the first `n` (2 to 4) of `keys` ascending, the others being `u64::MAX`: one
-/// exchange for two, a network of five for more.
+/// Sorts the first `n` (2 to [`BVH_WIDTH`]) of `keys` ascending: one exchange for two
+/// (the usual case), an insertion sort for more.
 #[inline(always)]
 fn sort_keys(keys: &mut [u64; BVH_WIDTH], n: usize) {
-    let mut exchange = |a: usize, b: usize| {
-        let (x, y) = (keys[a], keys[b]);
-        keys[a] = x.min(y);
-        keys[b] = x.max(y);
-    };
-    exchange(0, 1);
-    if n > 2 {
-        exchange(2, 3);
-        exchange(0, 2);
-        exchange(1, 3);
-        exchange(1, 2);
+    if n == 2 {
+        let (x, y) = (keys[0], keys[1]);
+        (keys[0], keys[1]) = (x.min(y), x.max(y));
+        return;
+    }
+    for i in 1..n.min(BVH_WIDTH) {
+        let x = keys[i];
+        let mut j = i;
+        while j > 0 && keys[j - 1] > x {
+            keys[j] = keys[j - 1];
+            j -= 1;
+        }
+        keys[j] = x;
     }
 }
 
@@ -678,13 +709,15 @@ fn visit<'v>(
 /// Child `k`'s index in a node record (see [`crate::blocks::bvh::BvhChild::index`]).
 #[inline]
 fn child_index(record: &[u8; BVH_NODE_RECORD], k: usize) -> u32 {
-    u32::from_le_bytes(record[96 + 4 * k..100 + 4 * k].try_into().unwrap_or([0xff; 4]))
+    let at = BVH_INDEX_AT + 4 * k;
+    u32::from_le_bytes(record[at..at + 4].try_into().unwrap_or([0xff; 4]))
 }
 
 /// Child `k`'s triangle count in a node record (0 for an inner node or no child).
 #[inline]
 fn child_count(record: &[u8; BVH_NODE_RECORD], k: usize) -> u32 {
-    u32::from_le_bytes(record[112 + 4 * k..116 + 4 * k].try_into().unwrap_or([0; 4]))
+    let at = BVH_COUNT_AT + 4 * k;
+    u32::from_le_bytes(record[at..at + 4].try_into().unwrap_or([0; 4]))
 }
 
 /// The error for a node record that points back up the tree.
@@ -747,13 +780,13 @@ pub(super) mod tests {
         (node, ray, narrow, t0, t1)
     }
 
-    /// A node of four inner children whose boxes have corners drawn by `coord`, rounded
+    /// A node of inner children whose boxes have corners drawn by `coord`, rounded
     /// outward to f32.
     pub(super) fn random_node(rng: &mut Rng, coord: impl Fn(&mut Rng) -> f64) -> BvhNodeLanes {
         let mut node = BvhNodeLanes {
             lo: [[0.0; BVH_WIDTH]; 3],
             hi: [[0.0; BVH_WIDTH]; 3],
-            index: [1, 2, 3, 4],
+            index: std::array::from_fn(|k| k as u32 + 1),
             count: [0; BVH_WIDTH],
         };
         for a in 0..3 {

@@ -1,5 +1,5 @@
 //! Packets: up to [`PACKET`] rays that leave one origin (a pinhole camera's eye, a point
-//! light) walk the BVH together. A node is read, its four boxes tested, its children
+//! light) walk the BVH together. A node is read, its boxes tested, its children
 //! ordered and pushed once for the whole packet, by a slab test on the interval of the
 //! rays' inverse directions (interval arithmetic, as in Boulos et al. 2006), in f32 like
 //! the single ray's test ([`super::Narrow`]). Where a node's children include leaves,
@@ -21,12 +21,12 @@
 //! direction component of zero, whose products can be NaN at a face through the origin),
 //! or that the f32 test does not take, are not packed: the caller traces them alone.
 
-#[cfg(target_arch = "x86_64")]
-use super::widened_sse2;
 use super::{
     child_count, child_index, f32_above, f32_below, test_leaf, visit, widened_scalar, Entered, FAST_MIN_DIRECTION,
     FAST_ORIGIN,
 };
+#[cfg(target_arch = "x86_64")]
+use super::{row_quad, widened_sse2};
 use crate::blocks::bvh::{BVH_NODE_RECORD, BVH_WIDTH};
 use crate::blocks::BlockError;
 use crate::trace::{Hit, NextUp, Query, TraceScratch};
@@ -101,50 +101,80 @@ impl Spread {
     /// `[t0, t1]`, and a distance no greater than any of them enters it at.
     #[inline]
     pub(super) fn enter(&self, record: &[u8; BVH_NODE_RECORD], t0: f32, t1: f32) -> Entered<f32> {
-        enter(self, &self.inv_lo, &self.inv_hi, record, t0, t1)
+        enter(self, &self.inv_lo, &self.inv_hi, record, t0, t1, u32::MAX)
     }
 
-    /// Which child boxes of node `record` ray `i` enters within `[t0, t1]`: its own f32
-    /// test, the same bits (the product's minimum and maximum over one inverse are the
-    /// product).
+    /// Which of the child boxes `children` (a bit mask) of node `record` ray `i` enters
+    /// within `[t0, t1]`: its own f32 test, the same bits (the product's minimum and
+    /// maximum over one inverse are the product). Only the quads of children that hold
+    /// one of `children` are tested; others may be answered or not.
     #[inline]
-    pub(super) fn enter_one(&self, i: usize, record: &[u8; BVH_NODE_RECORD], t0: f32, t1: f32) -> Entered<f32> {
-        enter(self, &self.inv[i], &self.inv[i], record, t0, t1)
+    pub(super) fn enter_one(
+        &self,
+        i: usize,
+        record: &[u8; BVH_NODE_RECORD],
+        t0: f32,
+        t1: f32,
+        children: u32,
+    ) -> Entered<f32> {
+        enter(self, &self.inv[i], &self.inv[i], record, t0, t1, children)
     }
 }
 
-/// The slab test of [`Spread`] over the inverse directions `[lo, hi]`.
+/// The slab test of [`Spread`] over the inverse directions `[lo, hi]`, on the quads of
+/// children that hold one of `children` (a bit mask).
 #[cfg(target_arch = "x86_64")]
 #[inline]
-fn enter(s: &Spread, lo: &Splat3, hi: &Splat3, record: &[u8; BVH_NODE_RECORD], t0: f32, t1: f32) -> Entered<f32> {
+fn enter(
+    s: &Spread,
+    lo: &Splat3,
+    hi: &Splat3,
+    record: &[u8; BVH_NODE_RECORD],
+    t0: f32,
+    t1: f32,
+    children: u32,
+) -> Entered<f32> {
     // SAFETY: SSE2 is part of the x86_64 baseline; the function reads nothing but its
     // arguments.
-    unsafe { enter_sse2(s, lo, hi, record, t0, t1) }
+    unsafe { enter_sse2(s, lo, hi, record, t0, t1, children) }
 }
 
-/// [`enter`] with SSE2, four children at once: the same operations on the same values as
+/// [`enter`] with SSE2, four children at a time: the same operations on the same values as
 /// [`enter_scalar`] (no NaN arises: every inverse is a normal f32, every origin finite).
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "sse2")]
-fn enter_sse2(s: &Spread, lo: &Splat3, hi: &Splat3, record: &[u8; BVH_NODE_RECORD], t0: f32, t1: f32) -> Entered<f32> {
+fn enter_sse2(
+    s: &Spread,
+    lo: &Splat3,
+    hi: &Splat3,
+    record: &[u8; BVH_NODE_RECORD],
+    t0: f32,
+    t1: f32,
+    children: u32,
+) -> Entered<f32> {
     use std::arch::x86_64::*;
-    // SAFETY: r < 6, so the 16 bytes read, from byte 16 r, lie in the record's 128.
-    let row = |r: usize| unsafe { _mm_loadu_ps(record.as_ptr().add(16 * r).cast::<f32>()) };
     // SAFETY: `v` is four f32, 16-byte aligned (`Spread` is `align(16)`).
     let lanes = |v: &[f32; 4]| unsafe { _mm_load_ps(v.as_ptr()) };
-    let mut near = _mm_set1_ps(f32::NEG_INFINITY);
-    let mut far = _mm_set1_ps(f32::INFINITY);
-    for a in 0..3 {
-        let (near_row, far_row) = s.rows[a];
-        let (l, h) = (lanes(&lo[a]), lanes(&hi[a]));
-        let dn = _mm_sub_ps(row(near_row), lanes(&s.o_near[a]));
-        let df = _mm_sub_ps(row(far_row), lanes(&s.o_far[a]));
-        let n = _mm_min_ps(_mm_mul_ps(dn, l), _mm_mul_ps(dn, h));
-        let f = _mm_max_ps(_mm_mul_ps(df, l), _mm_mul_ps(df, h));
-        near = _mm_max_ps(n, near);
-        far = _mm_min_ps(f, far);
+    let mut out = Entered { near: [0.0; BVH_WIDTH], mask: 0 };
+    for quad in 0..BVH_WIDTH / 4 {
+        if children >> (4 * quad) & 0xf == 0 {
+            continue;
+        }
+        let mut near = _mm_set1_ps(f32::NEG_INFINITY);
+        let mut far = _mm_set1_ps(f32::INFINITY);
+        for a in 0..3 {
+            let (near_row, far_row) = s.rows[a];
+            let (l, h) = (lanes(&lo[a]), lanes(&hi[a]));
+            let dn = _mm_sub_ps(row_quad(record, near_row, quad), lanes(&s.o_near[a]));
+            let df = _mm_sub_ps(row_quad(record, far_row, quad), lanes(&s.o_far[a]));
+            let n = _mm_min_ps(_mm_mul_ps(dn, l), _mm_mul_ps(dn, h));
+            let f = _mm_max_ps(_mm_mul_ps(df, l), _mm_mul_ps(df, h));
+            near = _mm_max_ps(n, near);
+            far = _mm_min_ps(f, far);
+        }
+        widened_sse2(near, far, t0, t1, quad, &mut out);
     }
-    widened_sse2(near, far, t0, t1)
+    out
 }
 
 /// [`enter`] one lane at a time (other processors; the SSE2 version's oracle).
@@ -177,7 +207,15 @@ fn enter_scalar(
 
 #[cfg(not(target_arch = "x86_64"))]
 #[inline]
-fn enter(s: &Spread, lo: &Splat3, hi: &Splat3, record: &[u8; BVH_NODE_RECORD], t0: f32, t1: f32) -> Entered<f32> {
+fn enter(
+    s: &Spread,
+    lo: &Splat3,
+    hi: &Splat3,
+    record: &[u8; BVH_NODE_RECORD],
+    t0: f32,
+    t1: f32,
+    _children: u32,
+) -> Entered<f32> {
     enter_scalar(s, lo, hi, record, t0, t1)
 }
 
@@ -290,7 +328,7 @@ pub(super) fn walk(
             while m != 0 {
                 let i = m.trailing_zeros() as usize;
                 m &= m - 1;
-                let e = spread.enter_one(i, record, lanes[i].t0, lanes[i].bound32);
+                let e = spread.enter_one(i, record, lanes[i].t0, lanes[i].bound32, leaves);
                 let mut em = e.mask & leaves;
                 while em != 0 {
                     let k = em.trailing_zeros() as usize;
@@ -411,7 +449,7 @@ mod tests {
                 let narrow = Narrow::of(&alone, d.to_array()).expect("packed rays take the f32 test");
                 let (a, b) = (f32_below(*t0), f32_above(*t1));
                 assert_eq!(
-                    bits(spread.enter_one(i, r, a, b)),
+                    bits(spread.enter_one(i, r, a, b, u32::MAX)),
                     bits(super::super::tests::enter_in_octant(&narrow, r, a, b)),
                     "case {c}, ray {i}"
                 );
