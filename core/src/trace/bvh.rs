@@ -17,7 +17,7 @@
 
 use super::{Hit, NextUp, Query, TraceScratch};
 use crate::blocks::bvh::{
-    BvhNodeLanes, BvhTriangle, BVH_COUNT_AT, BVH_INDEX_AT, BVH_NODE_RECORD, BVH_NODE_SHIFT, BVH_ROW,
+    BvhNodeLanes, BvhTriangle, BVH_COUNT_AT, BVH_INDEX_AT, BVH_NODE_RECORD, BVH_NODE_SHIFT, BVH_NO_CHILD, BVH_ROW,
     BVH_TRIANGLE_RECORD, BVH_WIDTH, BVH_WIDTH_SHIFT,
 };
 use crate::blocks::BlockError;
@@ -46,8 +46,8 @@ const TINY: f32 = f32::from_bits(1);
 const FAST_ORIGIN: f64 = (1u128 << 100) as f64;
 const FAST_MIN_DIRECTION: f64 = 1.0 / (1u64 << 25) as f64;
 
-/// The smallest BVH walked with the f32 slab test (see [`SlabRay`]): one block of nodes.
-const NARROW_MIN_NODES: u32 = crate::blocks::bvh::BVH_NODES_PER_BLOCK as u32;
+/// The smallest BVH whose rays walk it in packets ([`packs`]): one block of nodes.
+const PACKET_MIN_NODES: u32 = crate::blocks::bvh::BVH_NODES_PER_BLOCK as u32;
 
 /// The ray as the slab tests want it.
 ///
@@ -58,10 +58,10 @@ const NARROW_MIN_NODES: u32 = crate::blocks::bvh::BVH_NODES_PER_BLOCK as u32;
 /// and the hit kept (nearest, ties to the lower patch id) does not depend on the order
 /// nodes are visited in.
 ///
-/// The f32 test's per-ray data costs as much as two or three node visits save, so a
-/// BVH of fewer than [`NARROW_MIN_NODES`] nodes (a scene of a few patches, whose rays
-/// visit a node or two) is walked with the f64 test. Rays outside the ranges where the
-/// f32 bounds hold take the f64 test too.
+/// Every ray takes the f32 test where its bounds hold (rays outside those ranges take the
+/// f64 test), in the smallest BVH too: with nodes of eight children the f64 test of a
+/// node costs more than the f32 test's per-ray data (measured on scenes/magg-paper.toml,
+/// one node: 7 % more primary rays per second).
 struct SlabRay {
     origin: [f64; 3],
     inv: [f64; 3],
@@ -163,6 +163,9 @@ impl Narrow {
         let lanes = |v: &[f32; 4]| unsafe { _mm_load_ps(v.as_ptr()) };
         let mut out = Entered { near: [0.0; BVH_WIDTH], mask: 0 };
         for quad in 0..BVH_WIDTH / 4 {
+            if !quad_used(record, quad) {
+                break;
+            }
             let mut near = _mm_set1_ps(f32::NEG_INFINITY);
             let mut far = _mm_set1_ps(f32::INFINITY);
             for a in 0..3 {
@@ -302,6 +305,9 @@ impl SlabRay {
         };
         let mut out = Entered { near: [0.0; BVH_WIDTH], mask: 0 };
         for quad in 0..BVH_WIDTH / 4 {
+            if !quad_used(record, quad) {
+                break;
+            }
             let (mut near01, mut near23) = (_mm_set1_pd(t0), _mm_set1_pd(t0));
             let (mut far01, mut far23) = (_mm_set1_pd(f64::INFINITY), _mm_set1_pd(f64::INFINITY));
             for a in 0..3 {
@@ -497,7 +503,7 @@ pub(super) fn cast(view: &mut SceneView, scratch: &mut TraceScratch, q: &Query) 
     let (o, d) = (q.ray.origin.to_array(), q.ray.direction.to_array());
     let t0 = q.tmin.max(0.0);
     let slab = SlabRay::new(o, d);
-    let narrow = if view.header.bvh.nodes >= NARROW_MIN_NODES { Narrow::of(&slab, d) } else { None };
+    let narrow = Narrow::of(&slab, d);
     match &narrow {
         // A tmin beyond f32's range rounds to infinity, which no box is entered within:
         // no hit of a ray the f32 test takes lies that far (see FAST_ORIGIN).
@@ -520,10 +526,10 @@ pub(super) fn cast(view: &mut SceneView, scratch: &mut TraceScratch, q: &Query) 
 }
 
 /// Whether `view`'s rays walk its BVH in packets: a BVH (not the grid) of at least
-/// [`NARROW_MIN_NODES`] nodes (in smaller ones a ray visits a node or two, and the
+/// [`PACKET_MIN_NODES`] nodes (in smaller ones a ray visits a node or two, and the
 /// packet's set-up would cost more than it saves).
 pub(super) fn packs(view: &SceneView) -> bool {
-    view.header.settings.accel == crate::scene::Accel::Bvh && view.header.bvh.nodes >= NARROW_MIN_NODES
+    view.header.settings.accel == crate::scene::Accel::Bvh && view.header.bvh.nodes >= PACKET_MIN_NODES
 }
 
 /// [`cast`] of each of `queries` (at most [`PACKET`], one origin) into `out`: walked
@@ -536,7 +542,7 @@ pub(super) fn cast_packet(
     out: &mut [Option<Hit>],
 ) -> Result<(), BlockError> {
     let packed =
-        if queries.len() > 1 && view.header.bvh.nodes >= NARROW_MIN_NODES { packet::Spread::of(queries) } else { None };
+        if queries.len() > 1 && view.header.bvh.nodes >= PACKET_MIN_NODES { packet::Spread::of(queries) } else { None };
     match packed {
         Some(spread) => packet::walk(view, scratch, queries, &spread, out),
         None => {
@@ -706,6 +712,15 @@ fn visit<'v>(
     view.bvh_node_record(index)
 }
 
+/// Whether node `record` has a child among slots `4 quad` to `4 quad + 3`: the children
+/// of a node take its first slots, so a quad whose first slot is empty is empty, and so
+/// are those after it. The slab tests stop at the first empty quad (a node of four
+/// children or fewer costs the test of one).
+#[inline(always)]
+fn quad_used(record: &[u8; BVH_NODE_RECORD], quad: usize) -> bool {
+    quad == 0 || child_index(record, 4 * quad) != BVH_NO_CHILD
+}
+
 /// Child `k`'s index in a node record (see [`crate::blocks::bvh::BvhChild::index`]).
 #[inline]
 fn child_index(record: &[u8; BVH_NODE_RECORD], k: usize) -> u32 {
@@ -751,11 +766,13 @@ pub(super) mod tests {
         };
         let mut node = random_node(rng, coord);
         if case % 7 == 0 {
-            let k = case % BVH_WIDTH;
-            node.index[k] = BVH_NO_CHILD;
-            for a in 0..3 {
-                node.lo[a][k] = f32::INFINITY;
-                node.hi[a][k] = f32::NEG_INFINITY;
+            // Absent children, as the build leaves them: the last slots, from k on.
+            for k in (case / 7) % BVH_WIDTH + 1..BVH_WIDTH {
+                node.index[k] = BVH_NO_CHILD;
+                for a in 0..3 {
+                    node.lo[a][k] = f32::INFINITY;
+                    node.hi[a][k] = f32::NEG_INFINITY;
+                }
             }
         }
         let mut origin = [coord(rng), coord(rng), coord(rng)];
@@ -807,6 +824,11 @@ pub(super) mod tests {
         block
     }
 
+    /// `near` where `mask` says a child is entered, zero elsewhere.
+    pub(super) fn entered<T: Copy + Default>(near: [T; BVH_WIDTH], mask: u32) -> [T; BVH_WIDTH] {
+        std::array::from_fn(|k| if mask >> k & 1 == 1 { near[k] } else { T::default() })
+    }
+
     /// [`Narrow::enter`] as compiled for `n`'s octant (the walk's).
     pub(super) fn enter_in_octant(n: &Narrow, r: &[u8; BVH_NODE_RECORD], t0: f32, t1: f32) -> Entered<f32> {
         match n.octant {
@@ -829,12 +851,13 @@ pub(super) mod tests {
             let (node, ray, narrow, t0, t1) = case(&mut rng, c);
             let block = record(&node);
             let r = crate::blocks::bvh::node_record(&block, 0);
-            let bits = |e: Entered<f64>| (e.near.map(f64::to_bits), e.mask);
+            // (The distances of the children entered: those of the others mean nothing.)
+            let bits = |e: Entered<f64>| (entered(e.near, e.mask).map(f64::to_bits), e.mask);
             assert_eq!(bits(ray.enter_f64(r, t0, t1)), bits(ray.enter_f64_scalar(r, t0, t1)), "case {c}: {node:?}");
             if let Some(n) = narrow {
                 let fast = enter_in_octant(&n, r, f32_below(t0), f32_above(t1));
                 let slow = n.enter_scalar(r, f32_below(t0), f32_above(t1));
-                let bits = |e: Entered<f32>| (e.near.map(f32::to_bits), e.mask);
+                let bits = |e: Entered<f32>| (entered(e.near, e.mask).map(f32::to_bits), e.mask);
                 assert_eq!(bits(fast), bits(slow), "case {c}: {node:?}");
             }
         }

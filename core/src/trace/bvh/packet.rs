@@ -26,7 +26,7 @@ use super::{
     FAST_ORIGIN,
 };
 #[cfg(target_arch = "x86_64")]
-use super::{row_quad, widened_sse2};
+use super::{quad_used, row_quad, widened_sse2};
 use crate::blocks::bvh::{BVH_NODE_RECORD, BVH_WIDTH};
 use crate::blocks::BlockError;
 use crate::trace::{Hit, NextUp, Query, TraceScratch};
@@ -157,6 +157,9 @@ fn enter_sse2(
     let lanes = |v: &[f32; 4]| unsafe { _mm_load_ps(v.as_ptr()) };
     let mut out = Entered { near: [0.0; BVH_WIDTH], mask: 0 };
     for quad in 0..BVH_WIDTH / 4 {
+        if !quad_used(record, quad) {
+            break;
+        }
         if children >> (4 * quad) & 0xf == 0 {
             continue;
         }
@@ -434,7 +437,7 @@ mod tests {
             let t1 = rays.iter().map(|r| r.2).fold(f64::NEG_INFINITY, f64::max);
             let (t0, t1) = (f32_below(t0), f32_above(t1));
             let wide = spread.enter(r, t0, t1);
-            let bits = |e: Entered<f32>| (e.near.map(f32::to_bits), e.mask);
+            let bits = |e: Entered<f32>| (super::super::tests::entered(e.near, e.mask).map(f32::to_bits), e.mask);
             let scalar = enter_scalar(&spread, &spread.inv_lo, &spread.inv_hi, r, t0, t1);
             assert_eq!(bits(wide), bits(scalar), "case {c}");
             for (i, (d, t0, t1)) in rays.iter().enumerate() {
