@@ -1,9 +1,8 @@
 //! The image and the energies do not depend on how the work is spread: node count, fork
 //! count and cache size change the time and the traffic, never a byte of the output.
-//! Nor does forcing every optional effect on (`--all-effects`) where the scene needs none,
-//! nor the processor's vector width (the AVX slab test against SSE2's).
+//! Nor does forcing every optional effect on (`--all-effects`) where the scene needs none.
 
-use magg_tests::{assert_success, read_json, render, scene, Rendered};
+use magg_tests::{read_json, render, scene, Rendered};
 use serde_json::Value;
 use std::path::Path;
 
@@ -136,18 +135,4 @@ fn all_effects_on_a_diffuse_scene_changes_nothing() {
         assert!(f.iter().any(|x| x == pass), "forced plan {f:?} lacks {pass}");
     }
     assert!(p.iter().any(|x| x == "lrt_diffuse"), "diffuse.toml has a diffuse bounce: {p:?}");
-}
-
-/// Single rays walk the BVH with an AVX slab test where the processor has it and with
-/// SSE2 under `MAGG_NO_AVX`: the same nodes, the same hits, the same bytes. (On a
-/// processor without AVX both renders take SSE2, and the test says nothing new.)
-#[test]
-fn the_avx_and_sse2_walks_give_the_same_output() {
-    let dir = tempfile::tempdir().unwrap();
-    let cornell = scene("cornell.toml");
-    let avx = render(&cornell, dir.path(), "avx", CORNELL);
-    let sse2 = Rendered::at(dir.path(), "sse2");
-    let out = sse2.command(&cornell).args(CORNELL).env("MAGG_NO_AVX", "1").output().expect("cannot start magg-host");
-    assert_success(&out, "magg-host render cornell.toml with MAGG_NO_AVX");
-    assert_same_outputs(&avx, &sse2, "MAGG_NO_AVX");
 }

@@ -23,8 +23,6 @@ use crate::blocks::bvh::{
 use crate::blocks::BlockError;
 use crate::view::SceneView;
 
-#[cfg(target_arch = "x86_64")]
-mod avx;
 mod packet;
 
 pub(super) use packet::PACKET;
@@ -512,22 +510,18 @@ pub(super) fn cast(view: &mut SceneView, scratch: &mut TraceScratch, q: &Query) 
         // (One walk per octant: see `rows`.)
         Some(n) => {
             let t = f32_below(t0);
-            #[cfg(target_arch = "x86_64")]
-            if avx::available() {
-                return avx::walk_avx(view, scratch, q, n, t);
-            }
             match n.octant {
-                0 => walk_with(view, scratch, q, &Narrowed::<0>(n, t)),
-                1 => walk_with(view, scratch, q, &Narrowed::<1>(n, t)),
-                2 => walk_with(view, scratch, q, &Narrowed::<2>(n, t)),
-                3 => walk_with(view, scratch, q, &Narrowed::<3>(n, t)),
-                4 => walk_with(view, scratch, q, &Narrowed::<4>(n, t)),
-                5 => walk_with(view, scratch, q, &Narrowed::<5>(n, t)),
-                6 => walk_with(view, scratch, q, &Narrowed::<6>(n, t)),
-                _ => walk_with(view, scratch, q, &Narrowed::<7>(n, t)),
+                0 => walk(view, scratch, q, &Narrowed::<0>(n, t)),
+                1 => walk(view, scratch, q, &Narrowed::<1>(n, t)),
+                2 => walk(view, scratch, q, &Narrowed::<2>(n, t)),
+                3 => walk(view, scratch, q, &Narrowed::<3>(n, t)),
+                4 => walk(view, scratch, q, &Narrowed::<4>(n, t)),
+                5 => walk(view, scratch, q, &Narrowed::<5>(n, t)),
+                6 => walk(view, scratch, q, &Narrowed::<6>(n, t)),
+                _ => walk(view, scratch, q, &Narrowed::<7>(n, t)),
             }
         }
-        None => walk_with(view, scratch, q, &Wide(&slab, t0)),
+        None => walk(view, scratch, q, &Wide(&slab, t0)),
     }
 }
 
@@ -560,20 +554,8 @@ pub(super) fn cast_packet(
     }
 }
 
-/// [`walk`] with the slab test `boxes`, a function of its own for each test (so that
-/// each keeps its own registers).
-#[inline(never)]
-fn walk_with<B: BoxTest>(
-    view: &mut SceneView,
-    scratch: &mut TraceScratch,
-    q: &Query,
-    boxes: &B,
-) -> Result<Option<Hit>, BlockError> {
-    walk(view, scratch, q, boxes)
-}
-
-/// The depth-first walk from the root, with the slab test `boxes` (inlined into a
-/// function of its own for each test: [`walk_with`], and the AVX walks).
+/// The depth-first walk from the root, with the slab test `boxes` (a function of its own
+/// for each test, so that each keeps its own registers).
 ///
 /// A node whose ray enters one child goes straight on to it; of two or more, the
 /// nearest is visited next and the others are stacked farthest first (their order from
@@ -581,7 +563,7 @@ fn walk_with<B: BoxTest>(
 /// beyond the best hit found since. An `any` query (occlusion) is walked the same way:
 /// taking the children in the node's order instead was measured slower (an occluder
 /// is found later).
-#[inline(always)]
+#[inline(never)]
 fn walk<B: BoxTest>(
     view: &mut SceneView,
     scratch: &mut TraceScratch,
@@ -768,7 +750,7 @@ pub(super) mod tests {
     /// A random node and ray, including the awkward ones: axis-parallel rays (infinite
     /// inverse), origins on a face (0 x inf = NaN), absent children, empty and
     /// degenerate boxes, boxes touching the origin, far and tiny scales.
-    pub(super) fn case(rng: &mut Rng, case: usize) -> (BvhNodeLanes, SlabRay, Option<Narrow>, f64, f64) {
+    fn case(rng: &mut Rng, case: usize) -> (BvhNodeLanes, SlabRay, Option<Narrow>, f64, f64) {
         let scale = match case % 11 {
             0 => 1e-30,
             1 => 1e25,
