@@ -285,32 +285,13 @@ pub fn trace_pairs_kept(
     let Some(kept) = kept else {
         return trace_pairs_each(view, scratch, pairs, each);
     };
-    // Whether refinement split each kept pair's element since the pilots (the pair then
-    // deposits nothing, as `bin` says): the elements' records read first, a run of
-    // blocks fetched ahead at a time, rather than one at a time between binnings.
     let raws: Vec<Option<std::sync::Arc<RawPair>>> =
         pairs.iter().map(|&(light, element)| kept.raw(light, element)).collect();
-    let header = view.header.clone();
-    let mut split = vec![false; pairs.len()];
-    view.in_prefetched_runs(
-        &mut split,
-        pairs.len(),
-        |_, i| [if raws[i].is_some() { element_block(&header, pairs[i].1) } else { NO_BLOCK }, NO_BLOCK, NO_BLOCK],
-        |view, split, i| {
-            if raws[i].is_some() {
-                split[i] = view.element(pairs[i].1)?.child != 0;
-            }
-            Ok(())
-        },
-    )?;
+    let mut kept_results = bin_all(view, pairs, &raws)?.into_iter();
     // Runs of pairs not kept are traced together (as trace_pairs_each would).
     let mut run = 0;
     for i in 0..=pairs.len() {
-        let binned = match raws.get(i).and_then(Option::as_deref) {
-            Some(_) if split[i] => Some(PairResult::default()),
-            Some(raw) => Some(bin_leaf(view, raw)?),
-            None => None,
-        };
+        let binned = kept_results.next().flatten();
         if binned.is_some() || i == pairs.len() {
             trace_pairs_each(view, scratch, &pairs[run..i], |k, r| each(run + k, r))?;
             run = i + 1;
@@ -320,6 +301,65 @@ pub fn trace_pairs_kept(
         }
     }
     Ok(())
+}
+
+/// Whether refinement split the element of each of `pairs` that `wanted` names (a kept
+/// pair's element split since its pilot: the pair then deposits nothing, as [`bin`]
+/// says); false for the others. The elements' records are read first, a run of blocks
+/// fetched ahead at a time, rather than one at a time between binnings.
+fn split_elements(
+    view: &mut SceneView,
+    pairs: &[(u32, u32)],
+    wanted: impl Fn(usize) -> bool,
+) -> Result<Vec<bool>, BlockError> {
+    let header = view.header.clone();
+    let mut split = vec![false; pairs.len()];
+    view.in_prefetched_runs(
+        &mut split,
+        pairs.len(),
+        |_, i| [if wanted(i) { element_block(&header, pairs[i].1) } else { NO_BLOCK }, NO_BLOCK, NO_BLOCK],
+        |view, split, i| {
+            if wanted(i) {
+                split[i] = view.element(pairs[i].1)?.child != 0;
+            }
+            Ok(())
+        },
+    )?;
+    Ok(split)
+}
+
+/// [`bin`] of each of `raws` (the raw deposits of `pairs[i]`, `None` for a pair that has
+/// none: its answer is `None` too). The same results, but the elements' records are read
+/// first and the leaves under all the pairs' deposits are looked up together (through a
+/// bounded cache a level of refinement at a time, each level's blocks fetched ahead), not
+/// pair by pair.
+pub fn bin_all(
+    view: &mut SceneView,
+    pairs: &[(u32, u32)],
+    raws: &[Option<std::sync::Arc<RawPair>>],
+) -> Result<Vec<Option<PairResult>>, BlockError> {
+    let split = split_elements(view, pairs, |i| raws[i].is_some())?;
+    let mut all = Vec::new();
+    for (raw, &split) in raws.iter().zip(&split) {
+        if let Some(raw) = raw.as_deref().filter(|_| !split) {
+            all.extend_from_slice(&raw.deposits);
+        }
+    }
+    let mut leaves = binned(view, &all)?.into_iter();
+    let quantum = view.header.energy_quantum;
+    Ok(raws
+        .iter()
+        .zip(split)
+        .map(|(raw, split)| {
+            raw.as_deref().map(|raw| match split {
+                true => PairResult::default(),
+                false => PairResult {
+                    deposits: merged(leaves.by_ref().take(raw.deposits.len()).collect(), quantum),
+                    tally: raw.tally,
+                },
+            })
+        })
+        .collect())
 }
 
 /// Traces the pair (`light`, `element`), its deposits raw: what [`bin`] turns into the

@@ -230,3 +230,36 @@ fn fetching_ahead_asks_the_source_far_less_often() {
     assert!(light_ahead * 2 < light, "binning: {light_ahead} requests fetching ahead against {light}");
     assert!(view_ahead * 3 < view * 2, "viewing pass: {view_ahead} requests fetching ahead against {view}");
 }
+
+/// A pilot level's batch through a bounded cache (its raw deposits gathered first, then
+/// binned together) gives what each of its pairs gives traced alone through such a
+/// cache, bit for bit, and the deposits of each pair alone with every block at hand
+/// (the tallies, summed in tracing order, to rounding); and so does the next level's
+/// batch, whose pairs are all kept already.
+#[test]
+fn a_pilot_batch_through_a_small_cache_gives_what_each_pair_gives_alone() {
+    use magg_core::refine::KeptPairs;
+    let p = cornell();
+    let pairs = specular_pairs(&p);
+    let mut scratch = TraceScratch::default();
+    let alone = |cache: Option<usize>, scratch: &mut TraceScratch| {
+        let (kept, mut v) = (KeptPairs::default(), view(&p, cache));
+        pairs.iter().map(|&(l, e)| kept.trace(&mut v, scratch, l, e).unwrap()).collect::<Vec<_>>()
+    };
+    let (resident, small_alone) = (alone(None, &mut scratch), alone(Some(40), &mut scratch));
+    assert!(resident.iter().filter(|r| r.deposits.len() > 3).count() > 50, "the pairs deposit little");
+    let (kept, (mut small, _)) = (KeptPairs::default(), counted(&p, 40, true));
+    for level in ["first level (traced and kept)", "next level (binned from the kept)"] {
+        let mut together = Vec::new();
+        for batch in pairs.chunks(64) {
+            kept.trace_each(&mut small, &mut scratch, batch, |_, r| together.push(r)).unwrap();
+        }
+        assert!(together == small_alone, "{level}: a batch's results differ from its pairs' alone");
+        for (k, (t, a)) in together.iter().zip(&resident).enumerate() {
+            assert_eq!(t.deposits, a.deposits, "{level}, pair {k}");
+            let (t, a) = (accounted(&t.tally), accounted(&a.tally));
+            assert!((t - a).abs() <= 1e-12 * a.abs().max(1e-30), "{level}, pair {k}: tally {t} against {a}");
+        }
+    }
+    assert!(small.cache_stats().misses > 0, "the cache held every block");
+}

@@ -3,7 +3,7 @@
 //! [`SHARDS`] by element id so that the threads tracing pairs seldom wait for one another.
 
 use crate::blocks::BlockError;
-use crate::lrt::{bin, trace_pair, trace_pair_raw, PairResult, RawDeposit, RawPair};
+use crate::lrt::{bin, bin_all, trace_pair, trace_pair_raw, PairResult, RawDeposit, RawPair};
 use crate::trace::TraceScratch;
 use crate::view::SceneView;
 use std::sync::{Arc, Mutex, MutexGuard};
@@ -69,28 +69,41 @@ impl KeptPairs {
         if light as usize >= view.header.lights.len() {
             return trace_pair(view, scratch, light, element);
         }
-        let raw = match self.raw(light, element) {
-            Some(raw) => raw,
-            None => {
-                let raw = Arc::new(compact(trace_pair_raw(view, scratch, light, element)?));
-                let (part, at) = slot(element);
-                let mut shard = self.lock(part);
-                if shard.len() <= light as usize {
-                    shard.resize_with(light as usize + 1, Vec::new);
-                }
-                let lights = &mut shard[light as usize];
-                if lights.len() <= at {
-                    lights.resize(at + 1, None);
-                }
-                lights[at] = Some(raw.clone());
-                raw
-            }
-        };
+        let raw = self.kept_or_traced(view, scratch, light, element)?;
         bin(view, element, &raw)
     }
 
+    /// The kept raw deposits of point light `light`'s pair with `element`, traced and
+    /// kept first if it was not yet.
+    fn kept_or_traced(
+        &self,
+        view: &mut SceneView,
+        scratch: &mut TraceScratch,
+        light: u32,
+        element: u32,
+    ) -> Result<Arc<RawPair>, BlockError> {
+        if let Some(raw) = self.raw(light, element) {
+            return Ok(raw);
+        }
+        let raw = Arc::new(compact(trace_pair_raw(view, scratch, light, element)?));
+        let (part, at) = slot(element);
+        let mut shard = self.lock(part);
+        if shard.len() <= light as usize {
+            shard.resize_with(light as usize + 1, Vec::new);
+        }
+        let lights = &mut shard[light as usize];
+        if lights.len() <= at {
+            lights.resize(at + 1, None);
+        }
+        lights[at] = Some(raw.clone());
+        Ok(raw)
+    }
+
     /// [`KeptPairs::trace`] of each of `pairs` (light, element), handed to `each` in
-    /// order (a pilot level's batch).
+    /// order (a pilot level's batch): the same results. With a bounded cache the batch's
+    /// raw deposits are gathered first and binned together ([`crate::lrt::bin_all`]:
+    /// the elements' records and the leaves under the deposits read in runs of blocks
+    /// fetched ahead, not pair by pair).
     pub fn trace_each(
         &self,
         view: &mut SceneView,
@@ -98,8 +111,26 @@ impl KeptPairs {
         pairs: &[(u32, u32)],
         mut each: impl FnMut(usize, PairResult),
     ) -> Result<(), BlockError> {
-        for (i, &(light, element)) in pairs.iter().enumerate() {
-            each(i, self.trace(view, scratch, light, element)?);
+        if !view.cache_is_bounded() {
+            for (i, &(light, element)) in pairs.iter().enumerate() {
+                each(i, self.trace(view, scratch, light, element)?);
+            }
+            return Ok(());
+        }
+        let points = view.header.lights.len();
+        let mut raws = Vec::with_capacity(pairs.len());
+        for &(light, element) in pairs {
+            let point = (light as usize) < points;
+            raws.push(if point { Some(self.kept_or_traced(view, scratch, light, element)?) } else { None });
+        }
+        let results = bin_all(view, pairs, &raws)?;
+        for (i, (result, &(light, element))) in results.into_iter().zip(pairs).enumerate() {
+            // (An area light's pair is traced, as `trace` does.)
+            let result = match result {
+                Some(r) => r,
+                None => trace_pair(view, scratch, light, element)?,
+            };
+            each(i, result);
         }
         Ok(())
     }
