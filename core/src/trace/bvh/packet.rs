@@ -38,6 +38,9 @@ pub const PACKET: usize = 16;
 /// Per axis, four copies of an f32 (one SSE register's worth), 16-byte aligned.
 type Splat3 = [[f32; 4]; 3];
 
+/// A node record's bytes.
+type Record = [u8; BVH_NODE_RECORD];
+
 /// A packet's slab data: the shared origin rounded as each ray's f32 test rounds it, per
 /// axis the smallest and largest of the rays' f32 inverse directions, and each ray's own.
 #[derive(Clone, Copy, Debug)]
@@ -101,7 +104,7 @@ impl Spread {
     /// `[t0, t1]`, and a distance no greater than any of them enters it at.
     #[inline]
     pub(super) fn enter(&self, record: &[u8; BVH_NODE_RECORD], t0: f32, t1: f32) -> Entered<f32> {
-        enter(self, &self.inv_lo, &self.inv_hi, record, t0, t1, u32::MAX)
+        enter(self, [&self.inv_lo, &self.inv_hi], record, (t0, t1), u32::MAX)
     }
 
     /// Which of the child boxes `children` (a bit mask) of node `record` ray `i` enters
@@ -117,41 +120,32 @@ impl Spread {
         t1: f32,
         children: u32,
     ) -> Entered<f32> {
-        enter(self, &self.inv[i], &self.inv[i], record, t0, t1, children)
+        enter(self, [&self.inv[i], &self.inv[i]], record, (t0, t1), children)
     }
 }
 
 /// The slab test of [`Spread`] over the inverse directions `[lo, hi]`, on the quads of
-/// children that hold one of `children` (a bit mask).
-#[cfg(target_arch = "x86_64")]
+/// children that hold one of `children` (a bit mask): in SSE2 on x86_64, one lane at a
+/// time elsewhere (every quad).
 #[inline]
-fn enter(
-    s: &Spread,
-    lo: &Splat3,
-    hi: &Splat3,
-    record: &[u8; BVH_NODE_RECORD],
-    t0: f32,
-    t1: f32,
-    children: u32,
-) -> Entered<f32> {
+fn enter(s: &Spread, [lo, hi]: [&Splat3; 2], record: &Record, t: (f32, f32), children: u32) -> Entered<f32> {
+    #[cfg(target_arch = "x86_64")]
     // SAFETY: SSE2 is part of the x86_64 baseline; the function reads nothing but its
     // arguments.
-    unsafe { enter_sse2(s, lo, hi, record, t0, t1, children) }
+    return unsafe { enter_sse2(s, [lo, hi], record, t, children) };
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        let _ = children;
+        enter_scalar(s, [lo, hi], record, t)
+    }
 }
 
 /// [`enter`] with SSE2, four children at a time: the same operations on the same values as
 /// [`enter_scalar`] (no NaN arises: every inverse is a normal f32, every origin finite).
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "sse2")]
-fn enter_sse2(
-    s: &Spread,
-    lo: &Splat3,
-    hi: &Splat3,
-    record: &[u8; BVH_NODE_RECORD],
-    t0: f32,
-    t1: f32,
-    children: u32,
-) -> Entered<f32> {
+fn enter_sse2(s: &Spread, [lo, hi]: [&Splat3; 2], record: &Record, t: (f32, f32), children: u32) -> Entered<f32> {
+    let (t0, t1) = t;
     use std::arch::x86_64::*;
     // SAFETY: `v` is four f32, 16-byte aligned (`Spread` is `align(16)`).
     let lanes = |v: &[f32; 4]| unsafe { _mm_load_ps(v.as_ptr()) };
@@ -182,14 +176,7 @@ fn enter_sse2(
 
 /// [`enter`] one lane at a time (other processors; the SSE2 version's oracle).
 #[cfg_attr(target_arch = "x86_64", allow(dead_code))]
-fn enter_scalar(
-    s: &Spread,
-    lo: &Splat3,
-    hi: &Splat3,
-    record: &[u8; BVH_NODE_RECORD],
-    t0: f32,
-    t1: f32,
-) -> Entered<f32> {
+fn enter_scalar(s: &Spread, [lo, hi]: [&Splat3; 2], record: &Record, (t0, t1): (f32, f32)) -> Entered<f32> {
     let node = &crate::blocks::bvh::BvhNodeLanes::read(record);
     let mut near = [f32::NEG_INFINITY; BVH_WIDTH];
     let mut far = [f32::INFINITY; BVH_WIDTH];
@@ -206,20 +193,6 @@ fn enter_scalar(
         }
     }
     widened_scalar(near, far, t0, t1)
-}
-
-#[cfg(not(target_arch = "x86_64"))]
-#[inline]
-fn enter(
-    s: &Spread,
-    lo: &Splat3,
-    hi: &Splat3,
-    record: &[u8; BVH_NODE_RECORD],
-    t0: f32,
-    t1: f32,
-    _children: u32,
-) -> Entered<f32> {
-    enter_scalar(s, lo, hi, record, t0, t1)
 }
 
 /// What each ray of a packet holds during the walk.
@@ -438,7 +411,7 @@ mod tests {
             let (t0, t1) = (f32_below(t0), f32_above(t1));
             let wide = spread.enter(r, t0, t1);
             let bits = |e: Entered<f32>| (super::super::tests::entered(e.near, e.mask).map(f32::to_bits), e.mask);
-            let scalar = enter_scalar(&spread, &spread.inv_lo, &spread.inv_hi, r, t0, t1);
+            let scalar = enter_scalar(&spread, [&spread.inv_lo, &spread.inv_hi], r, (t0, t1));
             assert_eq!(bits(wide), bits(scalar), "case {c}");
             for (i, (d, t0, t1)) in rays.iter().enumerate() {
                 let alone = SlabRay::new(origin.to_array(), d.to_array());
