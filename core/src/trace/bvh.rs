@@ -270,8 +270,8 @@ fn widened_scalar(mut near: [f32; BVH_WIDTH], far: [f32; BVH_WIDTH], t0: f32, t1
 }
 
 impl SlabRay {
-    /// The ray's slab data (the f32 test's is [`Narrow::of`] it, kept apart so that it
-    /// is built where it is used, not moved).
+    /// The ray's slab data. (The f32 test's, [`Narrow::of`] it, is kept apart, so that it
+    /// is built where the walk uses it, not moved.)
     #[inline(always)]
     fn new(origin: [f64; 3], direction: [f64; 3]) -> SlabRay {
         let inv = [1.0 / direction[0], 1.0 / direction[1], 1.0 / direction[2]];
