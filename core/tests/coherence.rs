@@ -262,4 +262,9 @@ fn a_pilot_batch_through_a_small_cache_gives_what_each_pair_gives_alone() {
         }
     }
     assert!(small.cache_stats().misses > 0, "the cache held every block");
+    // A batch that names a pair twice gets its result twice.
+    let (kept, (mut small, _)) = (KeptPairs::default(), counted(&p, 40, true));
+    let (mut twice, batch) = (Vec::new(), [pairs[0], pairs[1], pairs[0]]);
+    kept.trace_each(&mut small, &mut scratch, &batch, |_, r| twice.push(r)).unwrap();
+    assert!(twice == [small_alone[0].clone(), small_alone[1].clone(), small_alone[0].clone()], "a repeated pair");
 }
