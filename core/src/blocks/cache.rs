@@ -116,18 +116,20 @@ impl Lru {
                     return s;
                 }
             }
-            // The occupied slots of smallest stamp, the least recently used last.
-            let mut all: Vec<(u64, u32)> = (0..self.ids.len() as u32)
-                .filter(|&s| self.ids[s as usize] != NIL)
-                .map(|s| (self.stamp[s as usize], s))
-                .collect();
+            // The occupied slots of smallest stamp, the least recently used last (in
+            // the emptied candidates' buffer).
+            let all = &mut self.victims;
+            all.extend(
+                (0..self.ids.len() as u32)
+                    .filter(|&s| self.ids[s as usize] != NIL)
+                    .map(|s| (self.stamp[s as usize], s)),
+            );
             let keep = (all.len() / 8).max(1).min(all.len());
             if keep < all.len() {
                 all.select_nth_unstable(keep - 1);
                 all.truncate(keep);
             }
             all.sort_unstable_by(|a, b| b.cmp(a));
-            self.victims = all;
         }
     }
 
@@ -193,6 +195,10 @@ pub struct BlockCache {
     /// first ids of each kind of block (a prefetch stays within one kind); see
     /// [`BlockCache::with_prefetch`].
     prefetch: (u32, u32, Vec<u32>),
+    /// Buffers of [`BlockCache::prefetch`], kept from call to call: the distinct ids
+    /// wanted, those missing, and block buffers to fetch into (a prefetched block's
+    /// buffer takes its slot's place; the one it replaces is kept for the next call).
+    scratch: (Vec<u32>, Vec<u32>, Vec<Box<Block>>),
 }
 
 impl BlockCache {
@@ -202,7 +208,14 @@ impl BlockCache {
             Some(c) => Slots::Bounded(Lru::new(c)),
             None => Slots::Unlimited(Resident::default()),
         };
-        BlockCache { source, slots, stats: CacheStats::default(), home: (0, 1), prefetch: (1, 1, Vec::new()) }
+        BlockCache {
+            source,
+            slots,
+            stats: CacheStats::default(),
+            home: (0, 1),
+            prefetch: (1, 1, Vec::new()),
+            scratch: Default::default(),
+        }
     }
 
     /// With an unlimited cache, fetch up to `window` blocks per miss in one request: the
@@ -345,7 +358,8 @@ impl BlockCache {
     /// An unlimited cache fetches the missing ones the same way.
     pub fn prefetch(&mut self, ids: &[u32]) -> Result<(), BlockError> {
         let room = self.prefetch_room().unwrap_or(usize::MAX);
-        let mut wanted: Vec<u32> = Vec::with_capacity(ids.len().min(room));
+        let (wanted, missing, bufs) = &mut self.scratch;
+        wanted.clear();
         for &id in ids {
             if wanted.len() == room {
                 break;
@@ -354,34 +368,34 @@ impl BlockCache {
                 wanted.push(id);
             }
         }
-        let missing: Vec<u32> = match &mut self.slots {
-            Slots::Bounded(lru) => wanted
-                .iter()
-                .copied()
-                .filter(|&id| match lru.slot(id) {
-                    Some(s) => {
-                        lru.touch(s);
-                        false
-                    }
-                    None => true,
-                })
-                .collect(),
-            Slots::Unlimited(resident) => wanted.iter().copied().filter(|&id| !resident.contains(id)).collect(),
-        };
+        missing.clear();
+        match &mut self.slots {
+            Slots::Bounded(lru) => missing.extend(wanted.iter().copied().filter(|&id| match lru.slot(id) {
+                Some(s) => {
+                    lru.touch(s);
+                    false
+                }
+                None => true,
+            })),
+            Slots::Unlimited(resident) => missing.extend(wanted.iter().copied().filter(|&id| !resident.contains(id))),
+        }
         if missing.is_empty() {
             return Ok(());
         }
-        let mut bufs: Vec<Box<Block>> = missing.iter().map(|_| Box::new([0u8; BLOCK_SIZE])).collect();
-        self.source.fetch_batch(&missing, &mut bufs)?;
+        while bufs.len() < missing.len() {
+            bufs.push(Box::new([0u8; BLOCK_SIZE]));
+        }
+        let bufs = &mut bufs[..missing.len()];
+        self.source.fetch_batch(missing, bufs)?;
         self.stats.prefetched += missing.len() as u64;
         for (&id, buf) in missing.iter().zip(bufs) {
             match &mut self.slots {
                 Slots::Bounded(lru) => {
                     let s = lru.take_slot();
-                    lru.blocks[s as usize] = buf;
+                    std::mem::swap(&mut lru.blocks[s as usize], buf);
                     lru.bind(s, id);
                 }
-                Slots::Unlimited(resident) => resident.put(id, &buf),
+                Slots::Unlimited(resident) => resident.put(id, buf),
             }
         }
         Ok(())

@@ -72,8 +72,15 @@ impl SceneView {
         };
         let mut run: Vec<u32> = Vec::with_capacity(room + 3);
         let mut start = 0;
+        // The blocks of the item before, all in the run (items in order of their
+        // records mostly repeat them: nothing to look up).
+        let mut last = [NO_BLOCK; 3];
         for i in 0..=n {
             let item = if i < n { blocks(ctx, i) } else { [NO_BLOCK; 3] };
+            if i < n && item == last {
+                continue;
+            }
+            last = item;
             let new = item.iter().filter(|&&b| b != NO_BLOCK && !run.contains(&b)).count();
             if i == n || (run.len() + new > room && i > start) {
                 self.cache.prefetch(&run)?;
@@ -147,7 +154,8 @@ impl SceneView {
             walk.next.clear();
         }
         for (&(id, w, _), leaf) in walk.at.iter().zip(&walk.leaf) {
-            let rec = leaf.ok_or(BlockError::Unavailable { id, reason: "element lookup did not end".into() })?;
+            let rec =
+                leaf.ok_or_else(|| BlockError::Unavailable { id, reason: "element lookup did not end".into() })?;
             out.push((id, rec, w));
         }
         Ok(())
