@@ -8,6 +8,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     // buffer instead of copying each 2 KB block, and a fork serves its stored blocks
     // without copying them either.
     // Pixel rows likewise: their floats are copied once, not encoded one by one.
-    tonic_prost_build::configure().bytes(".magg.v1.Block.data").bytes(".magg.v1.Row.rgb").compile_fds(fds)?;
+    // Every service encodes with `crate::codec::MaggCodec`: prost, with buffers sized
+    // for block batches.
+    tonic_prost_build::configure()
+        .bytes(".magg.v1.Block.data")
+        .bytes(".magg.v1.Row.rgb")
+        .codec_path("crate::codec::MaggCodec")
+        .compile_fds(fds)?;
     Ok(())
 }

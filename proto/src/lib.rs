@@ -15,6 +15,7 @@
 //! # Ok(()) }
 //! ```
 
+pub mod codec;
 pub mod convert;
 pub mod deposits;
 
