@@ -398,6 +398,9 @@ impl BlockCache {
                 Slots::Unlimited(resident) => resident.put(id, buf),
             }
         }
+        // (A bounded cache's runs take at most PREFETCH_RUN buffers; a larger batch into
+        // an unlimited cache keeps no more than that.)
+        self.scratch.2.truncate(PREFETCH_RUN);
         Ok(())
     }
 
