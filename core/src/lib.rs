@@ -33,6 +33,7 @@ pub mod fingerprint;
 pub mod frame;
 pub mod geometry;
 pub mod header;
+pub mod idhash;
 pub mod lrt;
 pub mod machine;
 pub mod math;

@@ -8,7 +8,6 @@
 
 mod bvh;
 mod grid;
-mod idhash;
 mod mesh;
 mod pack;
 mod split;

@@ -15,10 +15,10 @@
 //! irradiance is set to the mean of theirs ([`t_junctions`]), and the image stays
 //! continuous across the edge.
 
-use super::idhash::{IdMap, IdSet};
 use super::mesh::Mesh;
 use super::ElementInfo;
 use crate::geometry::triangle_area;
+use crate::idhash::{IdMap, IdSet};
 use crate::subdivision::child_triangle;
 
 /// The key of the edge between vertices `a` and `b`.

@@ -10,8 +10,9 @@
 //! again, and a silent node's pairs go back to the queue (once) when it expires; a replay
 //! after a lost fork recalls every lent pair.
 
+use magg_core::idhash::IdMap;
 use magg_core::lrt::pair_id;
-use std::collections::{BTreeSet, HashMap};
+use std::collections::BTreeSet;
 use std::time::{Duration, Instant};
 
 /// Unassigned pairs of one fork.
@@ -82,9 +83,9 @@ pub struct PairBook {
     /// Unassigned pairs.
     queue: PairQueue,
     /// Pairs handed out and not yet complete, with the node they went to and when.
-    leased: HashMap<u64, (u32, Instant)>,
+    leased: IdMap<u64, (u32, Instant)>,
     /// When each node last asked this fork for pairs (refreshes all its leases).
-    seen: HashMap<u32, Instant>,
+    seen: IdMap<u32, Instant>,
     /// Longest time a node holding pairs here took to ask again: leases last at least
     /// [`GAPS_PER_LEASE`] times this, so slow (e.g. throttled) batches do not expire.
     max_gap: Duration,
@@ -106,7 +107,7 @@ pub struct Expired {
 impl PairBook {
     /// A book over `queue` with nothing lent.
     pub fn new(queue: PairQueue) -> PairBook {
-        PairBook { queue, leased: HashMap::new(), seen: HashMap::new(), max_gap: Duration::ZERO, returned: 0 }
+        PairBook { queue, leased: IdMap::default(), seen: IdMap::default(), max_gap: Duration::ZERO, returned: 0 }
     }
 
     /// Pairs in all (handed out or not).

@@ -1,9 +1,10 @@
-//! A hasher for the id keys of preprocessing's tables (an edge's two vertex ids): the
-//! multiply-rotate hash of rustc's `FxHasher`, far cheaper than the standard library's
-//! SipHash on keys this small. It does not resist chosen keys, and need not: its keys are
-//! made by preprocessing from the scene's own structure (a scene that collided them
-//! would slow its own preprocessing, nothing else), and no table built with it is
-//! iterated, so nothing depends on its order.
+//! A hasher for tables keyed by ids (an edge's two vertex ids in preprocessing, a
+//! fork's leased pairs): the multiply-rotate hash of rustc's `FxHasher`, far cheaper than
+//! the standard library's SipHash on keys this small. It does not resist chosen keys, and
+//! need not: the keys of its tables are made by the program itself (by preprocessing from
+//! the scene's own structure; by a fork from its own pair queue, a node's message only
+//! looking one up), so a collision would slow only the table's maker. Nothing that must
+//! be deterministic depends on the order of a table built with it.
 
 use std::collections::{HashMap, HashSet};
 use std::hash::{BuildHasherDefault, Hasher};
