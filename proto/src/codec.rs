@@ -11,6 +11,7 @@
 //! not touched costs nothing, and freed buffers are reused (`magg_plumbing::allocator`).
 
 use prost::Message;
+use std::marker::PhantomData;
 use tonic::codec::{BufferSettings, Codec};
 use tonic_prost::{ProstCodec, ProstDecoder, ProstEncoder};
 
@@ -23,14 +24,20 @@ pub const BUFFER_SIZE: usize = 288 << 10;
 /// When a streamed encoder hands a filled buffer on (tonic's default).
 const YIELD_THRESHOLD: usize = 32 << 10;
 
-/// [`ProstCodec`] with [`BUFFER_SIZE`] buffers; named by the generated services.
+/// [`ProstCodec`]'s encoder and decoder, with [`BUFFER_SIZE`] buffers; named by the
+/// generated services. It holds nothing: the message types are its only parameters.
 #[derive(Debug, Clone)]
-pub struct MaggCodec<T, U>(ProstCodec<T, U>);
+pub struct MaggCodec<T, U>(PhantomData<fn() -> (T, U)>);
 
 impl<T, U> Default for MaggCodec<T, U> {
     fn default() -> Self {
-        MaggCodec(ProstCodec::default())
+        MaggCodec(PhantomData)
     }
+}
+
+/// The buffer settings of every encoder and decoder.
+fn settings() -> BufferSettings {
+    BufferSettings::new(BUFFER_SIZE, YIELD_THRESHOLD)
 }
 
 impl<T, U> Codec for MaggCodec<T, U>
@@ -44,11 +51,11 @@ where
     type Decoder = ProstDecoder<U>;
 
     fn encoder(&mut self) -> Self::Encoder {
-        ProstCodec::<T, U>::raw_encoder(BufferSettings::new(BUFFER_SIZE, YIELD_THRESHOLD))
+        ProstCodec::<T, U>::raw_encoder(settings())
     }
 
     fn decoder(&mut self) -> Self::Decoder {
-        ProstCodec::<T, U>::raw_decoder(BufferSettings::new(BUFFER_SIZE, YIELD_THRESHOLD))
+        ProstCodec::<T, U>::raw_decoder(settings())
     }
 }
 
@@ -77,7 +84,7 @@ mod tests {
     #[test]
     fn encoders_and_decoders_start_at_buffer_size() {
         let mut codec = MaggCodec::<GetBlocksReply, GetBlocksReply>::default();
-        let want = format!("{:?}", BufferSettings::new(BUFFER_SIZE, YIELD_THRESHOLD));
+        let want = format!("{:?}", settings());
         assert!(want.contains(&BUFFER_SIZE.to_string()), "{want}");
         assert_eq!(format!("{:?}", codec.encoder().buffer_settings()), want);
         assert_eq!(format!("{:?}", codec.decoder().buffer_settings()), want);
