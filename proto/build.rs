@@ -8,11 +8,16 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     // buffer instead of copying each 2 KB block, and a fork serves its stored blocks
     // without copying them either.
     // Pixel rows likewise: their floats are copied once, not encoded one by one.
+    // The large packed arrays of deposits, energies and pair leases likewise: declared as `bytes`
+    // (the same wire format), they are written and read whole by `crate::packed`.
     // Every service encodes with `crate::codec::MaggCodec`: prost, with buffers sized
     // for block batches.
     tonic_prost_build::configure()
         .bytes(".magg.v1.Block.data")
         .bytes(".magg.v1.Row.rgb")
+        .bytes(".magg.v1.DepositRequest")
+        .bytes(".magg.v1.GetEnergiesReply")
+        .bytes(".magg.v1.TakePairsReply")
         .codec_path("crate::codec::MaggCodec")
         .compile_fds(fds)?;
     Ok(())

@@ -6,6 +6,7 @@
 
 use crate::error::ForkError;
 use crate::locks::lock;
+use magg_core::cluster::PairLease;
 use magg_plumbing::auth::{AddToken, Authed, Token};
 use magg_plumbing::transport::InProcess;
 use magg_plumbing::{net, retry, with_message_limits};
@@ -134,13 +135,18 @@ impl Peers {
     /// Up to `max` unassigned pairs of fork `fork`, taken on behalf of `node` (with its
     /// secret, which that fork checks too), with the
     /// replay epoch they were handed out in and the pairs the fork has left.
-    pub async fn steal(&self, fork: u32, max: u32, node: u32, secret: u64) -> Result<v1::TakePairsReply, ForkError> {
+    pub async fn steal(&self, fork: u32, max: u32, node: u32, secret: u64) -> Result<PairLease, ForkError> {
         let mut client = self.client(fork).await?;
         let reply = client
             .steal_pairs(v1::TakePairsRequest { max, node, node_secret: secret })
             .await
             .map_err(|s| self.failed(fork, s))?
             .into_inner();
+        let reply = PairLease::try_from(reply).map_err(|e| ForkError::PeerReply {
+            fork,
+            addr: self.addr(fork).to_string(),
+            detail: e.to_string(),
+        })?;
         if reply.pairs.len() > max as usize {
             let detail = format!("{} pairs where at most {max} were asked for", reply.pairs.len());
             return Err(ForkError::PeerReply { fork, addr: self.addr(fork).to_string(), detail });

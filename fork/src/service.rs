@@ -15,10 +15,11 @@ use crate::locks::{read, write};
 use crate::peers::PeerAccess;
 use crate::shard::{Shard, MAX_IDS_PER_REQUEST, MAX_PAIRS_PER_REQUEST};
 use bytes::Bytes;
-use magg_core::cluster::{DepositBatch, PairLease, ShardLoad};
+use magg_core::cluster::{PairLease, ShardLoad};
 use magg_plumbing::auth::Token;
 use magg_plumbing::transport::InProcess;
 use magg_proto::convert::block_bytes_from_wire;
+use magg_proto::deposits::{self, Deposits};
 use magg_proto::v1;
 use magg_proto::v1::fork_server::Fork;
 use magg_throttle::Profile;
@@ -139,11 +140,14 @@ pub fn blocks_from_wire(blocks: Vec<v1::Block>) -> Result<Vec<(u32, Bytes)>, For
     Ok(blocks.into_iter().map(block_bytes_from_wire).collect::<Result<_, _>>()?)
 }
 
-/// Applies a `Deposit` request's pairs, read in place from its packed arrays; returns
-/// (applied, duplicates).
+/// A `Deposit` request's packed arrays, decoded and checked to fit together.
+pub fn read_deposits(req: &v1::DepositRequest) -> Result<Deposits<'_>, ForkError> {
+    deposits::read(req).map_err(|e| ForkError::BadRequest(e.to_string()))
+}
+
+/// Applies a `Deposit` request's pairs; returns (applied, duplicates).
 pub fn deposit(shard: &Shard, req: &v1::DepositRequest) -> Result<(u32, u32), ForkError> {
-    let batch = DepositBatch::try_from(req).map_err(|e| ForkError::BadRequest(e.to_string()))?;
-    shard.deposit(batch)
+    shard.deposit(read_deposits(req)?.batch())
 }
 
 /// `GetBlocks`: owned blocks from memory, the others from their forks (one
@@ -215,7 +219,7 @@ async fn take_pairs(
     let ask = shard.steal_batch(max);
     let mut failure = None;
     for peer in shard.steal_order() {
-        let stolen = shard.peers().steal(peer, ask, node, secret).await.map(PairLease::from);
+        let stolen = shard.peers().steal(peer, ask, node, secret).await;
         // A request and a reply of pair ids cross the G-bus.
         hw.gbus(me, shard.peers(), 16 + 8 * stolen.as_ref().map_or(0, |r| r.pairs.len())).await;
         if let Ok(r) = &stolen {
@@ -334,8 +338,9 @@ impl Fork for ForkService {
     async fn deposit(&self, req: Request<v1::DepositRequest>) -> Result<Response<v1::DepositReply>, Status> {
         let shard = self.shard()?;
         let r = req.into_inner();
-        self.hw.serve(r.elements.len()).await;
-        let (applied, duplicates) = deposit(&shard, &r)?;
+        let arrays = read_deposits(&r)?;
+        self.hw.serve(arrays.deposits()).await;
+        let (applied, duplicates) = shard.deposit(arrays.batch())?;
         // The node's next batch, asked for in the same call.
         let taken = match &r.take {
             Some(t) => {

@@ -247,11 +247,12 @@ impl Worker {
                     let mut home = home.clone();
                     async move { home.take_pairs(req).await.map(|r| r.into_inner()) }
                 })
-                .await;
-                if let (Some(p), Ok(r)) = (&pace, &reply) {
-                    p.recv(r.encoded_len()).await;
+                .await
+                .map_err(NodeError::rpc("TakePairs"))?;
+                if let Some(p) = &pace {
+                    p.recv(reply.encoded_len()).await;
                 }
-                reply.map(PairLease::from)
+                lease_from_wire(reply)
             }
         };
         let mut in_flight: VecDeque<JoinHandle<Result<(), NodeError>>> = VecDeque::new();
@@ -268,15 +269,10 @@ impl Worker {
             let t = Instant::now();
             let got = match (piggybacked.take(), next.take()) {
                 (Some(r), _) => r,
-                (None, Some(t)) => self
-                    .rt
-                    .block_on(t)
-                    .map_err(|e| NodeError::Worker(e.to_string()))?
-                    .map_err(NodeError::rpc("TakePairs"))?,
-                (None, None) => self
-                    .rt
-                    .block_on(take(self.forks[self.home].clone(), self.node, batch(traced, deposited)))
-                    .map_err(NodeError::rpc("TakePairs"))?,
+                (None, Some(t)) => self.rt.block_on(t).map_err(|e| NodeError::Worker(e.to_string()))??,
+                (None, None) => {
+                    self.rt.block_on(take(self.forks[self.home].clone(), self.node, batch(traced, deposited)))?
+                }
             };
             let asked = PassTimes::lap(&mut times.asking, t);
             if got.pairs.is_empty() {
@@ -438,6 +434,11 @@ impl Worker {
     }
 }
 
+/// The pairs of a `TakePairs` reply (alone or riding on a `Deposit` reply).
+fn lease_from_wire(r: v1::TakePairsReply) -> Result<PairLease, NodeError> {
+    PairLease::try_from(r).map_err(|e| NodeError::Convert(e.to_string()))
+}
+
 /// Sends a batch's deposits: every round-1 message, then every round-2 message. Deposits
 /// are keyed by pair: a retried one is applied once. `take` (the home fork's index and a
 /// request) rides on the round-2 message to that fork, if there is one: its answer is
@@ -479,7 +480,7 @@ async fn send_deposits(
                 p.recv(reply.encoded_len()).await;
             }
             if req.take.is_some() {
-                taken = reply.taken.map(PairLease::from);
+                taken = reply.taken.map(lease_from_wire).transpose()?;
             }
         }
     }

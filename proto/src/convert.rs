@@ -769,16 +769,23 @@ pub fn block_to_wire(id: u32, block: &Block) -> v1::Block {
 }
 
 /// The (element, r g b fixed point) pairs of a fork's `GetEnergies` reply, once its
-/// arrays are checked to fit (three energy values per element).
+/// packed arrays are read ([`crate::packed`]) and checked to fit (three energy values
+/// per element).
 pub fn element_energies(r: &v1::GetEnergiesReply) -> Result<impl Iterator<Item = (u32, [i64; 3])> + '_, ConvertError> {
-    if r.energy.len() != 3 * r.elements.len() {
+    let elements = crate::packed::varints_u32(&r.elements)
+        .map_err(|e| invalid("GetEnergiesReply.elements", format!("{} bytes", r.elements.len()), e.to_string()))?;
+    if r.energy.len() != 24 * elements.len() {
         return Err(invalid(
             "GetEnergiesReply.energy",
-            r.energy.len(),
-            format!("3 values for each of {} elements", r.elements.len()),
+            format!("{} bytes", r.energy.len()),
+            format!("3 values (24 bytes) for each of {} elements", elements.len()),
         ));
     }
-    Ok(r.elements.iter().zip(r.energy.chunks_exact(3)).map(|(&e, v)| (e, [v[0], v[1], v[2]])))
+    let value = |c: &[u8]| i64::from_le_bytes(c.try_into().unwrap_or_default());
+    Ok(elements
+        .into_iter()
+        .zip(r.energy.chunks_exact(24))
+        .map(move |(e, v)| (e, [value(&v[..8]), value(&v[8..16]), value(&v[16..])])))
 }
 
 /// Block `i` of a prepared scene, as the owner of a [`bytes::Bytes`] payload.

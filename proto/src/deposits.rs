@@ -3,9 +3,11 @@
 //!
 //! A node writes one request per fork and round ([`DepositWriter`]): for each pair of
 //! the batch, [`DepositWriter::pair`] starts it and [`DepositWriter::deposit`] adds the
-//! flux on one element. A fork reads a request through [`read`], which checks that the
-//! arrays fit together before anything is applied and yields one [`PairDeposit`] (a
-//! [`magg_core::cluster`] value) per pair, borrowing from the request (no copy, no allocation per pair).
+//! flux on one element; the arrays are written as the bytes of their packed fields as
+//! they grow ([`crate::packed`]). A fork reads a request through [`read`], which decodes
+//! the arrays whole and checks that they fit together before anything is applied, and
+//! yields one [`PairDeposit`] (a [`magg_core::cluster`] value) per pair, borrowing from
+//! the decoded arrays (no allocation per pair).
 //!
 //! ```
 //! use magg_proto::deposits::{read, DepositWriter};
@@ -14,80 +16,121 @@
 //! w.deposit(3, [10, 20, 30]);
 //! w.also_on(2);
 //! let req = w.finish();
-//! let pairs: Vec<_> = read(&req).unwrap().collect();
+//! let arrays = read(&req).unwrap();
+//! let pairs: Vec<_> = arrays.pairs().collect();
 //! assert_eq!((pairs[0].pair, pairs[0].elements, pairs[0].also_on), (7, &[3][..], &[2][..]));
 //! ```
 
+use crate::packed::{self, PackedError};
 use crate::v1::DepositRequest;
+use magg_core::cluster::DepositBatch;
 pub use magg_core::cluster::PairDeposit;
 
 /// Builds a `DepositRequest` pair by pair.
 #[derive(Clone, Debug, Default)]
 pub struct DepositWriter {
-    req: DepositRequest,
+    complete: bool,
+    epoch: u64,
+    /// Varints of the pair ids.
+    pairs: Vec<u8>,
+    /// The last pair started.
+    last: Option<u64>,
+    /// Deposits of each pair (written as varints at the end).
+    counts: Vec<u32>,
+    /// Varints of the element ids.
+    elements: Vec<u8>,
+    /// Little-endian energies, three per element.
+    energy: Vec<u8>,
+    also_on_counts: Vec<u32>,
+    also_on: Vec<u32>,
 }
 
 impl DepositWriter {
     /// An empty request: round 2 (`complete`, to the pairs' owner) or round 1, for pairs
     /// handed out in replay `epoch`.
     pub fn new(complete: bool, epoch: u64) -> Self {
-        DepositWriter { req: DepositRequest { complete, epoch, ..Default::default() } }
+        DepositWriter { complete, epoch, ..Default::default() }
     }
 
     /// Starts pair `pair`: the deposits and forks added next are its own.
     pub fn pair(&mut self, pair: u64) {
-        self.req.pairs.push(pair);
-        self.req.counts.push(0);
-        if !self.req.also_on_counts.is_empty() {
-            self.req.also_on_counts.push(0);
+        packed::put_varint(&mut self.pairs, pair);
+        self.last = Some(pair);
+        self.counts.push(0);
+        if !self.also_on_counts.is_empty() {
+            self.also_on_counts.push(0);
         }
     }
 
     /// Whether the last pair started is `pair`.
     pub fn last_pair_is(&self, pair: u64) -> bool {
-        self.req.pairs.last() == Some(&pair)
+        self.last == Some(pair)
     }
 
     /// Adds `energy` (r, g, b fixed point) on `element` to the current pair.
     pub fn deposit(&mut self, element: u32, energy: [i64; 3]) {
-        if let Some(c) = self.req.counts.last_mut() {
+        if let Some(c) = self.counts.last_mut() {
             *c += 1;
-            self.req.elements.push(element);
-            self.req.energy.extend_from_slice(&energy);
+            packed::put_varint(&mut self.elements, element as u64);
+            for v in energy {
+                packed::put_i64(&mut self.energy, v);
+            }
         }
     }
 
     /// Notes that the current pair also deposited on fork `fork` (round 2 only).
     pub fn also_on(&mut self, fork: u32) {
-        let n = self.req.pairs.len();
+        let n = self.counts.len();
         if n == 0 {
             return;
         }
         // The counts are written only once some pair deposited elsewhere.
-        self.req.also_on_counts.resize(n, 0);
-        self.req.also_on_counts[n - 1] += 1;
-        self.req.also_on.push(fork);
+        self.also_on_counts.resize(n, 0);
+        self.also_on_counts[n - 1] += 1;
+        self.also_on.push(fork);
     }
 
     /// Pairs written so far.
     pub fn len(&self) -> usize {
-        self.req.pairs.len()
+        self.counts.len()
     }
 
     /// True with no pair.
     pub fn is_empty(&self) -> bool {
-        self.req.pairs.is_empty()
+        self.counts.is_empty()
     }
 
     /// The request.
     pub fn finish(self) -> DepositRequest {
-        self.req
+        let mut counts = Vec::with_capacity(self.counts.len());
+        for &c in &self.counts {
+            packed::put_varint(&mut counts, c as u64);
+        }
+        DepositRequest {
+            pairs: self.pairs.into(),
+            counts: counts.into(),
+            elements: self.elements.into(),
+            energy: self.energy.into(),
+            complete: self.complete,
+            epoch: self.epoch,
+            also_on_counts: self.also_on_counts,
+            also_on: self.also_on,
+            take: None,
+        }
     }
 }
 
 /// Why a request's arrays do not fit together.
 #[derive(Debug, thiserror::Error, PartialEq, Eq)]
 pub enum DepositError {
+    /// An array is not a well-formed packed field.
+    #[error("DepositRequest.{field}: {source}")]
+    Packed {
+        /// The field.
+        field: &'static str,
+        /// What is wrong with its bytes.
+        source: PackedError,
+    },
     /// `counts` and `pairs` differ in length.
     #[error("{counts} element counts for {pairs} pairs")]
     Counts {
@@ -126,19 +169,34 @@ pub enum DepositError {
     },
 }
 
-/// The pairs of `req`, once its arrays are checked to fit together (the values
-/// themselves, pair and element ids, are for the fork to check).
-pub fn read(req: &DepositRequest) -> Result<Pairs<'_>, DepositError> {
-    let n = req.pairs.len();
-    if req.counts.len() != n {
-        return Err(DepositError::Counts { counts: req.counts.len(), pairs: n });
+/// A request's arrays, decoded and checked to fit together ([`read`]).
+#[derive(Clone, Debug)]
+pub struct Deposits<'a> {
+    req: &'a DepositRequest,
+    pairs: Vec<u64>,
+    counts: Vec<u32>,
+    elements: Vec<u32>,
+    energy: Vec<i64>,
+}
+
+/// The arrays of `req`, decoded and checked to fit together (the values themselves,
+/// pair and element ids, are for the fork to check).
+pub fn read(req: &DepositRequest) -> Result<Deposits<'_>, DepositError> {
+    let bad = |field| move |source| DepositError::Packed { field, source };
+    let pairs = packed::varints_u64(&req.pairs).map_err(bad("pairs"))?;
+    let counts = packed::varints_u32(&req.counts).map_err(bad("counts"))?;
+    let elements = packed::varints_u32(&req.elements).map_err(bad("elements"))?;
+    let energy = packed::fixed_i64(&req.energy).map_err(bad("energy"))?;
+    let n = pairs.len();
+    if counts.len() != n {
+        return Err(DepositError::Counts { counts: counts.len(), pairs: n });
     }
-    let sum: u64 = req.counts.iter().map(|&c| c as u64).sum();
-    if sum != req.elements.len() as u64 {
-        return Err(DepositError::Elements { sum, elements: req.elements.len() });
+    let sum: u64 = counts.iter().map(|&c| c as u64).sum();
+    if sum != elements.len() as u64 {
+        return Err(DepositError::Elements { sum, elements: elements.len() });
     }
-    if req.energy.len() != 3 * req.elements.len() {
-        return Err(DepositError::Energy { energy: req.energy.len(), elements: req.elements.len() });
+    if energy.len() != 3 * elements.len() {
+        return Err(DepositError::Energy { energy: energy.len(), elements: elements.len() });
     }
     let also_sum: u64 = req.also_on_counts.iter().map(|&c| c as u64).sum();
     let also_fits = if req.also_on_counts.is_empty() {
@@ -154,14 +212,45 @@ pub fn read(req: &DepositRequest) -> Result<Pairs<'_>, DepositError> {
             forks: req.also_on.len(),
         });
     }
-    Ok(Pairs { req, k: 0, e: 0, a: 0 })
+    Ok(Deposits { req, pairs, counts, elements, energy })
 }
 
-/// The pairs of a checked request ([`read`]), one [`PairDeposit`] each, borrowing its
-/// arrays.
+impl<'a> Deposits<'a> {
+    /// Pairs in the request.
+    pub fn len(&self) -> usize {
+        self.pairs.len()
+    }
+
+    /// True with no pair.
+    pub fn is_empty(&self) -> bool {
+        self.pairs.is_empty()
+    }
+
+    /// Element deposits in all.
+    pub fn deposits(&self) -> usize {
+        self.elements.len()
+    }
+
+    /// The pairs, one [`PairDeposit`] each, borrowing the arrays.
+    pub fn pairs(&self) -> Pairs<'_> {
+        Pairs { d: self, k: 0, e: 0, a: 0 }
+    }
+
+    /// The request's pairs as the batch a fork applies.
+    pub fn batch(&self) -> DepositBatch<Pairs<'_>> {
+        DepositBatch {
+            complete: self.req.complete,
+            epoch: self.req.epoch,
+            deposits: self.deposits(),
+            pairs: self.pairs(),
+        }
+    }
+}
+
+/// The pairs of a read request ([`Deposits::pairs`]), one [`PairDeposit`] each.
 #[derive(Clone, Debug)]
 pub struct Pairs<'a> {
-    req: &'a DepositRequest,
+    d: &'a Deposits<'a>,
     /// Next pair.
     k: usize,
     /// Its first element.
@@ -174,21 +263,21 @@ impl<'a> Iterator for Pairs<'a> {
     type Item = PairDeposit<'a>;
 
     fn next(&mut self) -> Option<PairDeposit<'a>> {
-        let (req, k, e, a) = (self.req, self.k, self.e, self.a);
-        let pair = *req.pairs.get(k)?;
-        let c = req.counts[k] as usize;
-        let f = req.also_on_counts.get(k).map_or(0, |&f| f as usize);
+        let (d, k, e, a) = (self.d, self.k, self.e, self.a);
+        let pair = *d.pairs.get(k)?;
+        let c = d.counts[k] as usize;
+        let f = d.req.also_on_counts.get(k).map_or(0, |&f| f as usize);
         (self.k, self.e, self.a) = (k + 1, e + c, a + f);
         Some(PairDeposit {
             pair,
-            elements: &req.elements[e..e + c],
-            energy: &req.energy[3 * e..3 * (e + c)],
-            also_on: &req.also_on[a..a + f],
+            elements: &d.elements[e..e + c],
+            energy: &d.energy[3 * e..3 * (e + c)],
+            also_on: &d.req.also_on[a..a + f],
         })
     }
 
     fn size_hint(&self) -> (usize, Option<usize>) {
-        let n = self.req.pairs.len() - self.k;
+        let n = self.d.pairs.len() - self.k;
         (n, Some(n))
     }
 }
@@ -198,6 +287,13 @@ impl ExactSizeIterator for Pairs<'_> {}
 #[cfg(test)]
 mod tests {
     use super::*;
+    use prost::Message;
+
+    fn varints(v: &[u64]) -> bytes::Bytes {
+        let mut b = Vec::new();
+        v.iter().for_each(|&x| packed::put_varint(&mut b, x));
+        b.into()
+    }
 
     #[test]
     fn written_pairs_read_back_in_order() {
@@ -213,13 +309,38 @@ mod tests {
         assert!(w.last_pair_is(3) && !w.last_pair_is(2));
         let req = w.finish();
         assert_eq!((req.complete, req.epoch), (true, 4));
-        let got: Vec<_> = read(&req).unwrap().collect();
+        let arrays = read(&req).unwrap();
+        assert_eq!((arrays.len(), arrays.deposits()), (3, 3));
+        let got: Vec<_> = arrays.pairs().collect();
         let want = [
             PairDeposit { pair: 1, elements: &[10, 11], energy: &[1, 2, 3, 4, 5, 6], also_on: &[] },
             PairDeposit { pair: 2, elements: &[], energy: &[], also_on: &[] },
             PairDeposit { pair: 3, elements: &[12], energy: &[7, 8, 9], also_on: &[0, 2] },
         ];
         assert_eq!(got, want);
+    }
+
+    /// The request is, byte for byte, the message with packed repeated fields that the
+    /// `.proto` file's comments name (what protocol 3 to 14 sent).
+    #[test]
+    fn the_wire_format_is_that_of_the_packed_fields() {
+        let mut w = DepositWriter::new(true, 9);
+        w.pair(1 << 40);
+        w.deposit(300, [1, -2, i64::MAX]);
+        w.deposit(u32::MAX, [0, 0, 7]);
+        w.pair(5);
+        w.also_on(3);
+        let ours = w.finish().encode_to_vec();
+        let mut theirs = Vec::new();
+        prost::encoding::uint64::encode_packed(2, &[1 << 40, 5], &mut theirs);
+        prost::encoding::uint32::encode_packed(3, &[2, 0], &mut theirs);
+        prost::encoding::uint32::encode_packed(4, &[300, u32::MAX], &mut theirs);
+        prost::encoding::sfixed64::encode_packed(5, &[1, -2, i64::MAX, 0, 0, 7], &mut theirs);
+        prost::encoding::bool::encode(6, &true, &mut theirs);
+        prost::encoding::uint64::encode(7, &9, &mut theirs);
+        prost::encoding::uint32::encode_packed(8, &[0, 1], &mut theirs);
+        prost::encoding::uint32::encode_packed(9, &[3], &mut theirs);
+        assert_eq!(ours, theirs);
     }
 
     #[test]
@@ -240,12 +361,16 @@ mod tests {
         w.also_on(1);
         let good = w.finish();
         let cases: Vec<(DepositRequest, &str)> = vec![
-            (DepositRequest { counts: vec![], ..good.clone() }, "counts"),
-            (DepositRequest { counts: vec![2], ..good.clone() }, "add up to 2"),
-            (DepositRequest { energy: vec![1, 2], ..good.clone() }, "2 energy values"),
+            (DepositRequest { counts: varints(&[]), ..good.clone() }, "counts"),
+            (DepositRequest { counts: varints(&[2]), ..good.clone() }, "add up to 2"),
+            (DepositRequest { energy: vec![0; 16].into(), ..good.clone() }, "2 energy values"),
+            (DepositRequest { energy: vec![0; 20].into(), ..good.clone() }, "DepositRequest.energy: 20 bytes"),
             (DepositRequest { also_on: vec![], ..good.clone() }, "also_on"),
             (DepositRequest { also_on_counts: vec![], ..good.clone() }, "also_on"),
-            (DepositRequest { counts: vec![u32::MAX], ..good.clone() }, "add up to"),
+            (DepositRequest { counts: varints(&[u32::MAX as u64]), ..good.clone() }, "add up to"),
+            (DepositRequest { counts: varints(&[1 << 32]), ..good.clone() }, "DepositRequest.counts: a varint"),
+            (DepositRequest { pairs: vec![0x81].into(), ..good.clone() }, "DepositRequest.pairs: the last varint"),
+            (DepositRequest { elements: vec![0xff; 11].into(), ..good.clone() }, "DepositRequest.elements"),
         ];
         for (req, want) in cases {
             let e = read(&req).err().unwrap_or_else(|| panic!("accepted: {req:?}"));

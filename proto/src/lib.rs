@@ -18,6 +18,7 @@
 pub mod codec;
 pub mod convert;
 pub mod deposits;
+pub mod packed;
 
 /// Generated code of package `magg.v1`.
 #[allow(missing_docs, clippy::all)]

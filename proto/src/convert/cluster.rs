@@ -2,14 +2,14 @@
 //! `GetEnergies`, node reports) to and from the domain values of
 //! [`magg_core::cluster`], which the fork's and the node's state work on.
 //!
-//! A batch of deposits is not copied: [`DepositBatch`] borrows the request's packed
-//! arrays ([`crate::deposits`]).
+//! A batch of deposits is read through [`crate::deposits`], whose [`DepositBatch`]
+//! borrows the request's decoded arrays.
 
 use super::{block_bytes_from_wire, finite, invalid, require, rgb_from_wire, rgb_to_wire, ConvertError};
-use crate::deposits::{DepositError, Pairs};
+use crate::packed;
 use crate::v1;
 use magg_core::blocks::CacheStats;
-use magg_core::cluster::{DepositBatch, ForkReport, LedgerDigest, NodeReport, PairDigest, PairLease, ShardLoad};
+use magg_core::cluster::{ForkReport, LedgerDigest, NodeReport, PairDigest, PairLease, ShardLoad};
 use magg_core::header::SceneHeader;
 use magg_core::lrt::LrtTally;
 use magg_core::view::OpCounters;
@@ -45,23 +45,19 @@ impl From<(u32, bytes::Bytes)> for v1::Block {
 
 impl From<PairLease> for v1::TakePairsReply {
     fn from(l: PairLease) -> Self {
-        v1::TakePairsReply { pairs: l.pairs, exhausted: l.exhausted, epoch: l.epoch, remaining: l.remaining }
+        let mut pairs = Vec::with_capacity(l.pairs.len() * 4);
+        l.pairs.iter().for_each(|&p| packed::put_varint(&mut pairs, p));
+        v1::TakePairsReply { pairs: pairs.into(), exhausted: l.exhausted, epoch: l.epoch, remaining: l.remaining }
     }
 }
 
-impl From<v1::TakePairsReply> for PairLease {
-    fn from(r: v1::TakePairsReply) -> Self {
-        PairLease { pairs: r.pairs, exhausted: r.exhausted, epoch: r.epoch, remaining: r.remaining }
-    }
-}
-
-/// A `Deposit` request's pairs, once its packed arrays are checked to fit together
-/// (see [`crate::deposits::read`]); borrows the request.
-impl<'a> TryFrom<&'a v1::DepositRequest> for DepositBatch<Pairs<'a>> {
-    type Error = DepositError;
-    fn try_from(r: &'a v1::DepositRequest) -> Result<Self, DepositError> {
-        let pairs = crate::deposits::read(r)?;
-        Ok(DepositBatch { complete: r.complete, epoch: r.epoch, deposits: r.elements.len(), pairs })
+/// A `TakePairs` reply's pairs, read from their packed array.
+impl TryFrom<v1::TakePairsReply> for PairLease {
+    type Error = ConvertError;
+    fn try_from(r: v1::TakePairsReply) -> Result<Self, ConvertError> {
+        let pairs = packed::varints_u64(&r.pairs)
+            .map_err(|e| invalid("TakePairsReply.pairs", format!("{} bytes", r.pairs.len()), e.to_string()))?;
+        Ok(PairLease { pairs, exhausted: r.exhausted, epoch: r.epoch, remaining: r.remaining })
     }
 }
 
@@ -69,9 +65,13 @@ impl<'a> TryFrom<&'a v1::DepositRequest> for DepositBatch<Pairs<'a>> {
 /// are the service's to fill in).
 impl From<ForkReport> for v1::GetEnergiesReply {
     fn from(r: ForkReport) -> Self {
+        let mut elements = Vec::with_capacity(r.elements.len() * 3);
+        r.elements.iter().for_each(|&e| packed::put_varint(&mut elements, e as u64));
+        let mut energy = Vec::with_capacity(r.energy.len() * 24);
+        r.energy.iter().flatten().for_each(|&v| packed::put_i64(&mut energy, v));
         v1::GetEnergiesReply {
-            elements: r.elements,
-            energy: r.energy.iter().flatten().copied().collect(),
+            elements: elements.into(),
+            energy: energy.into(),
             pairs_total: r.pairs_total,
             pairs_done: r.pairs_done,
             dma_bytes: r.dma_bytes,
@@ -199,22 +199,24 @@ mod tests {
     #[test]
     fn pair_leases_round_trip() {
         let l = PairLease { pairs: vec![3, 9], epoch: 2, exhausted: false, remaining: 40 };
-        assert_eq!(PairLease::from(v1::TakePairsReply::from(l.clone())), l);
+        assert_eq!(PairLease::try_from(v1::TakePairsReply::from(l.clone())).unwrap(), l);
+        let cut = v1::TakePairsReply { pairs: vec![3, 0x89].into(), ..Default::default() };
+        let e = PairLease::try_from(cut).unwrap_err();
+        assert!(e.to_string().contains("TakePairsReply.pairs = 2 bytes: the last varint is cut short"), "{e}");
     }
 
     #[test]
-    fn a_deposit_batch_borrows_the_requests_arrays() {
+    fn a_deposit_batch_is_the_requests_pairs() {
         let mut w = DepositWriter::new(true, 5);
         w.pair(4);
         w.deposit(1, [1, 2, 3]);
         w.deposit(2, [4, 5, 6]);
         let req = w.finish();
-        let batch = DepositBatch::try_from(&req).unwrap();
+        let arrays = crate::deposits::read(&req).unwrap();
+        let batch = arrays.batch();
         assert_eq!((batch.complete, batch.epoch, batch.deposits, batch.pairs.len()), (true, 5, 2, 1));
         let p = batch.pairs.clone().next().unwrap();
-        assert!(std::ptr::eq(p.energy.as_ptr(), req.energy.as_ptr()), "the energy was copied");
-        let bad = v1::DepositRequest { counts: vec![], ..req.clone() };
-        assert!(DepositBatch::try_from(&bad).is_err());
+        assert_eq!((p.pair, p.elements, p.energy), (4, &[1, 2][..], &[1, 2, 3, 4, 5, 6][..]));
     }
 
     #[test]
@@ -227,7 +229,8 @@ mod tests {
     fn fork_reports_flatten_the_energies() {
         let r = ForkReport { elements: vec![1, 4], energy: vec![[1, 2, 3], [4, 5, 6]], rpcs: 7, ..Default::default() };
         let w = v1::GetEnergiesReply::from(r);
-        assert_eq!((w.energy, w.rpcs), (vec![1, 2, 3, 4, 5, 6], 7));
+        let got: Vec<_> = crate::convert::element_energies(&w).unwrap().collect();
+        assert_eq!((got, w.rpcs), (vec![(1, [1, 2, 3]), (4, [4, 5, 6])], 7));
     }
 
     #[test]

@@ -221,11 +221,18 @@ fn plan_depths_over_the_limit_are_refused() {
 
 #[test]
 fn element_energies_come_in_threes() {
-    let r = v1::GetEnergiesReply { elements: vec![4, 9], energy: vec![1, 2, 3, 4, 5, 6], ..Default::default() };
-    assert_eq!(element_energies(&r).unwrap().collect::<Vec<_>>(), vec![(4, [1, 2, 3]), (9, [4, 5, 6])]);
-    let short = v1::GetEnergiesReply { energy: vec![1, 2, 3, 4, 5], ..r };
+    let r = v1::GetEnergiesReply::from(magg_core::cluster::ForkReport {
+        elements: vec![4, 9],
+        energy: vec![[1, 2, 3], [4, 5, -6]],
+        ..Default::default()
+    });
+    assert_eq!(element_energies(&r).unwrap().collect::<Vec<_>>(), vec![(4, [1, 2, 3]), (9, [4, 5, -6])]);
+    let short = v1::GetEnergiesReply { energy: r.energy.slice(..40), ..r.clone() };
     let e = element_energies(&short).err().unwrap();
-    assert!(e.to_string().contains("3 values for each of 2 elements"), "{e}");
+    assert!(e.to_string().contains("3 values (24 bytes) for each of 2 elements"), "{e}");
+    let cut = v1::GetEnergiesReply { elements: vec![0x84].into(), ..r };
+    let e = element_energies(&cut).err().unwrap();
+    assert!(e.to_string().contains("GetEnergiesReply.elements"), "{e}");
 }
 
 #[test]
