@@ -15,7 +15,9 @@
 //!   acknowledged and ignored), and sets `complete` on the one it sends to the owner of
 //!   the pairs' elements (`pair % elements`), with the `epoch` of the `TakePairs` reply
 //!   that handed them out (a completion from before a `Replay` is not counted); that
-//!   request may carry the node's next `TakePairs`, answered once the deposits are in;
+//!   request may carry the node's next `TakePairs`, answered once the deposits are in
+//!   (with `own_only`, from this fork's own queue alone: the node asks the fork that
+//!   lent its home fork the pairs, and its home fork again when the answer is empty);
 //! - pairs are leased: a node that has not asked a fork for pairs for the lease
 //!   (`LoadShard.lease_ms`) loses its pairs there to the queue;
 //! - every call carries the cluster token when one is set ([`magg_plumbing::auth`]);

@@ -138,7 +138,7 @@ impl Peers {
     pub async fn steal(&self, fork: u32, max: u32, node: u32, secret: u64) -> Result<PairLease, ForkError> {
         let mut client = self.client(fork).await?;
         let reply = client
-            .steal_pairs(v1::TakePairsRequest { max, node, node_secret: secret })
+            .steal_pairs(v1::TakePairsRequest { max, node, node_secret: secret, own_only: true })
             .await
             .map_err(|s| self.failed(fork, s))?
             .into_inner();

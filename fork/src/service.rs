@@ -245,6 +245,26 @@ async fn take_pairs(
     }
 }
 
+/// A node's take, alone or riding on a completion: [`take_pairs`], or with `own_only`
+/// this fork's own pairs only ([`own_pairs`]), the G-bus booked as for the steal by the
+/// node's home fork that it replaces.
+async fn take(shard: Arc<Shard>, hw: &ForkHardware, t: &v1::TakePairsRequest) -> Result<PairLease, ForkError> {
+    if !t.own_only {
+        return take_pairs(shard, hw, t.max, t.node, t.node_secret).await;
+    }
+    let lease = own_pairs(&shard, t)?;
+    hw.gbus(shard.placement().index, shard.peers(), 16 + 8 * lease.pairs.len()).await;
+    Ok(lease)
+}
+
+/// Up to `t.max` of this fork's own unassigned pairs for node `t.node` (a `StealPairs`,
+/// or a take with `own_only`); `exhausted` says that this fork has none left.
+fn own_pairs(shard: &Shard, t: &v1::TakePairsRequest) -> Result<PairLease, ForkError> {
+    shard.admit(t.node, t.node_secret)?;
+    let (pairs, epoch) = shard.take_own_pairs(t.max, t.node);
+    Ok(PairLease { exhausted: pairs.is_empty(), pairs, epoch, remaining: shard.pairs_left() })
+}
+
 /// Stolen pairs must be real pairs of the fork they came from.
 fn check_stolen(shard: &Shard, peer: u32, pairs: &[u64]) -> Result<(), ForkError> {
     let elements = shard.header().counts.elements.max(1) as u64;
@@ -320,7 +340,7 @@ impl Fork for ForkService {
         let shard = self.shard()?;
         self.hw.serve(0).await;
         let r = req.into_inner();
-        let reply = v1::TakePairsReply::from(take_pairs(shard.clone(), &self.hw, r.max, r.node, r.node_secret).await?);
+        let reply = v1::TakePairsReply::from(take(shard.clone(), &self.hw, &r).await?);
         shard.count_link(prost::Message::encoded_len(&r) + prost::Message::encoded_len(&reply));
         Ok(Response::new(reply))
     }
@@ -328,11 +348,7 @@ impl Fork for ForkService {
     async fn steal_pairs(&self, req: Request<v1::TakePairsRequest>) -> Result<Response<v1::TakePairsReply>, Status> {
         let shard = self.shard()?;
         self.hw.serve(0).await;
-        let r = req.into_inner();
-        shard.admit(r.node, r.node_secret)?;
-        let (pairs, epoch) = shard.take_own_pairs(r.max, r.node);
-        let lease = PairLease { exhausted: pairs.is_empty(), pairs, epoch, remaining: shard.pairs_left() };
-        Ok(Response::new(lease.into()))
+        Ok(Response::new(own_pairs(&shard, &req.into_inner())?.into()))
     }
 
     async fn deposit(&self, req: Request<v1::DepositRequest>) -> Result<Response<v1::DepositReply>, Status> {
@@ -345,7 +361,7 @@ impl Fork for ForkService {
         let taken = match &r.take {
             Some(t) => {
                 self.hw.serve(0).await;
-                Some(take_pairs(shard.clone(), &self.hw, t.max, t.node, t.node_secret).await?.into())
+                Some(take(shard.clone(), &self.hw, t).await?.into())
             }
             None => None,
         };

@@ -214,6 +214,49 @@ async fn own_pairs_come_first_in_ascending_order() {
     c.stop().await;
 }
 
+/// A take with `own_only` gets the answering fork's own pairs and never steals: once they
+/// are gone its reply is empty (this fork has none), while a plain take steals. On the
+/// completion of pairs a fork lent, such a take asks it for the next of its own.
+#[tokio::test]
+async fn an_own_only_take_never_steals() {
+    let mut c = Cluster::start().await;
+    c.load_all().await;
+    let own_of = |f: u32| -> Vec<u64> {
+        (0..c.pairs()).filter(|p| c.element_owner((p % c.elements() as u64) as u32) == f).collect()
+    };
+    let (own2, own1) = (own_of(2), own_of(1));
+    let only = v1::TakePairsRequest { max: 4096, node: 3, own_only: true, ..Default::default() };
+    let mut got = Vec::new();
+    loop {
+        let r = lease(c.clients[2].take_pairs(only).await.unwrap().into_inner());
+        if r.pairs.is_empty() {
+            assert!(r.exhausted, "an empty own-only reply says the fork has none");
+            break;
+        }
+        got.extend(r.pairs);
+    }
+    assert_eq!(got, own2);
+    let plain = v1::TakePairsRequest { max: 8, own_only: false, ..only };
+    let stolen = lease(c.clients[2].take_pairs(plain).await.unwrap().into_inner());
+    assert!(!stolen.pairs.is_empty() && stolen.pairs.iter().all(|p| !own2.contains(p)), "a plain take steals");
+
+    // Fork 1 lends four pairs; their completion asks it for four more.
+    let four = v1::TakePairsRequest { max: 4, ..only };
+    let first = lease(c.clients[1].take_pairs(four).await.unwrap().into_inner()).pairs;
+    assert!(own1.len() >= 16 && first.len() == 4 && first.iter().all(|p| own1.contains(p)));
+    let mut w = DepositWriter::new(true, 0);
+    for &p in &first {
+        w.pair(p);
+    }
+    let mut req = w.finish();
+    req.take = Some(four);
+    let r = c.clients[1].deposit(req).await.unwrap().into_inner();
+    let next = lease(r.taken.expect("no pairs came back with the completion"));
+    assert_eq!(next.pairs.len(), 4);
+    assert!(next.pairs.iter().all(|p| own1.contains(p) && !first.contains(p)), "{:?}", next.pairs);
+    c.stop().await;
+}
+
 /// The completion of a batch may ask for the next one: the deposits are applied, then
 /// the pairs taken, as a separate TakePairs would take them; a refused deposit takes
 /// nothing.

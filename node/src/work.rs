@@ -239,7 +239,7 @@ impl Worker {
         let take = move |home: ForkClient<Authed>, node: u32, max: u32| {
             let pace = pace.clone();
             async move {
-                let req = TakePairsRequest { max, node, node_secret: secret };
+                let req = TakePairsRequest { max, node, node_secret: secret, own_only: false };
                 if let Some(p) = &pace {
                     p.send(req.encoded_len()).await;
                 }
@@ -318,8 +318,10 @@ impl Worker {
             let (round1, round2) = rounds.into_writers();
             let t = PassTimes::lap(&mut times.tracing, t);
             let max = batch(traced, deposited);
-            let home_take = (!self.overlap)
-                .then_some((self.home, TakePairsRequest { max, node: self.node, node_secret: self.secret }));
+            let home_take = (!self.overlap).then_some((
+                self.home,
+                TakePairsRequest { max, node: self.node, node_secret: self.secret, own_only: false },
+            ));
             let send = send_deposits(self.forks.clone(), self.pace.clone(), round1, round2, self.backoff, home_take);
             if !self.overlap {
                 piggybacked = self.rt.block_on(send)?;
@@ -441,8 +443,10 @@ fn lease_from_wire(r: v1::TakePairsReply) -> Result<PairLease, NodeError> {
 
 /// Sends a batch's deposits: every round-1 message, then every round-2 message. Deposits
 /// are keyed by pair: a retried one is applied once. `take` (the home fork's index and a
-/// request) rides on the round-2 message to that fork, if there is one: its answer is
-/// returned (`None`: ask separately).
+/// request) rides on a round-2 message, and its answer is returned (`None`: ask the home
+/// fork separately): on the one to the home fork, or else (pairs the home fork stole)
+/// on the one with the most pairs, as a take of that fork's own pairs only
+/// ([`carrier`]).
 async fn send_deposits(
     forks: Vec<ForkClient<Authed>>,
     pace: Option<Arc<NodePace>>,
@@ -452,6 +456,7 @@ async fn send_deposits(
     take: Option<(usize, TakePairsRequest)>,
 ) -> Result<Option<PairLease>, NodeError> {
     let mut taken = None;
+    let take = take.and_then(|(home, t)| carrier(&round2, home, t));
     for round in [round1, round2] {
         for (fork, pairs) in round.into_iter().enumerate() {
             if pairs.is_empty() {
@@ -461,8 +466,8 @@ async fn send_deposits(
                 return Err(NodeError::Convert(format!("fork {fork} of {}", forks.len())));
             };
             let mut req = pairs.finish();
-            if let Some((home, t)) = &take {
-                if req.complete && *home == fork {
+            if let Some((on, t)) = &take {
+                if req.complete && *on == fork {
                     req.take = Some(*t);
                 }
             }
@@ -479,17 +484,55 @@ async fn send_deposits(
             if let Some(p) = &pace {
                 p.recv(reply.encoded_len()).await;
             }
-            if req.take.is_some() {
+            if let Some(t) = &req.take {
                 taken = reply.taken.map(lease_from_wire).transpose()?;
+                // The lender has none left: the home fork is asked (and steals elsewhere).
+                if t.own_only && taken.as_ref().is_some_and(|l| l.pairs.is_empty()) {
+                    taken = None;
+                }
             }
         }
     }
     Ok(taken)
 }
 
+/// Which round-2 message carries the node's take `t` (its home fork `home`): the one to
+/// the home fork; or, when the batch holds none of the home fork's pairs (it stole them
+/// all), the one with the most pairs, asking that fork, which lent them, for more of its
+/// own. `None` when no round-2 message is sent.
+fn carrier(round2: &[DepositWriter], home: usize, t: TakePairsRequest) -> Option<(usize, TakePairsRequest)> {
+    if round2.get(home).is_some_and(|w| !w.is_empty()) {
+        return Some((home, t));
+    }
+    let (lender, w) = round2.iter().enumerate().max_by_key(|(k, w)| (w.len(), std::cmp::Reverse(*k)))?;
+    (!w.is_empty()).then_some((lender, TakePairsRequest { own_only: true, ..t }))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The take rides to the home fork when the batch completes pairs there, else to the
+    /// fork completing the most pairs, for its own pairs only.
+    #[test]
+    fn a_take_rides_home_or_to_the_lender() {
+        let t = TakePairsRequest { max: 9, node: 1, node_secret: 5, own_only: false };
+        let writers = |pairs: &[usize]| -> Vec<DepositWriter> {
+            pairs
+                .iter()
+                .map(|&n| {
+                    let mut w = DepositWriter::new(true, 0);
+                    (0..n as u64).for_each(|p| w.pair(p));
+                    w
+                })
+                .collect()
+        };
+        assert_eq!(carrier(&writers(&[0, 1, 7]), 1, t), Some((1, t)));
+        assert_eq!(carrier(&writers(&[0, 0, 7, 3]), 1, t), Some((2, TakePairsRequest { own_only: true, ..t })));
+        // A tie goes to the lower fork.
+        assert_eq!(carrier(&writers(&[2, 0, 2]), 1, t).map(|c| c.0), Some(0));
+        assert_eq!(carrier(&writers(&[0, 0, 0]), 1, t), None);
+    }
 
     #[test]
     fn pair_batches_grow_for_cheap_pairs_and_keep_deposits_bounded() {

@@ -39,6 +39,10 @@ pub const NEXT_SCENE: &str = "the host is preparing the next scene of the render
 pub const NOT_LOADED: &str = "no scene loaded";
 
 /// Version of the protocol; processes with another version are refused at registration.
+/// 15: a batch's deposits, a fork's energies and a `TakePairs` reply's pairs are declared
+/// as `bytes` holding their packed fields (the same bytes on the wire), and a
+/// `TakePairsRequest` may ask for the answering fork's own pairs only (`own_only`, on the
+/// completion of stolen pairs, to the fork that lent them);
 /// 14: BVH node records hold eight children (256 bytes, 8 records per node block);
 /// 13: a registration says whether its session is one of refinement's pilot light passes
 /// or a light pass that bins the pilots' kept pairs (`pilot_pairs`), and a DONE may say
@@ -59,4 +63,4 @@ pub const NOT_LOADED: &str = "no scene loaded";
 /// replies carry the ledger's digests, checked by the host before it interpolates; 3: a
 /// batch's deposits on a fork are packed arrays and may carry the next `TakePairs`
 /// ([`deposits`]); 2: packed deposits per pair, `Replay` names the lost fork.
-pub const PROTOCOL_VERSION: u32 = 14;
+pub const PROTOCOL_VERSION: u32 = 15;
