@@ -54,12 +54,6 @@ pub fn put_varint(out: &mut Vec<u8>, mut v: u64) {
     out.push(v as u8);
 }
 
-/// Bytes of `v` as a varint.
-pub fn varint_len(v: u64) -> usize {
-    // 1 + floor(log2(v)) / 7, with 0 taking one byte.
-    (64 - (v | 1).leading_zeros() as usize).div_ceil(7)
-}
-
 /// The varints of `b`, each at most `bits` bits (32 or 64).
 fn varints<T>(b: &[u8], bits: u32, cast: impl Fn(u64) -> T) -> Result<Vec<T>, PackedError> {
     // Every varint ends on its one byte below 0x80: their count, for one allocation.
@@ -129,7 +123,6 @@ mod tests {
         let mut ours = Vec::new();
         for &v in &big {
             put_varint(&mut ours, v);
-            assert_eq!(varint_len(v), prost::encoding::encoded_len_varint(v), "{v}");
         }
         let mut theirs = Vec::new();
         prost::encoding::uint64::encode_packed(1, &big, &mut theirs);
