@@ -10,6 +10,9 @@ pub struct Rgb(pub [f64; 3]);
 impl Rgb {
     /// Black.
     pub const BLACK: Rgb = Rgb([0.0; 3]);
+    /// One in every channel: what multiplies a colour without changing it (exactly: x * 1.0
+    /// is x).
+    pub const WHITE: Rgb = Rgb([1.0; 3]);
     /// Builds a colour from its channels.
     pub const fn new(r: f64, g: f64, b: f64) -> Self {
         Rgb([r, g, b])

@@ -616,7 +616,7 @@ fn merged(deposits: Vec<(u32, Rgb)>, quantum: f64) -> Vec<(u32, Fixed)> {
 /// patch and its material.
 struct Surface {
     at: Arrival,
-    albedo: Option<Rgb>,
+    albedo: Rgb,
     material: u32,
     patch: u32,
 }
@@ -658,7 +658,7 @@ fn scatter(
         return;
     };
     // A texture scales the diffuse part; what it takes away is absorbed.
-    let rho = albedo.map_or(m.diffuse, |a| m.diffuse.mul(a));
+    let rho = m.diffuse.mul(albedo);
     let absorbed = Rgb([
         (1.0 - rho.0[0] - m.mirror.0[0] - m.transmit.0[0]).max(0.0),
         (1.0 - rho.0[1] - m.mirror.0[1] - m.transmit.0[1]).max(0.0),

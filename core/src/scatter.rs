@@ -20,6 +20,7 @@
 //! ```
 
 use crate::blocks::{BlockError, PatchRecord, NO_TEXTURE};
+use crate::color::Rgb;
 use crate::geometry::Ray;
 use crate::math::Normalized;
 use crate::view::SceneView;
@@ -83,8 +84,16 @@ pub fn interpolate_normal(n: &[DVec3; 3], bary: [f64; 3]) -> Option<DVec3> {
 /// The arrival of direction `d` at point `p` of patch `patch` (unit geometric normal
 /// `normal`, barycentric weights `bary`, worked out from `p` when not given), shaded with
 /// the patch's normals when it has them, and the linear albedo of the patch's texture at
-/// the point (`None`: the patch has no texture); both read through the view's cache. A
-/// flat, untextured patch reads nothing more.
+/// the point (white, [`Rgb::WHITE`], where the patch has no texture: multiplying by it
+/// changes no bit); both read through the view's cache. A flat, untextured patch reads
+/// nothing more.
+///
+/// The albedo is a colour, never an `Option`: callers multiplied the diffuse reflectance
+/// by `Some` albedo, and the optimiser computed that product for `None` too (it is
+/// cheap, and its result was thrown away), on the `None`'s uninitialised payload. Stack
+/// garbage there, pointers most often, reads as subnormal doubles, and each such
+/// multiply took a microcode assist: 10 to 15% of a node's viewing pass on magg-paper,
+/// the same instructions as the embedded core's, which happened to find other garbage.
 pub fn arrive(
     view: &mut SceneView,
     patch: &PatchRecord,
@@ -92,16 +101,16 @@ pub fn arrive(
     d: DVec3,
     normal: DVec3,
     bary: Option<[f64; 3]>,
-) -> Result<(Arrival, Option<crate::color::Rgb>), BlockError> {
+) -> Result<(Arrival, Rgb), BlockError> {
     let at = Arrival::new(p, d, normal);
-    let Some(rec) = view.shading(patch)? else { return Ok((at, None)) };
+    let Some(rec) = view.shading(patch)? else { return Ok((at, Rgb::WHITE)) };
     let bary = bary.unwrap_or_else(|| barycentric(&patch.v, p));
     let at = at.with_shading(interpolate_normal(&rec.normals, bary));
     if rec.texture == NO_TEXTURE {
-        return Ok((at, None));
+        return Ok((at, Rgb::WHITE));
     }
     let uv = rec.uv[0] * bary[0] + rec.uv[1] * bary[1] + rec.uv[2] * bary[2];
-    Ok((at, Some(view.texture_albedo(rec.texture, uv)?)))
+    Ok((at, view.texture_albedo(rec.texture, uv)?))
 }
 
 /// Barycentric weights of point `p` (in or near the plane of `v`) for the corners of `v`.

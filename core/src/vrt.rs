@@ -223,7 +223,7 @@ fn arrival(view: &mut SceneView, ray: &Ray, hit: Option<Hit>, depth: u32) -> Res
     }
     let (at, albedo) = arrive(view, &prec, ray.at(hit.t), ray.direction, normal, Some(hit.bary))?;
     // A texture multiplies the diffuse reflectance.
-    let diffuse = albedo.map_or(m.diffuse, |a| m.diffuse.mul(a));
+    let diffuse = m.diffuse.mul(albedo);
     let (shaded, direct) = (!m.diffuse.is_black(), m.direct_vrt && !m.diffuse.is_black());
     // The element hit matters only where the elements' light shows.
     let (element, w) = match shaded {
@@ -316,7 +316,7 @@ pub fn gathered(
         }
         let diffuse = m.diffuse;
         let (q, albedo) = arrive(view, &prec, ray.at(hit.t), dir, normal, Some(hit.bary))?;
-        let rho = albedo.map_or(diffuse, |t| diffuse.mul(t));
+        let rho = diffuse.mul(albedo);
         sum = sum.add(rho.mul(crate::direct::irradiance(view, scratch, &q, hit.patch)?));
     }
     Ok(sum.scale(1.0 / n.max(1) as f64))
