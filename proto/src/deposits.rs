@@ -102,13 +102,9 @@ impl DepositWriter {
 
     /// The request.
     pub fn finish(self) -> DepositRequest {
-        let mut counts = Vec::with_capacity(self.counts.len());
-        for &c in &self.counts {
-            packed::put_varint(&mut counts, c as u64);
-        }
         DepositRequest {
             pairs: self.pairs.into(),
-            counts: counts.into(),
+            counts: packed::varint_bytes(self.counts.iter().map(|&c| c as u64)),
             elements: self.elements.into(),
             energy: self.energy.into(),
             complete: self.complete,
@@ -289,12 +285,6 @@ mod tests {
     use super::*;
     use prost::Message;
 
-    fn varints(v: &[u64]) -> bytes::Bytes {
-        let mut b = Vec::new();
-        v.iter().for_each(|&x| packed::put_varint(&mut b, x));
-        b.into()
-    }
-
     #[test]
     fn written_pairs_read_back_in_order() {
         let mut w = DepositWriter::new(true, 4);
@@ -361,14 +351,17 @@ mod tests {
         w.also_on(1);
         let good = w.finish();
         let cases: Vec<(DepositRequest, &str)> = vec![
-            (DepositRequest { counts: varints(&[]), ..good.clone() }, "counts"),
-            (DepositRequest { counts: varints(&[2]), ..good.clone() }, "add up to 2"),
+            (DepositRequest { counts: packed::varint_bytes([]), ..good.clone() }, "counts"),
+            (DepositRequest { counts: packed::varint_bytes([2]), ..good.clone() }, "add up to 2"),
             (DepositRequest { energy: vec![0; 16].into(), ..good.clone() }, "2 energy values"),
             (DepositRequest { energy: vec![0; 20].into(), ..good.clone() }, "DepositRequest.energy: 20 bytes"),
             (DepositRequest { also_on: vec![], ..good.clone() }, "also_on"),
             (DepositRequest { also_on_counts: vec![], ..good.clone() }, "also_on"),
-            (DepositRequest { counts: varints(&[u32::MAX as u64]), ..good.clone() }, "add up to"),
-            (DepositRequest { counts: varints(&[1 << 32]), ..good.clone() }, "DepositRequest.counts: a varint"),
+            (DepositRequest { counts: packed::varint_bytes([u32::MAX as u64]), ..good.clone() }, "add up to"),
+            (
+                DepositRequest { counts: packed::varint_bytes([1 << 32]), ..good.clone() },
+                "DepositRequest.counts: a varint",
+            ),
             (DepositRequest { pairs: vec![0x81].into(), ..good.clone() }, "DepositRequest.pairs: the last varint"),
             (DepositRequest { elements: vec![0xff; 11].into(), ..good.clone() }, "DepositRequest.elements"),
         ];

@@ -54,6 +54,13 @@ pub fn put_varint(out: &mut Vec<u8>, mut v: u64) {
     out.push(v as u8);
 }
 
+/// The bytes of a packed `repeated uint64` (or `uint32`) holding `values`.
+pub fn varint_bytes(values: impl IntoIterator<Item = u64>) -> bytes::Bytes {
+    let mut out = Vec::new();
+    values.into_iter().for_each(|v| put_varint(&mut out, v));
+    out.into()
+}
+
 /// The varints of `b`, each at most `bits` bits (32 or 64).
 fn varints<T>(b: &[u8], bits: u32, cast: impl Fn(u64) -> T) -> Result<Vec<T>, PackedError> {
     // Every varint ends on its one byte below 0x80: their count, for one allocation.
@@ -101,6 +108,13 @@ pub fn varints_u32(b: &[u8]) -> Result<Vec<u32>, PackedError> {
 #[inline]
 pub fn put_i64(out: &mut Vec<u8>, v: i64) {
     out.extend_from_slice(&v.to_le_bytes());
+}
+
+/// The bytes of a packed `repeated sfixed64` holding `values`.
+pub fn i64_bytes(values: impl IntoIterator<Item = i64>) -> bytes::Bytes {
+    let mut out = Vec::new();
+    values.into_iter().for_each(|v| put_i64(&mut out, v));
+    out.into()
 }
 
 /// The values of a packed `repeated sfixed64`.

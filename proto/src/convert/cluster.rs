@@ -45,9 +45,8 @@ impl From<(u32, bytes::Bytes)> for v1::Block {
 
 impl From<PairLease> for v1::TakePairsReply {
     fn from(l: PairLease) -> Self {
-        let mut pairs = Vec::with_capacity(l.pairs.len() * 4);
-        l.pairs.iter().for_each(|&p| packed::put_varint(&mut pairs, p));
-        v1::TakePairsReply { pairs: pairs.into(), exhausted: l.exhausted, epoch: l.epoch, remaining: l.remaining }
+        let pairs = packed::varint_bytes(l.pairs.iter().copied());
+        v1::TakePairsReply { pairs, exhausted: l.exhausted, epoch: l.epoch, remaining: l.remaining }
     }
 }
 
@@ -65,13 +64,9 @@ impl TryFrom<v1::TakePairsReply> for PairLease {
 /// are the service's to fill in).
 impl From<ForkReport> for v1::GetEnergiesReply {
     fn from(r: ForkReport) -> Self {
-        let mut elements = Vec::with_capacity(r.elements.len() * 3);
-        r.elements.iter().for_each(|&e| packed::put_varint(&mut elements, e as u64));
-        let mut energy = Vec::with_capacity(r.energy.len() * 24);
-        r.energy.iter().flatten().for_each(|&v| packed::put_i64(&mut energy, v));
         v1::GetEnergiesReply {
-            elements: elements.into(),
-            energy: energy.into(),
+            elements: packed::varint_bytes(r.elements.iter().map(|&e| e as u64)),
+            energy: packed::i64_bytes(r.energy.iter().flatten().copied()),
             pairs_total: r.pairs_total,
             pairs_done: r.pairs_done,
             dma_bytes: r.dma_bytes,
