@@ -2,7 +2,7 @@
 //! cost model, stage times turned into modelled seconds, and the real CPU share that
 //! tells whether an emulated run was faithful.
 
-use magg_core::preprocess::PreparedScene;
+use magg_core::prepared::PreparedScene;
 use magg_throttle::{preprocess_ops, Profile, Scheme};
 use std::time::Duration;
 

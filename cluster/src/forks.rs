@@ -37,7 +37,7 @@
 
 use crate::failure::ClusterError;
 use crate::FaultPolicy;
-use magg_core::preprocess::PreparedScene;
+use magg_core::prepared::PreparedScene;
 use magg_plumbing::auth::{AddToken, Authed, NodeKey, Token};
 use magg_plumbing::retry::{self, Backoff};
 use magg_plumbing::transport::{InProcess, Sharing};

@@ -16,7 +16,7 @@
 //! (`--forks-at`, `--external-nodes`).
 //!
 //! ```no_run
-//! # fn f(prepared: std::sync::Arc<magg_core::preprocess::PreparedScene>, opts: magg_cluster::DriveOptions,
+//! # fn f(prepared: std::sync::Arc<magg_core::prepared::PreparedScene>, opts: magg_cluster::DriveOptions,
 //! #      listener: tokio::net::TcpListener, rt: tokio::runtime::Runtime) -> anyhow::Result<()> {
 //! let mut machine = rt.block_on(magg_cluster::ClusterMachine::start(&prepared, &opts, magg_cluster::HostSocket::Listen(listener), rt.handle().clone()))?;
 //! let out = magg_core::phases::run(&mut machine, &prepared, &Default::default(),

@@ -14,7 +14,7 @@ use super::service::{HostService, HostState, Phase, PilotPairs};
 use crate::failure::ClusterError;
 use magg_core::color::Rgb;
 use magg_core::machine::{LightPass, Machine, MachineFigures, PhaseTimes, RenderError, ViewPass, ViewedFrame};
-use magg_core::preprocess::PreparedScene;
+use magg_core::prepared::PreparedScene;
 use magg_core::progress::Progress;
 use magg_core::stats::EmulatedBusy;
 use magg_core::vrt::Subscreen;
@@ -209,7 +209,7 @@ impl ClusterMachine {
         opts: &DriveOptions,
         host: HostSocket,
         rt: tokio::runtime::Handle,
-        pairs: Arc<magg_core::refine::KeptPairs>,
+        pairs: Arc<magg_core::kept::KeptPairs>,
     ) -> Result<ClusterMachine, ClusterError> {
         Self::start_scene(prepared, opts, host, rt, Some(pairs)).await
     }
@@ -219,7 +219,7 @@ impl ClusterMachine {
         opts: &DriveOptions,
         host: HostSocket,
         rt: tokio::runtime::Handle,
-        pilot: Option<Arc<magg_core::refine::KeptPairs>>,
+        pilot: Option<Arc<magg_core::kept::KeptPairs>>,
     ) -> Result<ClusterMachine, ClusterError> {
         let t_start = opts.started;
         let cpu0 = process_cpu_s();
@@ -246,7 +246,7 @@ impl ClusterMachine {
         );
 
         // Refinement's pairs, for the nodes of this process (see
-        // magg_core::refine::KeptPairs); shared until the light pass ends. A pilot level
+        // magg_core::kept::KeptPairs); shared until the light pass ends. A pilot level
         // traces them, the render's light pass bins those the pilots kept.
         let pilot_pairs = match (&pilot, prepared.refinement.kept) {
             (Some(_), _) => PilotPairs::Trace,

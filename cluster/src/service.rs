@@ -114,7 +114,7 @@ pub struct HostState {
     /// run out of pairs is told to trace pairs again.
     pub pairs_epoch: u64,
     /// The key refinement's pilot pairs are shared under in this process, told to nodes
-    /// at registration (0: none; see `magg_core::refine::KeptPairs`).
+    /// at registration (0: none; see `magg_core::kept::KeptPairs`).
     pub kept_pairs: u64,
     /// How this session's light pass treats the pilots' pairs, told to nodes at
     /// registration.

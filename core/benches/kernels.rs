@@ -24,12 +24,13 @@ use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Through
 use magg_core::blocks::{BlockCache, BlockSource, MemStore};
 use magg_core::camera::CameraRig;
 use magg_core::energy::vertex_energy_blocks;
-use magg_core::preprocess::{prepare, PreparedScene};
+use magg_core::prepared::PreparedScene;
 use magg_core::progress::NoProgress;
 use magg_core::render::{render, RenderOptions};
 use magg_core::trace::TraceScratch;
 use magg_core::view::SceneView;
 use magg_core::{lrt, scene, vrt};
+use magg_prepare::prepare;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::time::Duration;

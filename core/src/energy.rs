@@ -10,7 +10,7 @@
 use crate::blocks::{encode_vertex_energy, Block, BlockLayout, BLOCK_SIZE, VERTICES_PER_BLOCK};
 use crate::color::Rgb;
 use crate::header::Emitter;
-use crate::preprocess::ElementInfo;
+use crate::prepared::ElementInfo;
 use crate::scene::Light;
 
 /// Flux per channel in units of the scene's energy quantum.
@@ -176,8 +176,8 @@ mod tests {
             vertices: v,
             area,
             centroid: DVec3::ZERO,
-            face: crate::preprocess::Face::Both,
-            parent: crate::preprocess::NO_PARENT,
+            face: crate::prepared::Face::Both,
+            parent: crate::prepared::NO_PARENT,
             child: 0,
         };
         let elements = [e([0, 1, 2], 1.0), e([1, 2, 3], 3.0)];
@@ -195,8 +195,8 @@ mod tests {
             vertices: v,
             area: 1.0,
             centroid: DVec3::ZERO,
-            face: crate::preprocess::Face::Both,
-            parent: crate::preprocess::NO_PARENT,
+            face: crate::prepared::Face::Both,
+            parent: crate::prepared::NO_PARENT,
             child: 0,
         };
         // A strip of elements 0-1-2-3 sharing vertices in a row: [0,1,2], [1,2,3], ...

@@ -21,7 +21,7 @@
 
 use crate::blocks::BlockKind;
 use crate::color::Rgb;
-use crate::preprocess::PreparedScene;
+use crate::prepared::PreparedScene;
 use glam::DVec3;
 use serde::{Deserialize, Serialize};
 

@@ -13,12 +13,17 @@
 //! implementations, and both run the same kernels ([`lrt::trace_pair`],
 //! [`vrt::shade_pixel`]).
 //!
+//! The scene model and its readers are the `magg-scene` crate, re-exported here as
+//! [`scene`] (with [`color`] and [`math`]); preparation, which turns a scene into a
+//! [`prepared::PreparedScene`], is the `magg-prepare` crate: nodes render a prepared
+//! scene's blocks without it.
+//!
 //! ```no_run
-//! use magg_core::{preprocess, render, scene};
+//! use magg_core::{render, scene};
 //! let text = std::fs::read_to_string("scenes/cornell.toml").unwrap();
 //! let scene = scene::parse_scene_str("scenes/cornell.toml", &text, "scenes".as_ref(),
 //!     &|p: &std::path::Path| std::fs::read(p)).unwrap();
-//! let prepared = preprocess::prepare(&scene).unwrap();
+//! let prepared = magg_prepare::prepare(&scene).unwrap();
 //! let out = render::render(&prepared, &render::RenderOptions::default(), &magg_core::progress::NoProgress).unwrap();
 //! println!("{} x {} pixels", out.frame.width, out.frame.height);
 //! ```
@@ -26,7 +31,6 @@
 pub mod blocks;
 pub mod camera;
 pub mod cluster;
-pub mod color;
 pub mod direct;
 pub mod energy;
 pub mod fingerprint;
@@ -34,21 +38,22 @@ pub mod frame;
 pub mod geometry;
 pub mod header;
 pub mod idhash;
+pub mod kept;
 pub mod lrt;
 pub mod machine;
-pub mod math;
 pub mod phases;
 pub mod placement;
 pub mod plan;
-pub mod preprocess;
+pub mod prepared;
 pub mod progress;
-pub mod refine;
 pub mod render;
 pub mod rng;
 pub mod scatter;
-pub mod scene;
 pub mod stats;
 pub mod subdivision;
 pub mod trace;
 pub mod view;
 pub mod vrt;
+
+pub use magg_scene as scene;
+pub use magg_scene::{color, math};

@@ -273,13 +273,13 @@ pub fn trace_pairs_each(
 }
 
 /// [`trace_pairs_each`], where the pairs of `kept` (refinement's pilot pairs, see
-/// [`crate::refine::KeptPairs`]) are binned from their kept deposits rather than traced:
+/// [`crate::kept::KeptPairs`]) are binned from their kept deposits rather than traced:
 /// the same results, handed to `each` in the batch's order.
 pub fn trace_pairs_kept(
     view: &mut SceneView,
     scratch: &mut TraceScratch,
     pairs: &[(u32, u32)],
-    kept: Option<&crate::refine::KeptPairs>,
+    kept: Option<&crate::kept::KeptPairs>,
     mut each: impl FnMut(usize, PairResult),
 ) -> Result<(), BlockError> {
     let Some(kept) = kept else {

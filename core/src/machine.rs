@@ -9,8 +9,8 @@
 //! [`crate::phases`], so that a new pass or statistic is added in one place.
 //!
 //! ```no_run
-//! use magg_core::{phases, preprocess, progress::NoProgress, render};
-//! # fn f(prepared: &preprocess::PreparedScene) -> Result<(), magg_core::machine::RenderError> {
+//! use magg_core::{phases, progress::NoProgress, render};
+//! # fn f(prepared: &magg_core::prepared::PreparedScene) -> Result<(), magg_core::machine::RenderError> {
 //! let mut machine = render::EmbeddedMachine::new(prepared, &render::RenderOptions::default());
 //! let out = phases::run(&mut machine, prepared, &Default::default(), &NoProgress, &mut |_, _, _| Ok(()))?;
 //! # Ok(()) }
@@ -35,7 +35,7 @@ pub enum RenderError {
     Block(#[from] BlockError),
     /// The scene could not be prepared (refinement prepares it again).
     #[error(transparent)]
-    Prepare(#[from] crate::preprocess::PrepareError),
+    Prepare(#[from] crate::prepared::PrepareError),
     /// A worker thread died.
     #[error("a node worker panicked: {0}")]
     Worker(String),

@@ -11,7 +11,7 @@
 
 use crate::energy::{gather_vertices, interpolate, Fixed};
 use crate::machine::{FrameSink, Machine, PhaseTimes, RenderError, RenderOutput, Sequence, ViewPass};
-use crate::preprocess::PreparedScene;
+use crate::prepared::PreparedScene;
 use crate::progress::Progress;
 use crate::stats::{RenderStats, Work};
 use crate::view::OpCounters;

@@ -20,7 +20,7 @@ use crate::machine::{
     self, FrameSink, Machine, MachineFigures, PhaseTimes, RenderError, RenderOutput, Sequence, ViewPass, ViewedFrame,
 };
 use crate::phases::subscreens;
-use crate::preprocess::PreparedScene;
+use crate::prepared::PreparedScene;
 use crate::progress::Progress;
 use crate::scene::Camera;
 use crate::stats::{NodeStats, Stages, Traffic};
@@ -238,7 +238,7 @@ pub struct EmbeddedMachine {
     started: Instant,
     /// Refinement's pilot pairs, binned instead of traced by the light pass (dropped
     /// after it).
-    kept_pairs: Option<Arc<crate::refine::KeptPairs>>,
+    kept_pairs: Option<Arc<crate::kept::KeptPairs>>,
 }
 
 impl EmbeddedMachine {

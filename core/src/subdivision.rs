@@ -107,7 +107,7 @@ pub fn element_triangle(v: &[DVec3; 3], n: u32, local: u32) -> [DVec3; 3] {
 }
 
 /// Corners of child `slot` (0 to 3) of an element with corners `t` split at its edge
-/// midpoints (see `preprocess::split`): the corner children of `t[0]`, `t[1]` and
+/// midpoints (see `magg_prepare`'s `split`): the corner children of `t[0]`, `t[1]` and
 /// `t[2]`, then the middle one, each wound like `t`.
 pub fn child_triangle(t: &[DVec3; 3], slot: usize) -> [DVec3; 3] {
     let (ab, bc, ca) = ((t[0] + t[1]) * 0.5, (t[1] + t[2]) * 0.5, (t[2] + t[0]) * 0.5);

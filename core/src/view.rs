@@ -8,7 +8,7 @@ use crate::blocks::bvh::{
 use crate::blocks::*;
 use crate::color::Rgb;
 use crate::header::SceneHeader;
-use crate::refine::MAX_LEVELS;
+use crate::scene::MAX_REFINE_LEVELS;
 use crate::subdivision::{child_of, child_triangle, element_triangle};
 use glam::DVec3;
 use std::sync::Arc;
@@ -161,7 +161,7 @@ impl SceneView {
         while rec.child != 0 {
             depth += 1;
             let (slot, inner) = child_of(w);
-            let Some(child) = rec.child.checked_add(slot as u32).filter(|_| depth <= MAX_LEVELS) else {
+            let Some(child) = rec.child.checked_add(slot as u32).filter(|_| depth <= MAX_REFINE_LEVELS) else {
                 return Err(BlockError::Unavailable { id, reason: "corrupt element refinement".into() });
             };
             (id, rec, w) = (child, self.element(child)?, inner);
@@ -183,7 +183,7 @@ impl SceneView {
         while let Some(parent) = rec.parent() {
             let up = self.element(parent)?;
             let slot = at.checked_sub(up.child).filter(|&s| s < 4 && up.child != 0).ok_or_else(corrupt)?;
-            if slots.len() > MAX_LEVELS as usize {
+            if slots.len() > MAX_REFINE_LEVELS as usize {
                 return Err(corrupt());
             }
             slots.push(slot as usize);
@@ -203,7 +203,7 @@ impl SceneView {
     pub fn element_depth(&mut self, mut rec: ElementRecord) -> Result<u32, BlockError> {
         let mut depth = 0;
         while let Some(parent) = rec.parent() {
-            if depth >= MAX_LEVELS {
+            if depth >= MAX_REFINE_LEVELS {
                 return Err(BlockError::Unavailable { id: parent, reason: "corrupt element refinement".into() });
             }
             rec = self.element(parent)?;

@@ -9,12 +9,13 @@ use common::*;
 use glam::DVec3;
 use hard::random_scene;
 use magg_core::geometry::{intersect_watertight, Ray};
-use magg_core::preprocess::{prepare, PreparedScene};
+use magg_core::prepared::PreparedScene;
 use magg_core::render::{render, RenderOptions};
 use magg_core::rng::Rng;
 use magg_core::scene::{parse_scene_with_path, Accel, DirectLight, Scene};
 use magg_core::trace::{cast, cast_all, occluded_all, Bundled, Hit, TraceScratch, NO_PATCH, PACKET};
 use magg_core::view::SceneView;
+use magg_prepare::prepare;
 use std::path::{Path, PathBuf};
 
 /// The contract of `trace::cast`, by brute force: among the patches of non-zero area

@@ -36,7 +36,7 @@ fn lit_only_by(patches: Vec<magg_core::scene::PatchDef>, materials: Vec<Material
     s
 }
 
-fn total_flux(p: &magg_core::preprocess::PreparedScene, out: &RenderOutput) -> f64 {
+fn total_flux(p: &magg_core::prepared::PreparedScene, out: &RenderOutput) -> f64 {
     out.element_flux.iter().map(|f| from_fixed(*f, p.header.energy_quantum).0[0]).sum()
 }
 
@@ -74,7 +74,7 @@ fn a_plane_under_a_small_emitter_gets_the_closed_form_irradiance() {
         if s.patches[info.patch as usize].material != 0 {
             continue;
         }
-        if info.face == magg_core::preprocess::Face::Back {
+        if info.face == magg_core::prepared::Face::Back {
             // The floor's back (facing down, away from the lamp) holds nothing.
             assert_eq!(irr[e].0[0], 0.0, "back element {e}");
             continue;
@@ -177,7 +177,7 @@ fn area_light_energies_do_not_depend_on_nodes_or_cache() {
     patches.extend(quad(v(-0.3, 0.2, -0.3), v(-0.3, 0.2, 0.3), v(0.3, 0.2, 0.3), v(0.3, 0.2, -0.3), 2, 2));
     let mut s = lit_only_by(patches, vec![material("white", 0.6, 0.0, 0.0), emitter(4.0), mirror]);
     s.settings.diffuse_bounces = 1;
-    let p = magg_core::preprocess::prepare(&s).unwrap();
+    let p = magg_prepare::prepare(&s).unwrap();
     let a = run(&p, 1, None);
     let b = run(&p, 3, Some(12));
     assert_eq!(a.element_flux, b.element_flux);

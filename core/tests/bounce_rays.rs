@@ -8,7 +8,7 @@ mod common;
 use common::*;
 use magg_core::energy::from_fixed;
 use magg_core::machine::RenderOutput;
-use magg_core::preprocess::PreparedScene;
+use magg_core::prepared::PreparedScene;
 use magg_core::scene::{DirectLight, Scene};
 use std::f64::consts::PI;
 

@@ -9,11 +9,12 @@ use magg_core::camera::CameraRig;
 use magg_core::color::Rgb;
 use magg_core::energy::vertex_energy_blocks;
 use magg_core::lrt::{bin, trace_pair, trace_pair_raw, trace_pairs, LrtTally};
-use magg_core::preprocess::{prepare, PreparedScene};
+use magg_core::prepared::PreparedScene;
 use magg_core::scene::parse_scene_with_path;
 use magg_core::trace::TraceScratch;
 use magg_core::view::SceneView;
 use magg_core::vrt::{shade_pixel, shade_pixels, Subscreen};
+use magg_prepare::prepare;
 use std::path::Path;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Arc;
@@ -238,7 +239,7 @@ fn fetching_ahead_asks_the_source_far_less_often() {
 /// batch, whose pairs are all kept already.
 #[test]
 fn a_pilot_batch_through_a_small_cache_gives_what_each_pair_gives_alone() {
-    use magg_core::refine::KeptPairs;
+    use magg_core::kept::KeptPairs;
     let p = cornell();
     let pairs = specular_pairs(&p);
     let mut scratch = TraceScratch::default();

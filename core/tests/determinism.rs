@@ -4,8 +4,8 @@
 mod common;
 use common::*;
 use magg_core::blocks::CacheSize;
-use magg_core::preprocess::prepare;
 use magg_core::render::{render, RenderOptions};
+use magg_prepare::prepare;
 
 #[test]
 fn nodes_forks_and_cache_size_do_not_change_a_bit() {

@@ -3,7 +3,7 @@
 mod common;
 use common::*;
 use magg_core::plan::EffectsPlan;
-use magg_core::preprocess::{prepare, prepare_with_plan};
+use magg_prepare::{prepare, prepare_with_plan};
 
 fn diffuse_scene() -> magg_core::scene::Scene {
     let mut patches = boxed(v(-1.0, 0.0, -1.0), v(1.0, 2.0, 1.0), 0, 6, true);

@@ -2,8 +2,8 @@
 //! arbitrary bytes and mutated copies of a real scene never make `parse_scene_str` or
 //! `prepare` panic; every refusal is a `SceneError` naming the file and a field.
 
-use magg_core::preprocess::prepare;
 use magg_core::scene::parse_scene_str;
+use magg_prepare::prepare;
 use proptest::prelude::*;
 use proptest::test_runner::{Config, RngAlgorithm, TestRng, TestRunner};
 use std::path::Path;

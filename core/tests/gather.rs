@@ -7,7 +7,7 @@
 mod common;
 use common::*;
 use magg_core::energy::{from_fixed, gather_vertices};
-use magg_core::preprocess::{Face, PreparedScene};
+use magg_core::prepared::{Face, PreparedScene};
 use magg_core::scatter::Arrival;
 use magg_core::scene::{DirectLight, Scene};
 use magg_core::trace::TraceScratch;
@@ -101,12 +101,12 @@ fn only_the_elements_around_a_contact_are_marked() {
 #[test]
 fn gathering_keeps_renders_identical_across_cluster_shapes() {
     let s = room(true);
-    let p = magg_core::preprocess::prepare(&s).unwrap();
+    let p = magg_prepare::prepare(&s).unwrap();
     let (a, b) = (run(&p, 1, None), run(&p, 3, Some(60)));
     assert_eq!(a.frame.pixels, b.frame.pixels);
     let mut off = s.clone();
     off.settings.gather_rays = 0;
-    let q = magg_core::preprocess::prepare(&off).unwrap();
+    let q = magg_prepare::prepare(&off).unwrap();
     let c = run(&q, 1, None);
     assert_ne!(a.frame.pixels, c.frame.pixels, "the box's contact gathers");
 }

@@ -10,8 +10,8 @@ use common::*;
 use glam::DVec3;
 use hard::*;
 use magg_core::geometry::{intersect_watertight, sample_spherical_triangle, solid_angle, triangle_area, Ray};
-use magg_core::preprocess::prepare;
 use magg_core::scene::Scene;
+use magg_prepare::prepare;
 use std::f64::consts::PI;
 
 /// Zero-area triangles: a point, a segment (collinear), one with a repeated corner.

@@ -10,9 +10,9 @@ use common::*;
 use glam::DVec3;
 use hard::*;
 use magg_core::geometry::{intersect_watertight, Ray};
-use magg_core::preprocess::prepare;
 use magg_core::scene::{GridSpec, Scene};
 use magg_core::subdivision::{element_corners, element_triangle, lattice_point, locate};
+use magg_prepare::prepare;
 
 /// A unit square in the z = 0 plane split along its diagonal x = y, in the given patch
 /// order, under a light; a 2 x 2 x 1 grid so that the diagonal crosses subspaces.

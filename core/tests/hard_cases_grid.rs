@@ -12,10 +12,11 @@ use common::*;
 use glam::DVec3;
 use hard::*;
 use magg_core::geometry::Ray;
-use magg_core::preprocess::{prepare, PreparedScene};
+use magg_core::prepared::PreparedScene;
 use magg_core::scene::Accel;
 use magg_core::trace::{cast, TraceScratch, NO_PATCH};
 use magg_core::view::SceneView;
+use magg_prepare::prepare;
 
 const DIMS: [u32; 3] = [5, 4, 3];
 

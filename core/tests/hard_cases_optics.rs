@@ -202,7 +202,7 @@ fn flux_through_a_slab_is_scaled_by_fresnel_not_by_eta_squared() {
     // moves about 1.3 % of the flux from the shadow's rim into its middle (measured;
     // physically right, but not part of the closed form).
     let lp = v(0.03, 2.0, -0.02);
-    let under = |s: &Scene, p: &magg_core::preprocess::PreparedScene, flux: &[f64]| {
+    let under = |s: &Scene, p: &magg_core::prepared::PreparedScene, flux: &[f64]| {
         let (mut got, mut direct, mut through) = (0.0, 0.0, 0.0);
         for (e, info) in p.elements.iter().enumerate() {
             let c = info.centroid;

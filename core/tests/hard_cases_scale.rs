@@ -12,9 +12,9 @@ use glam::DVec3;
 use hard::*;
 use magg_core::geometry::Ray;
 use magg_core::math::Normalized;
-use magg_core::preprocess::prepare;
 use magg_core::scatter::reflect;
 use magg_core::scene::Scene;
+use magg_prepare::prepare;
 use std::f64::consts::PI;
 
 /// A point light over a 4 x 4 floor (800 elements) with a small square occluder

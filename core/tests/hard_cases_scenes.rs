@@ -7,10 +7,10 @@ mod hard;
 
 use hard::*;
 use magg_core::blocks::CacheSize;
-use magg_core::preprocess::prepare;
 use magg_core::progress::NoProgress;
 use magg_core::render::{render, RenderOptions};
 use magg_core::scene::parse_scene_str;
+use magg_prepare::prepare;
 use std::path::{Path, PathBuf};
 
 const SCENES: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../scenes");

@@ -9,9 +9,9 @@ mod common;
 use common::*;
 use magg_core::energy::from_fixed;
 use magg_core::plan::EffectsPlan;
-use magg_core::preprocess::{prepare_split, PreparedScene};
-use magg_core::refine;
+use magg_core::prepared::PreparedScene;
 use magg_core::scene::Scene;
+use magg_prepare::{prepare_split, refine};
 
 /// A 2 x 2 floor (n = 8 per triangle) under a point light, with a small square blocker
 /// between them when `blocker`.
@@ -160,7 +160,7 @@ fn irradiance_is_continuous_across_a_t_junction() {
     // Shading reads the leaf under a hit: every pixel is finite and the lit floor is lit.
     assert!(out.frame.pixels.iter().all(|p| p.iter().all(|c| c.is_finite())));
     let mut view = view_of(&p);
-    for (id, info) in p.elements.iter().enumerate().filter(|(_, e)| e.parent != magg_core::preprocess::NO_PARENT) {
+    for (id, info) in p.elements.iter().enumerate().filter(|(_, e)| e.parent != magg_core::prepared::NO_PARENT) {
         let rec = view.element(id as u32).unwrap();
         let (_, _, tri) = view.element_geometry(id as u32, rec).unwrap();
         let c = (tri[0] + tri[1] + tri[2]) / 3.0;

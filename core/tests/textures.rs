@@ -119,7 +119,7 @@ fn a_missing_or_broken_texture_names_the_mtl_line() {
 fn the_cluster_shapes_give_the_textured_floor_the_same_bits() {
     let mut s = floor([255, 128, 0], [20, 60, 200], "0.8 0.8 0.8");
     s.settings.diffuse_bounces = 1;
-    let p = magg_core::preprocess::prepare(&s).unwrap();
+    let p = magg_prepare::prepare(&s).unwrap();
     let one = run(&p, 1, None);
     let many = run(&p, 3, Some(4));
     assert_eq!(one.frame.pixels, many.frame.pixels);

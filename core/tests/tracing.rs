@@ -6,9 +6,9 @@ use common::*;
 use glam::DVec3;
 use magg_core::geometry::Ray;
 use magg_core::math::Normalized;
-use magg_core::preprocess::prepare;
 use magg_core::scene::GridSpec;
 use magg_core::trace::{cast, TraceScratch, NO_PATCH};
+use magg_prepare::prepare;
 
 /// The octahedron of 8 patches (n = 3), light outside, 3x3x3 subspaces.
 fn diamond() -> magg_core::scene::Scene {

@@ -4,9 +4,10 @@
 use magg_core::blocks::BLOCK_SIZE;
 use magg_core::cluster::PairLease;
 use magg_core::lrt::pair_id;
-use magg_core::preprocess::{prepare, PreparedScene};
+use magg_core::prepared::PreparedScene;
 use magg_core::scene::parse_scene_str;
 use magg_plumbing::auth::Authed;
+use magg_prepare::prepare;
 use magg_proto::deposits::DepositWriter;
 use magg_proto::v1;
 use magg_proto::v1::fork_client::ForkClient;

@@ -4,7 +4,7 @@
 
 use magg_core::color::Rgb;
 use magg_core::energy::element_irradiance;
-use magg_core::preprocess::PreparedScene;
+use magg_core::prepared::PreparedScene;
 
 /// The header row; a vertex leaves `patch` and `area` empty.
 pub const HEADER: [&str; 10] = ["kind", "id", "patch", "x", "y", "z", "area", "r", "g", "b"];

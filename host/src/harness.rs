@@ -6,12 +6,13 @@
 
 use anyhow::Context;
 use magg_cluster::{ClusterMachine, DriveOptions, FaultPolicy, HostSocket};
+use magg_core::kept::KeptPairs;
 use magg_core::machine::{FrameSink, RenderOutput, Sequence};
 use magg_core::machine::{LightPass, Machine, RenderError};
-use magg_core::preprocess::PreparedScene;
+use magg_core::prepared::PreparedScene;
 use magg_core::progress::Progress;
-use magg_core::refine::{KeptPairs, Pilots};
 use magg_plumbing::transport::{InProcess, Mode as TransportMode};
+use magg_prepare::refine::Pilots;
 use std::sync::Arc;
 use std::time::Duration;
 use tokio::net::TcpListener;
@@ -220,7 +221,7 @@ impl StartedCluster {
         }
     }
 
-    /// Prepares `scene` with `plan` ([`magg_core::refine::prepare_with`]), refinement's
+    /// Prepares `scene` with `plan` ([`magg_prepare::refine::prepare_with`]), refinement's
     /// pilot light passes run on this cluster's nodes: each level a scene of its own
     /// on the forks and the host service, the nodes registering for each. `progress`
     /// hears of each level.
@@ -232,7 +233,7 @@ impl StartedCluster {
         progress: &dyn Progress,
     ) -> anyhow::Result<PreparedScene> {
         let mut pilots = ClusterPilots { cluster: self, opts, nodes: 0 };
-        Ok(magg_core::refine::prepare_with(scene, plan, &mut pilots, progress)?)
+        Ok(magg_prepare::refine::prepare_with(scene, plan, &mut pilots, progress)?)
     }
 }
 

@@ -12,8 +12,8 @@
 //! limit at `LoadShard`.
 
 use anyhow::bail;
-use magg_core::preprocess::subdivisions_of;
 use magg_core::scene::{PatchDef, Scene};
+use magg_prepare::subdivisions_of;
 
 /// Bytes charged per element.
 pub const BYTES_PER_ELEMENT: f64 = 400.0;

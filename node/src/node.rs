@@ -8,7 +8,7 @@ use crate::work::Worker;
 use crate::NodeError;
 use magg_core::blocks::{BlockCache, BlockSource, CacheSize};
 use magg_core::header::SceneHeader;
-use magg_core::refine::KeptPairs;
+use magg_core::kept::KeptPairs;
 use magg_core::view::SceneView;
 use magg_plumbing::auth::{AddToken, Authed, Token};
 use magg_plumbing::retry::Backoff;
@@ -106,7 +106,7 @@ pub fn run(cfg: &NodeConfig) -> Result<NodeSummary, NodeError> {
 /// A render may be several scenes on one host (refinement's pilot levels, then the
 /// render): the node registers for each, until the host's DONE says no other follows.
 /// The pairs it traced for the pilots are kept over those scenes (where its process
-/// shares none: see [`magg_core::refine::KeptPairs`]).
+/// shares none: see [`magg_core::kept::KeptPairs`]).
 pub fn run_with_runtime(rt: Handle, cfg: &NodeConfig) -> Result<NodeSummary, NodeError> {
     let channel = rt.block_on(connect_with_backoff(&cfg.links, &cfg.host, cfg.backoff))?;
     let auth = AddToken(cfg.token.clone());

@@ -115,10 +115,10 @@ pub struct Worker {
     pub vrt: PassTimes,
     /// Nanoseconds its block cache has spent fetching blocks so far.
     pub fetching: Arc<std::sync::atomic::AtomicU64>,
-    /// Refinement's pairs of point lights ([`magg_core::refine::KeptPairs`]): traced
+    /// Refinement's pairs of point lights ([`magg_core::kept::KeptPairs`]): traced
     /// through it in a pilot level (`pilot`), binned from it where kept in the render's
     /// light pass; dropped when the viewing pass begins.
-    pub kept_pairs: Option<Arc<magg_core::refine::KeptPairs>>,
+    pub kept_pairs: Option<Arc<magg_core::kept::KeptPairs>>,
     /// This scene is one of refinement's pilot levels: pairs go through `kept_pairs`.
     pub pilot: bool,
 }

@@ -405,7 +405,7 @@ fn settings_from_wire(s: v1::RenderSettings) -> Result<RenderSettings, ConvertEr
         background,
         max_elements: s.max_elements,
         shared_faces: s.shared_faces,
-        refine: in_range(s.refine, 0, magg_core::refine::MAX_LEVELS, "settings.refine")?,
+        refine: in_range(s.refine, 0, magg_core::scene::MAX_REFINE_LEVELS, "settings.refine")?,
         refine_contrast: match finite(s.refine_contrast, "settings.refine_contrast")? {
             c if c > 0.0 && c <= 1.0 => c,
             c => return Err(invalid("settings.refine_contrast", c, "in (0, 1]")),
@@ -789,7 +789,7 @@ pub fn element_energies(r: &v1::GetEnergiesReply) -> Result<impl Iterator<Item =
 }
 
 /// Block `i` of a prepared scene, as the owner of a [`bytes::Bytes`] payload.
-struct SceneBlock(std::sync::Arc<magg_core::preprocess::PreparedScene>, usize);
+struct SceneBlock(std::sync::Arc<magg_core::prepared::PreparedScene>, usize);
 
 impl AsRef<[u8]> for SceneBlock {
     fn as_ref(&self) -> &[u8] {
@@ -800,7 +800,7 @@ impl AsRef<[u8]> for SceneBlock {
 /// Every block of a prepared scene for the wire, by id, without copying: each payload
 /// borrows the scene's own block (and keeps the scene alive). The host uploads the
 /// shards from these; only the encoding copies the bytes.
-pub fn scene_blocks_to_wire(prepared: &std::sync::Arc<magg_core::preprocess::PreparedScene>) -> Vec<v1::Block> {
+pub fn scene_blocks_to_wire(prepared: &std::sync::Arc<magg_core::prepared::PreparedScene>) -> Vec<v1::Block> {
     (0..prepared.blocks.len())
         .map(|i| v1::Block { id: i as u32, data: bytes::Bytes::from_owner(SceneBlock(prepared.clone(), i)) })
         .collect()

@@ -26,7 +26,7 @@ pub enum StudyError {
     },
     /// A scene setting of the study does not preprocess.
     #[error(transparent)]
-    Prepare(#[from] magg_core::preprocess::PrepareError),
+    Prepare(#[from] magg_core::prepared::PrepareError),
     /// A render of the study failed.
     #[error(transparent)]
     Render(#[from] magg_core::machine::RenderError),

@@ -3,7 +3,7 @@
 //! machine runs it and however loaded it is.
 
 use crate::profile::CpuSpec;
-use magg_core::preprocess::PrepareOps;
+use magg_core::prepared::PrepareOps;
 use magg_core::view::OpCounters;
 use std::time::Duration;
 

@@ -10,7 +10,7 @@
 use super::SceneView;
 use crate::blocks::{BlockError, ElementRecord};
 use crate::header::SceneHeader;
-use crate::refine::MAX_LEVELS;
+use crate::scene::MAX_REFINE_LEVELS;
 use crate::subdivision::child_of;
 
 /// No block (a slot of [`SceneView::in_prefetched_runs`]'s per-item blocks left unused).
@@ -142,7 +142,7 @@ impl SceneView {
                         return Ok(());
                     }
                     let (slot, inner) = child_of(p);
-                    let Some(child) = rec.child.checked_add(slot as u32).filter(|_| depth < MAX_LEVELS) else {
+                    let Some(child) = rec.child.checked_add(slot as u32).filter(|_| depth < MAX_REFINE_LEVELS) else {
                         return Err(BlockError::Unavailable { id, reason: "corrupt element refinement".into() });
                     };
                     w.at[i] = (child, inner, depth + 1);

@@ -9,7 +9,7 @@ use magg_core::energy::from_fixed;
 use magg_core::geometry::{intersect_watertight, Ray};
 use magg_core::lrt::LrtTally;
 use magg_core::machine::RenderOutput;
-use magg_core::preprocess::PreparedScene;
+use magg_core::prepared::PreparedScene;
 use magg_core::scene::Scene;
 use magg_core::trace::{cast, Hit, TraceScratch};
 use magg_core::view::SceneView;

@@ -5,11 +5,12 @@ use glam::DVec3;
 use magg_core::blocks::{BlockCache, CacheSize, MemStore};
 use magg_core::color::Rgb;
 use magg_core::machine::RenderOutput;
-use magg_core::preprocess::{prepare, PreparedScene};
+use magg_core::prepared::PreparedScene;
 use magg_core::progress::NoProgress;
 use magg_core::render::{render, RenderOptions};
 use magg_core::scene::*;
 use magg_core::view::SceneView;
+use magg_prepare::prepare;
 use std::sync::Arc;
 
 pub fn v(x: f64, y: f64, z: f64) -> DVec3 {

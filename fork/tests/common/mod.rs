@@ -1,7 +1,7 @@
 //! Fixtures shared by the fork's integration tests.
 
-use magg_core::preprocess::prepare;
 use magg_core::scene::parse_scene_str;
+use magg_prepare::prepare;
 use magg_proto::v1;
 
 /// A valid `LoadShard` request of fork 0 of 2 for the paper's scene.

@@ -6,7 +6,7 @@ use crate::scene_file;
 /// Prints the counts of the prepared scene and its plan.
 pub fn run(args: &InfoArgs, files: &scene_file::SceneFiles) -> anyhow::Result<()> {
     let scene = files.load(&args.scene, &args.set.overrides()?)?;
-    let p = magg_core::refine::prepare(&scene, magg_core::plan::EffectsPlan::for_scene(&scene))?;
+    let p = magg_prepare::refine::prepare(&scene, magg_core::plan::EffectsPlan::for_scene(&scene))?;
     let h = &p.header;
     let c = h.counts;
     if args.json {

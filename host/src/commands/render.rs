@@ -15,8 +15,8 @@ use magg_core::fingerprint::EnergyInputs;
 use magg_core::frame::Frame;
 use magg_core::machine::{Energies, Sequence};
 use magg_core::plan::EffectsPlan;
-use magg_core::refine::EmbeddedPilots;
 use magg_core::render;
+use magg_prepare::refine::EmbeddedPilots;
 use std::sync::Arc;
 
 /// Renders per `cfg` and writes every requested output. The frame in progress is kept in
@@ -97,14 +97,14 @@ pub fn run(cfg: RenderConfig, files: &scene_file::SceneFiles, partial: &partial:
                         .name("magg-host-start".into())
                         .spawn_scoped(s, || StartedCluster::start(&shape))
                         .context("starting the cluster's start-up thread")?;
-                    let prepared = magg_core::refine::prepare(&scene, plan);
+                    let prepared = magg_prepare::refine::prepare(&scene, plan);
                     let cluster = cluster.join().map_err(|_| anyhow::anyhow!("starting the cluster panicked"))?;
                     // A scene error first: it is what the user has to fix.
                     anyhow::Ok((prepared?, Some(cluster?)))
                 })?
             }
         }
-        _ => (magg_core::refine::prepare_with(&scene, plan, &mut EmbeddedPilots, &bars)?, None),
+        _ => (magg_prepare::refine::prepare_with(&scene, plan, &mut EmbeddedPilots, &bars)?, None),
     };
     if !prepared.splits.is_empty() {
         let (elements, pairs) = (prepared.elements.len() as u64, prepared.header.pair_count());

@@ -28,7 +28,7 @@ use magg_cluster::events::EventSender;
 use magg_core::color::Rgb;
 use magg_core::energy::Fixed;
 use magg_core::frame::Frame;
-use magg_core::preprocess::PreparedScene;
+use magg_core::prepared::PreparedScene;
 use magg_core::progress::Progress;
 use magg_core::scene::{Camera, Exposure};
 use magg_core::vrt::Subscreen;

@@ -22,7 +22,7 @@ use super::board::Board;
 use magg_core::blocks::{Block, BlockCache, BlockError, BlockSource};
 use magg_core::camera::CameraRig;
 use magg_core::energy::{interpolate, vertex_energy_blocks, Fixed};
-use magg_core::preprocess::PreparedScene;
+use magg_core::prepared::PreparedScene;
 use magg_core::scene::Camera;
 use magg_core::trace::TraceScratch;
 use magg_core::view::SceneView;
@@ -221,7 +221,7 @@ mod tests {
         let read = |p: &std::path::Path| std::fs::read(p);
         let mut scene = parse_scene_str("plane.toml", text, std::path::Path::new("."), &read).expect("scene");
         (scene.settings.width, scene.settings.height) = (40, 20);
-        Arc::new(magg_core::preprocess::prepare(&scene).expect("prepare"))
+        Arc::new(magg_prepare::prepare(&scene).expect("prepare"))
     }
 
     #[test]

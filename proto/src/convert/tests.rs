@@ -17,7 +17,7 @@ fn paper_header() -> Arc<SceneHeader> {
     let text = include_str!("../../../scenes/magg-paper.toml");
     let read = |p: &std::path::Path| std::fs::read(p);
     let scene = magg_core::scene::parse_scene_str("magg-paper.toml", text, "scenes".as_ref(), &read).unwrap();
-    magg_core::preprocess::prepare(&scene).unwrap().header
+    magg_prepare::prepare(&scene).unwrap().header
 }
 
 /// The header as it comes back from the wire: source locations are not sent.
@@ -126,7 +126,7 @@ fn bvh_header() -> Arc<SceneHeader> {
     let text = text.replace("accel = \"grid\"", "accel = \"bvh\"");
     let read = |p: &std::path::Path| std::fs::read(p);
     let scene = magg_core::scene::parse_scene_str("magg-paper.toml", &text, "scenes".as_ref(), &read).unwrap();
-    magg_core::preprocess::prepare(&scene).unwrap().header
+    magg_prepare::prepare(&scene).unwrap().header
 }
 
 #[test]
@@ -269,7 +269,7 @@ fn area_header() -> Arc<SceneHeader> {
     let text = include_str!("../../../scenes/area.toml");
     let read = |p: &std::path::Path| std::fs::read(p);
     let scene = magg_core::scene::parse_scene_str("area.toml", text, "scenes".as_ref(), &read).unwrap();
-    magg_core::preprocess::prepare(&scene).unwrap().header
+    magg_prepare::prepare(&scene).unwrap().header
 }
 
 #[test]

@@ -10,7 +10,7 @@ use glam::DVec3;
 use magg_core::color::Rgb;
 use magg_core::lrt::LrtTally;
 use magg_core::math::Normalized;
-use magg_core::preprocess::{Face, PreparedScene};
+use magg_core::prepared::{Face, PreparedScene};
 
 /// True when the closed form holds for a render of `prepared` whose light pass reported
 /// `tally`. Not when direct light is computed at VRT: the elements then hold none of it.
@@ -79,7 +79,7 @@ pub fn vertex_rel_rmse(prepared: &PreparedScene, tally: &LrtTally, vertex_irradi
 mod tests {
     use super::*;
     use magg_core::progress::NoProgress;
-    use magg_core::{preprocess, render};
+    use magg_core::render;
 
     fn scene(name: &str) -> magg_core::scene::Scene {
         crate::test_scene(name)
@@ -91,7 +91,7 @@ mod tests {
         s.settings.element_size = element_size;
         s.settings.light_rays = light_rays;
         s.settings.direct = magg_core::scene::DirectLight::Lrt;
-        let prepared = preprocess::prepare(&s).unwrap();
+        let prepared = magg_prepare::prepare(&s).unwrap();
         let out = render::render(&prepared, &Default::default(), &NoProgress).unwrap();
         vertex_rel_rmse(&prepared, &out.stats.light, &out.vertex_irradiance)
     }
@@ -112,7 +112,7 @@ mod tests {
         let mut s = scene("plane.toml");
         s.settings.width = 16;
         s.settings.height = 16;
-        let prepared = preprocess::prepare(&s).unwrap();
+        let prepared = magg_prepare::prepare(&s).unwrap();
         assert!(prepared.header.plan.direct_vrt);
         let out = render::render(&prepared, &Default::default(), &NoProgress).unwrap();
         assert_eq!(vertex_rel_rmse(&prepared, &out.stats.light, &out.vertex_irradiance), None);

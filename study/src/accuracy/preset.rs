@@ -40,7 +40,7 @@ pub struct Preset {
     /// Viewing rays per pixel; `None` keeps the scene's.
     pub pixel_samples: Option<u32>,
     /// Levels of adaptive refinement added to the scene's (`[render] refine`, at most
-    /// [`magg_core::refine::MAX_LEVELS`]).
+    /// [`magg_core::scene::MAX_REFINE_LEVELS`]).
     pub refine: u32,
 }
 
@@ -90,7 +90,7 @@ impl Quality {
         if let Some(v) = p.pixel_samples {
             scene.settings.pixel_samples = v;
         }
-        scene.settings.refine = scene.settings.refine.saturating_add(p.refine).min(magg_core::refine::MAX_LEVELS);
+        scene.settings.refine = scene.settings.refine.saturating_add(p.refine).min(magg_core::scene::MAX_REFINE_LEVELS);
     }
 }
 
@@ -193,8 +193,8 @@ mod tests {
         assert_eq!(s.settings.refine, 3, "one level more than the scene's");
         assert_eq!(s.patches[0].subdivisions, Some(16));
         let mut deep = scene();
-        deep.settings.refine = magg_core::refine::MAX_LEVELS;
+        deep.settings.refine = magg_core::scene::MAX_REFINE_LEVELS;
         Quality::Final.apply(&mut deep);
-        assert_eq!(deep.settings.refine, magg_core::refine::MAX_LEVELS, "never beyond the deepest level");
+        assert_eq!(deep.settings.refine, magg_core::scene::MAX_REFINE_LEVELS, "never beyond the deepest level");
     }
 }

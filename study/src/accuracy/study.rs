@@ -12,7 +12,7 @@ use magg_core::color::Rgb;
 use magg_core::frame::Frame;
 use magg_core::progress::NoProgress;
 use magg_core::scene::{Exposure, Scene};
-use magg_core::{energy, preprocess, render};
+use magg_core::{energy, render};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
@@ -116,7 +116,7 @@ struct Measured {
 fn render_point(scene: &Scene, point: &Point, seed: u64, nodes: u32) -> Result<Measured> {
     let mut s = point.apply(scene);
     s.settings.seed = seed;
-    let prepared = magg_core::refine::prepare(&s, magg_core::plan::EffectsPlan::for_scene(&s))?;
+    let prepared = magg_prepare::refine::prepare(&s, magg_core::plan::EffectsPlan::for_scene(&s))?;
     let opts = render::RenderOptions { nodes, ..Default::default() };
     let out = render::render(&prepared, &opts, &NoProgress)?;
     let irradiance = energy::element_irradiance(&prepared.elements, &out.element_flux, prepared.header.energy_quantum);
@@ -132,7 +132,7 @@ fn render_point(scene: &Scene, point: &Point, seed: u64, nodes: u32) -> Result<M
 }
 
 /// Seconds the work of a render would take on one processor of the `magg1993` profile.
-fn modelled_seconds(prepared: &preprocess::PreparedScene, ops: &magg_core::view::OpCounters) -> f64 {
+fn modelled_seconds(prepared: &magg_core::prepared::PreparedScene, ops: &magg_core::view::OpCounters) -> f64 {
     let Ok(profile) = magg_throttle::Profile::named("magg1993") else { return f64::NAN };
     let Some(cpu) = profile.cpu else { return f64::NAN };
     (magg_throttle::CpuCost(cpu).of(ops) + magg_throttle::preprocess_ops(&cpu, &prepared.ops, 1)).as_secs_f64()

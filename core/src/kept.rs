@@ -1,6 +1,10 @@
 //! Refinement's pairs of point lights, traced once and kept raw ([`KeptPairs`]), in a
 //! table indexed by light and element id: no hashing, and the table is split into
 //! [`SHARDS`] by element id so that the threads tracing pairs seldom wait for one another.
+//!
+//! Refinement itself (choosing the elements to split, driving the pilot light passes)
+//! is preparation's (`magg_prepare::refine`); the table lives here because the machines
+//! and nodes that trace the pairs read and fill it.
 
 use crate::blocks::BlockError;
 use crate::lrt::{bin, bin_all, trace_pair, trace_pair_raw, PairResult, RawDeposit, RawPair};
@@ -24,7 +28,7 @@ fn get(shard: &Shard, light: u32, at: usize) -> Option<&Arc<RawPair>> {
 }
 
 /// Refinement's pairs of point lights, traced once and kept raw (see the module doc of
-/// [`crate::refine`]).
+/// `magg_prepare::refine`).
 ///
 /// While the pilots run, [`KeptPairs::trace`] gives a pair's result on the level's
 /// scene, tracing (and keeping) it the first time only: every level's pilot has the same

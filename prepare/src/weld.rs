@@ -3,9 +3,9 @@
 //! (same facing), so a wall made of two triangles shows no seam while a corner between
 //! two walls keeps separate vertices.
 
-use crate::geometry::triangle_normal;
-use crate::subdivision::{lattice_count, lattice_index, lattice_point, on_boundary};
 use glam::DVec3;
+use magg_core::geometry::triangle_normal;
+use magg_core::subdivision::{lattice_count, lattice_index, lattice_point, on_boundary};
 use rayon::prelude::*;
 
 /// Result of welding.

@@ -18,7 +18,7 @@ use super::field::field_at;
 use super::mesh::{self, MaterialTable, MeshEntry, MeshShading, ReadFile, Transform};
 use super::model::{
     Accel, Camera, CameraPath, DirectLight, Exposure, GridSpec, Light, Material, PatchDef, RenderSettings, Scene,
-    SourceLoc, Spot, MAX_BOUNCE_RAYS, MAX_COORDINATE, MAX_GATHER_RAYS, MAX_RADIOMETRIC,
+    SourceLoc, Spot, MAX_BOUNCE_RAYS, MAX_COORDINATE, MAX_GATHER_RAYS, MAX_RADIOMETRIC, MAX_REFINE_LEVELS,
 };
 use super::shape::{check_quad, is_degenerate};
 use crate::color::Rgb;
@@ -383,7 +383,7 @@ impl<'a> Ctx<'a> {
         u32_in(&r.lrt_depth, "render.lrt_depth", 0, 32, &mut s.lrt_depth)?;
         u32_in(&r.vrt_depth, "render.vrt_depth", 0, 32, &mut s.vrt_depth)?;
         u32_in(&r.diffuse_bounces, "render.diffuse_bounces", 0, 16, &mut s.diffuse_bounces)?;
-        u32_in(&r.refine, "render.refine", 0, crate::refine::MAX_LEVELS as i64, &mut s.refine)?;
+        u32_in(&r.refine, "render.refine", 0, MAX_REFINE_LEVELS as i64, &mut s.refine)?;
         if let Some(v) = &r.refine_contrast {
             s.refine_contrast = self.float_in(v, "render.refine_contrast", 0.0, true, 1.0)?;
         }

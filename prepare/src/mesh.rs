@@ -1,12 +1,12 @@
 //! Subdivision of patches into elements, with welded vertices.
 
 use super::weld::weld;
-use super::{ElementInfo, Face, PrepareError};
-use crate::blocks::NO_BACK;
-use crate::geometry::triangle_area;
-use crate::scene::Scene;
-use crate::subdivision::{element_corners, element_count, lattice_count, lattice_index, lattice_point};
 use glam::DVec3;
+use magg_core::blocks::NO_BACK;
+use magg_core::geometry::triangle_area;
+use magg_core::prepared::{ElementInfo, Face, PrepareError, NO_PARENT};
+use magg_core::scene::Scene;
+use magg_core::subdivision::{element_corners, element_count, lattice_count, lattice_index, lattice_point};
 use rayon::prelude::*;
 
 /// Patches subdivided into elements.
@@ -121,7 +121,7 @@ pub(super) fn build(scene: &Scene) -> Result<Mesh, PrepareError> {
                     area: triangle_area(&tri),
                     centroid: (tri[0] + tri[1] + tri[2]) / 3.0,
                     face,
-                    parent: super::NO_PARENT,
+                    parent: NO_PARENT,
                     child: 0,
                 }
             })

@@ -1,7 +1,7 @@
 //! Tests of the glTF reader: documents made here, a triangle in a buffer.
 
 use super::*;
-use crate::scene::mesh::Transform;
+use crate::mesh::Transform;
 use std::collections::HashMap;
 
 /// The buffer: the triangle (0,0,0), (1,0,0), (0,1,0) as floats, then u16 indices 0 1 2.

@@ -466,10 +466,10 @@ fn ply_meshes_take_the_mesh_material_and_match_the_obj() {
     let obj = "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 0.5 0.5 1\nf 1 2 3 4\nf 1 2 5\n";
     let text = |file: &str| format!("{MINI}\n[[mesh]]\nfile = \"{file}\"\nmaterial = \"white\"\nscale = 2\n");
     let from_obj = parse_with(&text("m.obj"), &[("base/m.obj", obj)]).unwrap();
-    let ascii = crate::scene::ply::tests::ASCII;
+    let ascii = crate::ply::tests::ASCII;
     let from_ply = parse_with(&text("m.ply"), &[("base/m.ply", ascii)]).unwrap();
     assert_eq!(from_obj.patches, from_ply.patches);
-    let binary = crate::scene::ply::tests::binary(true);
+    let binary = crate::ply::tests::binary(true);
     let from_binary = parse_with_bytes(&text("m.ply"), &[("base/m.ply", &binary)]).unwrap();
     assert_eq!(from_obj.patches, from_binary.patches);
     let no_material = format!("{MINI}\n[[mesh]]\nfile = \"m.ply\"\n");

@@ -1,5 +1,5 @@
 //! The bounding volume hierarchy over the patches: a binned SAH build (Wald 2007; pbrt-v4
-//! builds the same way), then node and leaf-triangle blocks ([`crate::blocks::bvh`]).
+//! builds the same way), then node and leaf-triangle blocks ([`magg_core::blocks::bvh`]).
 //!
 //! The build splits the two halves of a large node on two threads (rayon), but every
 //! split depends only on the primitives of its node, in the order the partition left
@@ -10,11 +10,11 @@
 //! blocks.
 
 use super::mesh::Mesh;
-use crate::blocks::bvh::*;
-use crate::blocks::{Block, BLOCK_SIZE};
-use crate::geometry::Aabb;
-use crate::header::BvhHeader;
 use glam::DVec3;
+use magg_core::blocks::bvh::*;
+use magg_core::blocks::{Block, BLOCK_SIZE};
+use magg_core::geometry::Aabb;
+use magg_core::header::BvhHeader;
 
 /// SAH bins per axis.
 const BINS: usize = 16;
@@ -292,7 +292,7 @@ pub(super) fn build_and_pack(mesh: &Mesh) -> Bvh {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::rng::Rng;
+    use magg_core::rng::Rng;
 
     fn mesh(n: usize, seed: u64) -> Mesh {
         let mut rng = Rng::from_words(&[seed, 0xb0]);

@@ -3,9 +3,9 @@
 use super::bvh::Bvh;
 use super::grid::Grid;
 use super::mesh::Mesh;
-use crate::blocks::*;
-use crate::header::{BvhHeader, Counts, GridHeader, TextureHeader};
-use crate::scene::Texture;
+use magg_core::blocks::*;
+use magg_core::header::{BvhHeader, Counts, GridHeader, TextureHeader};
+use magg_core::scene::Texture;
 
 pub(super) struct Packed {
     pub blocks: Vec<Box<Block>>,
@@ -114,9 +114,9 @@ pub(super) fn pack(mesh: &Mesh, grid: &Grid, bvh: Option<Bvh>, textures: &[Textu
             let id = (chunk_idx * ELEMENTS_PER_BLOCK + k) as u32;
             // A back element's local index counts on from its patch's n * n front ones.
             let p = e.patch as usize;
-            let local = if e.parent != super::NO_PARENT {
-                crate::blocks::REFINED | e.parent
-            } else if e.face == crate::preprocess::Face::Back {
+            let local = if e.parent != magg_core::prepared::NO_PARENT {
+                magg_core::blocks::REFINED | e.parent
+            } else if e.face == magg_core::prepared::Face::Back {
                 id - mesh.back_element[p] + (mesh.subdivisions[p] * mesh.subdivisions[p])
             } else {
                 id - mesh.first_element[p]

@@ -68,14 +68,14 @@ impl Ctx<'_> {
 
 #[cfg(test)]
 mod tests {
-    use crate::scene::parse_scene_with_path;
+    use crate::parse_scene_with_path;
     use glam::DVec3;
 
     const BASE: &str = "[[light]]\nposition = [0, 1.9, 0]\nintensity = [1, 1, 1]\n\n[[material]]\nname = \"w\"\n\
                         diffuse = [0.7, 0.7, 0.7]\n\n[[triangle]]\nvertices = [[0, 0, 0], [1, 0, 0], [0, 1, 0]]\n\
                         material = \"w\"\n";
 
-    fn parse(text: &str) -> Result<(crate::scene::Scene, Option<crate::scene::CameraPath>), String> {
+    fn parse(text: &str) -> Result<(crate::Scene, Option<crate::CameraPath>), String> {
         parse_scene_with_path("p.toml", text, "b".as_ref(), &|_: &std::path::Path| {
             Err(std::io::ErrorKind::NotFound.into())
         })

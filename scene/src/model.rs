@@ -136,7 +136,7 @@ impl Accel {
 /// Where direct light from point and spot lights is computed.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
 pub enum DirectLight {
-    /// The effects plan decides ([`crate::plan::EffectsPlan::for_scene`]): at VRT unless
+    /// The effects plan decides (`magg_core::plan::EffectsPlan::for_scene`): at VRT unless
     /// the scene has too many lights for a shadow ray per light at every hit to pay.
     #[default]
     Auto,
@@ -184,6 +184,10 @@ pub const MAX_BOUNCE_RAYS: u32 = 4096;
 /// Most gather rays per viewing ray (`[render] gather_rays`).
 pub const MAX_GATHER_RAYS: u32 = 4096;
 
+/// Most levels of adaptive element refinement (`[render] refine`). The tracer's descent
+/// from a lattice element to the leaf holding a point is bounded by it too.
+pub const MAX_REFINE_LEVELS: u32 = 6;
+
 /// Every accuracy knob and output setting of a render.
 #[derive(Clone, Debug, PartialEq)]
 pub struct RenderSettings {
@@ -206,10 +210,10 @@ pub struct RenderSettings {
     pub bounce_rays: u32,
     /// Rays a viewing ray's diffuse hit gathers the bounced light with where the
     /// elements cannot hold it (next to elements that received no light: a contact with
-    /// another surface, [`crate::energy::gather_vertices`]), each with a shadow ray per
+    /// another surface, `magg_core::energy::gather_vertices`), each with a shadow ray per
     /// light at its own hit; 0 interpolates everywhere. Only where the elements hold
     /// nothing but one diffuse bounce of direct light computed at VRT
-    /// ([`crate::plan::EffectsPlan::gathers`]).
+    /// (`magg_core::plan::EffectsPlan::gathers`).
     pub gather_rays: u32,
     /// Maximum specular bounces of light rays (mirror, refraction) after the first hit.
     pub lrt_depth: u32,

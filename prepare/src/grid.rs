@@ -2,9 +2,9 @@
 //! the patches that overlap it, by exact triangle/box overlap.
 
 use super::mesh::Mesh;
-use crate::geometry::{triangle_overlaps_box, Aabb};
-use crate::scene::{GridSpec, Scene};
 use glam::{DVec3, UVec3};
+use magg_core::geometry::{triangle_overlaps_box, Aabb};
+use magg_core::scene::{GridSpec, Scene};
 use rayon::prelude::*;
 
 /// Grid geometry and per-cell patch lists.

@@ -6,7 +6,7 @@
 //!
 //! ```
 //! use glam::DVec3;
-//! use magg_core::math::Normalized;
+//! use magg_scene::math::Normalized;
 //! assert_eq!(DVec3::new(0.0, 3.0, 4.0).normalized(), DVec3::new(0.0, 0.6, 0.8));
 //! assert_eq!(DVec3::ZERO.normalized(), DVec3::ZERO);
 //! ```

@@ -7,7 +7,7 @@
 //!
 //! Children, in order, for a parent with corners (a, b, c) and edge midpoints m_ab, m_bc,
 //! m_ca: (a, m_ab, m_ca), (m_ab, b, m_bc), (m_ca, m_bc, c) and the middle one
-//! (m_bc, m_ca, m_ab), all wound like the parent. [`crate::subdivision::child_of`] finds
+//! (m_bc, m_ca, m_ab), all wound like the parent. [`magg_core::subdivision::child_of`] finds
 //! the child a point falls in, and `subdivision::child_triangle` its corners.
 //!
 //! A midpoint on the edge of a neighbour that was not split is a T-junction: the
@@ -16,10 +16,10 @@
 //! continuous across the edge.
 
 use super::mesh::Mesh;
-use super::ElementInfo;
-use crate::geometry::triangle_area;
-use crate::idhash::{IdMap, IdSet};
-use crate::subdivision::child_triangle;
+use magg_core::geometry::triangle_area;
+use magg_core::idhash::{IdMap, IdSet};
+use magg_core::prepared::ElementInfo;
+use magg_core::subdivision::child_triangle;
 
 /// The key of the edge between vertices `a` and `b`.
 fn edge(a: u32, b: u32) -> (u32, u32) {

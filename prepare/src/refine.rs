@@ -21,15 +21,16 @@
 //! Where the render's light pass carries exactly the pilots' light (no diffuse bounce,
 //! the same effects plan), its pairs are the last pilot's and those of the elements the
 //! last level split: the pilots' raw pairs are then kept with the prepared scene
-//! ([`KeptPairs`], [`crate::stats::Refinement::kept`]), and the light pass bins them
-//! instead of tracing them again ([`crate::lrt::trace_pairs_kept`]): in the embedded
+//! ([`KeptPairs`], [`magg_core::stats::Refinement::kept`]), and the light pass bins them
+//! instead of tracing them again ([`magg_core::lrt::trace_pairs_kept`]): in the embedded
 //! renderer and on the cluster's nodes of the host's process all of them, on a node of
 //! a process of its own those it traced itself; the others are traced. The result is
 //! the same, bit for bit, as tracing every pair.
 //!
 //! ```
-//! use magg_core::{plan::EffectsPlan, refine, scene};
-//! let text = include_str!("../../../scenes/magg-paper.toml");
+//! use magg_core::{plan::EffectsPlan, scene};
+//! use magg_prepare::refine;
+//! let text = include_str!("../../scenes/magg-paper.toml");
 //! let read = |p: &std::path::Path| std::fs::read(p);
 //! let mut scene = scene::parse_scene_str("magg-paper.toml", text, "scenes".as_ref(), &read).unwrap();
 //! scene.settings.refine = 1;
@@ -39,25 +40,21 @@
 //! assert_eq!(prepared.elements.len(), 1664 + 4 * prepared.splits.iter().map(Vec::len).sum::<usize>());
 //! ```
 
-use crate::color::Rgb;
-use crate::energy::{element_irradiance, interpolate, Fixed};
-use crate::machine::{LightPass, RenderError};
-use crate::plan::EffectsPlan;
-use crate::preprocess::{prepare_split, PreparedScene};
-use crate::progress::{NoProgress, Progress, Renamed};
-use crate::render::{EmbeddedMachine, RenderOptions};
-use crate::scene::Scene;
-use crate::stats::Refinement;
-use crate::trace::TraceScratch;
-use crate::view::SceneView;
+use crate::prepare_split;
+use magg_core::color::Rgb;
+use magg_core::energy::{element_irradiance, interpolate, Fixed};
+use magg_core::kept::{KeptPairs, KeptSlot};
+use magg_core::machine::{LightPass, RenderError};
+use magg_core::plan::EffectsPlan;
+use magg_core::prepared::PreparedScene;
+use magg_core::progress::{NoProgress, Progress, Renamed};
+use magg_core::render::{EmbeddedMachine, RenderOptions};
+use magg_core::scene::{Scene, MAX_REFINE_LEVELS};
+use magg_core::stats::Refinement;
+use magg_core::trace::TraceScratch;
+use magg_core::view::SceneView;
 use std::sync::Arc;
 use std::time::Instant;
-
-mod pairs;
-pub use pairs::{KeptPairs, KeptSlot};
-
-/// Most levels of refinement (`[render] refine`).
-pub const MAX_LEVELS: u32 = 6;
 
 /// Where refinement's pilot light passes run: this process's cores ([`EmbeddedPilots`],
 /// what [`prepare`] uses), or a cluster's nodes (the host's, which runs each level as a
@@ -139,7 +136,7 @@ pub fn prepare_with(
         // The render's light pass carries the pilots' light when the scene has no
         // diffuse bounce to drop and the plan is the pilots'.
         let keep = scene.settings.diffuse_bounces == 0 && plan == pilot_plan;
-        let levels = scene.settings.refine.min(MAX_LEVELS);
+        let levels = scene.settings.refine.min(MAX_REFINE_LEVELS);
         for level in 1..=levels {
             let pilot = Arc::new(prepare_split(&pilot_scene, pilot_plan.clone(), &splits)?);
             if !pilot.header.plan.lrt {
