@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Grid versus BVH: stage times of `magg-host render` for each scene, both acceleration
 # structures, an unlimited and a bounded cache, interleaved runs, median of REPEATS.
-# Prints one markdown table (docs/PERFORMANCE.md records it).
+# Prints one markdown table (docs/PERFORMANCE.md, "Grid versus BVH", has the newer
+# whole-render comparisons on a 100k-triangle model).
 #
 #   deploy/bench-accel.sh                       # large, cornell, magg-paper at 200 x 200
 #   SIZE=100 REPEATS=5 CACHE=40 deploy/bench-accel.sh scenes/cornell.toml
