@@ -136,3 +136,32 @@ fn all_effects_on_a_diffuse_scene_changes_nothing() {
     }
     assert!(p.iter().any(|x| x == "lrt_diffuse"), "diffuse.toml has a diffuse bounce: {p:?}");
 }
+
+/// Preparation in shares (one per fork, split in space: each fork's part of the scene
+/// welded, numbered and given a BVH of its own) gives every shipped kind of scene the
+/// bits of one share: meshes (the sphere), refinement (cornell's levels), textures and
+/// area lights, embedded or in the cluster, for 1, 3, 5 and 7 forks.
+#[test]
+fn preparing_in_shares_does_not_change_the_output() {
+    let dir = tempfile::tempdir().unwrap();
+    let small = ["--width", "40", "--height", "40", "--pixel-samples", "1", "--light-rays", "8"];
+    let scenes: [(&str, &[&str]); 3] = [
+        ("cornell.toml", &["--element-size", "0.25", "--set", "render.refine=2"]),
+        ("textured.toml", &[]),
+        ("area.toml", &["--element-size", "0.3"]),
+    ];
+    for (name, flags) in scenes {
+        let path = scene(name);
+        let base_flags = with(&with(&small, flags), &["--forks", "1"]);
+        let base = render(&path, dir.path(), &format!("{name}-one"), &base_flags);
+        for (label, more) in [
+            ("f3", &["--forks", "3", "--share-patches", "16"][..]),
+            ("f5", &["--forks", "5", "--share-patches", "16"]),
+            ("f7", &["--forks", "7", "--share-patches", "8"]),
+            ("embedded-f7", &["--embedded", "--forks", "7", "--share-patches", "8"]),
+        ] {
+            let r = render(&path, dir.path(), &format!("{name}-{label}"), &with(&with(&small, flags), more));
+            assert_same_outputs(&base, &r, &format!("{name} {label}"));
+        }
+    }
+}

@@ -78,6 +78,11 @@ pub struct RenderArgs {
     /// on fork b mod F).
     #[arg(long, default_value_t = 5)]
     pub forks: u32,
+    /// Fewest patches of a share: the scene is prepared in shares, one per fork at most,
+    /// each of at least this many patches (a smaller scene is one share). The image is
+    /// the same for every value; only who prepares what and the BVH's shape change.
+    #[arg(long, default_value_t = magg_prepare::shares::MIN_SHARE_PATCHES)]
+    pub share_patches: usize,
     /// LRU cache size per node, in 2 KB blocks, or "unlimited".
     // Text until `validate` makes it a `CacheSize`: a bad value is then one error line.
     #[arg(long, default_value = "unlimited")]
@@ -266,6 +271,8 @@ pub struct RenderConfig {
     pub nodes: u32,
     /// Forks.
     pub forks: u32,
+    /// How the scene is split for preparation.
+    pub shares: magg_prepare::Shares,
     /// Cache blocks per node.
     pub cache_blocks: CacheSize,
     /// Hardware profile.
@@ -392,6 +399,13 @@ impl RenderArgs {
             linear,
             nodes: self.nodes,
             forks: self.forks,
+            shares: magg_prepare::Shares {
+                forks: match &self.forks_at {
+                    at if !at.is_empty() && !self.embedded => at.len(),
+                    _ => self.forks as usize,
+                },
+                min_patches: self.share_patches.max(1),
+            },
             cache_blocks: parse_cache_blocks(&self.cache_blocks)?,
             profile,
             scheme,

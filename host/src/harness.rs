@@ -231,9 +231,10 @@ impl StartedCluster {
         plan: magg_core::plan::EffectsPlan,
         opts: &InProcessOptions,
         progress: &dyn Progress,
+        shares: magg_prepare::Shares,
     ) -> anyhow::Result<PreparedScene> {
         let mut pilots = ClusterPilots { cluster: self, opts, nodes: 0 };
-        Ok(magg_prepare::refine::prepare_with(scene, plan, &mut pilots, progress)?)
+        Ok(magg_prepare::refine::prepare_with(scene, plan, &mut pilots, progress, shares)?)
     }
 }
 

@@ -15,6 +15,7 @@ use magg_core::blocks::bvh::*;
 use magg_core::blocks::{Block, BLOCK_SIZE};
 use magg_core::geometry::Aabb;
 use magg_core::header::BvhHeader;
+use rayon::prelude::*;
 
 /// SAH bins per axis.
 const BINS: usize = 16;
@@ -233,20 +234,36 @@ impl Packer<'_> {
 
 /// Builds the hierarchy of `mesh`'s patches and packs it. Patches of zero area are left
 /// out (as the grid lists them in no subspace: they can carry no light).
+///
+/// Each share's patches ([`Mesh::share_of`]) get a tree of their own, built side by side,
+/// and a tree over the shares' trees (in share order, halved) joins them: with one share
+/// the tree is the SAH build of the whole scene. Rays find the same nearest hit through
+/// any tree, so the split changes no bit of the image.
 pub(super) fn build_and_pack(mesh: &Mesh) -> Bvh {
-    let mut prims: Vec<Prim> = mesh
-        .patches
-        .iter()
-        .enumerate()
-        .filter(|(_, v)| (v[1] - v[0]).cross(v[2] - v[0]) != DVec3::ZERO)
-        .map(|(i, v)| {
-            let bounds = Aabb::of_triangle(v);
-            Prim { bounds, centroid: (bounds.min + bounds.max) * 0.5, id: i as u32 }
+    let shares = mesh.share_of.iter().map(|&s| s as usize + 1).max().unwrap_or(1);
+    let mut prims: Vec<Vec<Prim>> = vec![Vec::new(); shares];
+    for (i, v) in mesh.patches.iter().enumerate() {
+        if (v[1] - v[0]).cross(v[2] - v[0]) == DVec3::ZERO {
+            continue;
+        }
+        let bounds = Aabb::of_triangle(v);
+        let share = mesh.share_of.get(i).copied().unwrap_or(0) as usize;
+        prims[share].push(Prim { bounds, centroid: (bounds.min + bounds.max) * 0.5, id: i as u32 });
+    }
+    let all = prims.iter().map(|p| bounds_of(p).0).fold(Aabb::EMPTY, Aabb::union);
+    let any = prims.iter().any(|p| !p.is_empty());
+    let scale = if any { all.min.abs().max(all.max.abs()).max_element().max(1e-30) } else { 1.0 };
+    let trees: Vec<(Aabb, Tree, u64)> = prims
+        .par_iter_mut()
+        .filter(|p| !p.is_empty())
+        .map(|p| {
+            let bounds = bounds_of(p).0;
+            let (tree, binnings) = build(p, 0);
+            (bounds, tree, binnings)
         })
         .collect();
-    let (all, _) = bounds_of(&prims);
-    let scale = if prims.is_empty() { 1.0 } else { all.min.abs().max(all.max.abs()).max_element().max(1e-30) };
-    let (tree, binnings) = build(&mut prims, 0);
+    let binnings = trees.iter().map(|t| t.2).sum();
+    let tree = join(trees.into_iter().map(|(b, t, _)| (b, t)).collect()).map_or(Tree::Leaf(Vec::new()), |(_, t)| t);
     let mut p = Packer {
         mesh,
         pad: scale * 2f64.powi(-20),
@@ -289,6 +306,20 @@ pub(super) fn build_and_pack(mesh: &Mesh) -> Bvh {
     Bvh { blocks, header, binnings }
 }
 
+/// One tree over `trees` (in order): the first and second halves joined under a node,
+/// recursively; `None` for no tree.
+fn join(mut trees: Vec<(Aabb, Tree)>) -> Option<(Aabb, Tree)> {
+    match trees.len() {
+        0 => None,
+        1 => trees.pop(),
+        n => {
+            let right = trees.split_off(n / 2);
+            let (l, r) = (join(trees)?, join(right)?);
+            Some((l.0.union(r.0), Tree::Inner(Box::new([l, r]))))
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -319,6 +350,7 @@ mod tests {
             elements: Vec::new(),
             vertex_positions: Vec::new(),
             midpoints: Vec::new(),
+            share_of: Vec::new(),
         }
     }
 
@@ -384,6 +416,23 @@ mod tests {
                 .collect();
             assert_eq!(ids, want, "{n}");
             assert_eq!(bvh.header.triangles as usize, want.len());
+        }
+    }
+
+    #[test]
+    fn a_tree_over_shares_holds_every_patch_once() {
+        for shares in [2u32, 3, 7] {
+            let mut m = mesh(4000, shares as u64);
+            m.share_of = m.patches.iter().map(|v| ((v[0].x + 10.0) / 20.0 * shares as f64) as u32 % shares).collect();
+            let bvh = build_and_pack(&m);
+            let (mut ids, visited) = walk(&bvh);
+            assert_eq!(visited, bvh.header.nodes);
+            ids.sort_unstable();
+            let want = (0..m.patches.len() as u32).filter(|&i| {
+                let v = m.patches[i as usize];
+                (v[1] - v[0]).cross(v[2] - v[0]) != DVec3::ZERO
+            });
+            assert!(ids.iter().copied().eq(want), "{shares} shares");
         }
     }
 

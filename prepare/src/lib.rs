@@ -25,8 +25,10 @@ mod bvh;
 mod grid;
 mod mesh;
 mod pack;
+pub mod shares;
 mod split;
-mod weld;
+
+pub use shares::Shares;
 
 pub mod refine;
 
@@ -70,12 +72,23 @@ pub fn prepare_with_plan(scene: &Scene, plan: EffectsPlan) -> Result<PreparedSce
 /// [`prepare_with_plan`], then splitting the elements of each round of `splits` in turn
 /// (ascending element ids; see [`refine`], which chooses them).
 pub fn prepare_split(scene: &Scene, plan: EffectsPlan, splits: &[Vec<u32>]) -> Result<PreparedScene, PrepareError> {
+    prepare_split_on(scene, plan, splits, Shares::default())
+}
+
+/// [`prepare_split`] in `shares` ([`shares`]). The result is the same, bit for bit, for
+/// every split.
+pub fn prepare_split_on(
+    scene: &Scene,
+    plan: EffectsPlan,
+    splits: &[Vec<u32>],
+    shares: Shares,
+) -> Result<PreparedScene, PrepareError> {
     // The pool's start and end count as preprocessing.
     let start = Instant::now();
     match rayon::ThreadPoolBuilder::new().thread_name(|i| format!("magg-preprocess-{i}")).build() {
-        Ok(pool) => pool.install(|| prepare_here(scene, plan, splits, start)),
+        Ok(pool) => pool.install(|| prepare_here(scene, plan, splits, shares, start)),
         // No threads to be had: the global pool (or this thread) does the work.
-        Err(_) => prepare_here(scene, plan, splits, start),
+        Err(_) => prepare_here(scene, plan, splits, shares, start),
     }
 }
 
@@ -84,12 +97,13 @@ fn prepare_here(
     scene: &Scene,
     plan: EffectsPlan,
     splits: &[Vec<u32>],
+    shares: Shares,
     start: Instant,
 ) -> Result<PreparedScene, PrepareError> {
     if scene.patches.is_empty() {
         return Err(PrepareError::Empty { file: scene.name.clone() });
     }
-    let mut mesh = mesh::build(scene)?;
+    let mut mesh = mesh::build(scene, shares)?;
     for round in splits {
         split::split(&mut mesh, round);
     }

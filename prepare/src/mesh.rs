@@ -1,12 +1,11 @@
 //! Subdivision of patches into elements, with welded vertices.
 
-use super::weld::weld;
+use crate::shares::{self, SharePatch};
 use glam::DVec3;
 use magg_core::blocks::NO_BACK;
-use magg_core::geometry::triangle_area;
-use magg_core::prepared::{ElementInfo, Face, PrepareError, NO_PARENT};
+use magg_core::prepared::{ElementInfo, Face, PrepareError};
 use magg_core::scene::Scene;
-use magg_core::subdivision::{element_corners, element_count, lattice_count, lattice_index, lattice_point};
+use magg_core::subdivision::{element_count, lattice_count};
 use rayon::prelude::*;
 
 /// Patches subdivided into elements.
@@ -31,6 +30,8 @@ pub(super) struct Mesh {
     pub vertex_positions: Vec<DVec3>,
     /// Vertices refinement made: (edge end, edge end, midpoint), in the order made.
     pub midpoints: Vec<[u32; 3]>,
+    /// The share that prepared each patch ([`shares`]).
+    pub share_of: Vec<u32>,
 }
 
 /// The subdivision count n of a patch: its own, or `ceil(length / element_size)` with
@@ -49,7 +50,8 @@ pub fn subdivisions_of(v: &[DVec3; 3], fixed: Option<u32>, size_hint: Option<f64
     }
 }
 
-pub(super) fn build(scene: &Scene) -> Result<Mesh, PrepareError> {
+/// Subdivides and welds the patches of `scene`, prepared in `shares`.
+pub(super) fn build(scene: &Scene, shares: shares::Shares) -> Result<Mesh, PrepareError> {
     let s = &scene.settings;
     let patches: Vec<[DVec3; 3]> = scene.patches.iter().map(|p| p.vertices).collect();
     let counts: Vec<f64> = scene
@@ -100,34 +102,19 @@ pub(super) fn build(scene: &Scene) -> Result<Mesh, PrepareError> {
         acc += if b { element_count(n) as u32 } else { 0 };
     }
 
-    let welded = weld(&patches, &subdivisions);
-
-    let front: Vec<ElementInfo> = (0..patches.len())
-        .into_par_iter()
-        .flat_map_iter(|p| {
-            let n = subdivisions[p];
-            let v = patches[p];
-            let base = welded.lattice_offset[p];
-            let ids = &welded.ids;
-            let face = if one_sided[p] || has_back[p] { Face::Front } else { Face::Both };
-            (0..n * n).map(move |local| {
-                let c = element_corners(n, local);
-                let corner = |k: usize| lattice_point(&v, n, c[k].0, c[k].1);
-                let tri = [corner(0), corner(1), corner(2)];
-                let vid = |k: usize| ids[(base + lattice_index(n, c[k].0, c[k].1) as u64) as usize];
-                ElementInfo {
-                    patch: p as u32,
-                    vertices: [vid(0), vid(1), vid(2)],
-                    area: triangle_area(&tri),
-                    centroid: (tri[0] + tri[1] + tri[2]) / 3.0,
-                    face,
-                    parent: NO_PARENT,
-                    child: 0,
-                }
-            })
+    let share_patches: Vec<SharePatch> = (0..patches.len())
+        .map(|p| SharePatch {
+            id: p as u32,
+            v: patches[p],
+            n: subdivisions[p],
+            first_element: first_element[p],
+            back_element: back_element[p],
+            front_face: if one_sided[p] || has_back[p] { Face::Front } else { Face::Both },
         })
         .collect();
-    let (elements, vertex_positions) = with_back_faces(front, welded.positions, &first_element, &back_element);
+    let split = shares::split_space(&share_patches, shares.count(patches.len()));
+    let (elements, vertex_positions) = shares::weld_in_shares(share_patches, acc as usize, &split);
+    let share_of = patches.iter().map(|v| split.share_of((v[0] + v[1] + v[2]) / 3.0)).collect();
 
     Ok(Mesh {
         materials: scene.patches.iter().map(|p| p.material).collect(),
@@ -140,45 +127,8 @@ pub(super) fn build(scene: &Scene) -> Result<Mesh, PrepareError> {
         elements,
         vertex_positions,
         midpoints: Vec::new(),
+        share_of,
     })
-}
-
-/// Appends the back elements of the patches that have them (`back_element[p]` not
-/// [`NO_BACK`]) to the `front` elements, each a copy of the front element in front of
-/// it on a vertex of the back face's own: the back copy of a front vertex, numbered after
-/// every front vertex in order of first use. Front vertices are welded only between
-/// coplanar patches facing the same way, so two such patches' backs share their back
-/// vertices as their fronts share the front ones.
-fn with_back_faces(
-    front: Vec<ElementInfo>,
-    mut positions: Vec<DVec3>,
-    first_element: &[u32],
-    back_element: &[u32],
-) -> (Vec<ElementInfo>, Vec<DVec3>) {
-    let mut elements = front;
-    let fronts = elements.len();
-    let mut back_of = vec![u32::MAX; positions.len()];
-    for (p, &b) in back_element.iter().enumerate() {
-        if b == NO_BACK {
-            continue;
-        }
-        let first = first_element[p] as usize;
-        let end = first_element.get(p + 1).map_or(fronts, |&e| e as usize);
-        for e in first..end {
-            let mut info = elements[e];
-            for v in &mut info.vertices {
-                let i = *v as usize;
-                if back_of[i] == u32::MAX {
-                    back_of[i] = positions.len() as u32;
-                    positions.push(positions[i]);
-                }
-                *v = back_of[i];
-            }
-            info.face = Face::Back;
-            elements.push(info);
-        }
-    }
-    (elements, positions)
 }
 
 #[cfg(test)]

@@ -40,7 +40,7 @@
 //! assert_eq!(prepared.elements.len(), 1664 + 4 * prepared.splits.iter().map(Vec::len).sum::<usize>());
 //! ```
 
-use crate::prepare_split;
+use crate::{prepare_split_on, Shares};
 use magg_core::color::Rgb;
 use magg_core::energy::{element_irradiance, interpolate, Fixed};
 use magg_core::kept::{KeptPairs, KeptSlot};
@@ -110,16 +110,17 @@ impl Pilots for EmbeddedPilots {
 /// this process's cores (see the module doc); preprocessing time includes the pilot
 /// passes.
 pub fn prepare(scene: &Scene, plan: EffectsPlan) -> Result<PreparedScene, RenderError> {
-    prepare_with(scene, plan, &mut EmbeddedPilots, &NoProgress)
+    prepare_with(scene, plan, &mut EmbeddedPilots, &NoProgress, Shares::default())
 }
 
-/// [`prepare`] with the pilot light passes run by `pilots`; `progress` hears of each
-/// (level `k` of `n` as the stage "refinement k/n").
+/// [`prepare`] with the pilot light passes run by `pilots`, each level prepared in
+/// `shares`; `progress` hears of each (level `k` of `n` as the stage "refinement k/n").
 pub fn prepare_with(
     scene: &Scene,
     plan: EffectsPlan,
     pilots: &mut dyn Pilots,
     progress: &dyn Progress,
+    shares: Shares,
 ) -> Result<PreparedScene, RenderError> {
     let start = Instant::now();
     let mut splits: Vec<Vec<u32>> = Vec::new();
@@ -138,7 +139,7 @@ pub fn prepare_with(
         let keep = scene.settings.diffuse_bounces == 0 && plan == pilot_plan;
         let levels = scene.settings.refine.min(MAX_REFINE_LEVELS);
         for level in 1..=levels {
-            let pilot = Arc::new(prepare_split(&pilot_scene, pilot_plan.clone(), &splits)?);
+            let pilot = Arc::new(prepare_split_on(&pilot_scene, pilot_plan.clone(), &splits, shares)?);
             if !pilot.header.plan.lrt {
                 break;
             }
@@ -163,7 +164,7 @@ pub fn prepare_with(
             kept = Some(pairs);
         }
     }
-    let mut prepared = prepare_split(scene, plan, &splits)?;
+    let mut prepared = prepare_split_on(scene, plan, &splits, shares)?;
     prepared.preprocess_s = start.elapsed().as_secs_f64();
     prepared.kept_pairs = KeptSlot::new(kept.filter(|k| !k.is_empty()));
     prepared.refinement = figures;

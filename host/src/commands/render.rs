@@ -88,7 +88,7 @@ pub fn run(cfg: RenderConfig, files: &scene_file::SceneFiles, partial: &partial:
             if scene.settings.refine > 0 {
                 // Refinement's pilot light passes run on the cluster's nodes.
                 let mut cluster = StartedCluster::start(&shape)?;
-                (cluster.prepare(&scene, plan, nodes, &bars)?, Some(cluster))
+                (cluster.prepare(&scene, plan, nodes, &bars, cfg.shares)?, Some(cluster))
             } else {
                 // The cluster's runtime, forks and listener start while the scene is
                 // preprocessed.
@@ -97,14 +97,20 @@ pub fn run(cfg: RenderConfig, files: &scene_file::SceneFiles, partial: &partial:
                         .name("magg-host-start".into())
                         .spawn_scoped(s, || StartedCluster::start(&shape))
                         .context("starting the cluster's start-up thread")?;
-                    let prepared = magg_prepare::refine::prepare(&scene, plan);
+                    let prepared = magg_prepare::refine::prepare_with(
+                        &scene,
+                        plan,
+                        &mut EmbeddedPilots,
+                        &magg_core::progress::NoProgress,
+                        cfg.shares,
+                    );
                     let cluster = cluster.join().map_err(|_| anyhow::anyhow!("starting the cluster panicked"))?;
                     // A scene error first: it is what the user has to fix.
                     anyhow::Ok((prepared?, Some(cluster?)))
                 })?
             }
         }
-        _ => (magg_prepare::refine::prepare_with(&scene, plan, &mut EmbeddedPilots, &bars)?, None),
+        _ => (magg_prepare::refine::prepare_with(&scene, plan, &mut EmbeddedPilots, &bars, cfg.shares)?, None),
     };
     if !prepared.splits.is_empty() {
         let (elements, pairs) = (prepared.elements.len() as u64, prepared.header.pair_count());

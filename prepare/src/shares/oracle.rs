@@ -1,15 +1,18 @@
-//! Welding of element vertices: lattice points of one patch are shared by construction;
-//! points on patch edges are merged with bitwise-equal points of *coplanar* patches
-//! (same facing), so a wall made of two triangles shows no seam while a corner between
-//! two walls keeps separate vertices.
+//! The whole scene welded in one place, the way preparation did before shares: the
+//! oracle the shares' welding is held to (every element and vertex, bit for bit).
 
+use super::SharePatch;
 use glam::DVec3;
+use magg_core::blocks::NO_BACK;
+use magg_core::geometry::triangle_area;
 use magg_core::geometry::triangle_normal;
+use magg_core::prepared::{ElementInfo, Face, NO_PARENT};
+use magg_core::subdivision::element_corners;
 use magg_core::subdivision::{lattice_count, lattice_index, lattice_point, on_boundary};
 use rayon::prelude::*;
 
 /// Result of welding.
-pub(super) struct Welded {
+struct Welded {
     /// Offset of each patch's lattice in `ids`.
     pub lattice_offset: Vec<u64>,
     /// Welded vertex id of every lattice point of every patch.
@@ -33,7 +36,7 @@ fn find(parent: &mut [u64], mut x: u64) -> u64 {
     x
 }
 
-pub(super) fn weld(patches: &[[DVec3; 3]], subdivisions: &[u32]) -> Welded {
+fn weld(patches: &[[DVec3; 3]], subdivisions: &[u32]) -> Welded {
     let mut lattice_offset = Vec::with_capacity(patches.len());
     let mut total = 0u64;
     for &n in subdivisions {
@@ -104,35 +107,69 @@ pub(super) fn weld(patches: &[[DVec3; 3]], subdivisions: &[u32]) -> Welded {
     Welded { lattice_offset, ids, positions: out_positions }
 }
 
-#[cfg(test)]
-mod tests {
-    use super::*;
+/// Elements and vertex positions of `patches` the old way.
+pub(super) fn elements(patches: &[SharePatch]) -> (Vec<ElementInfo>, Vec<DVec3>) {
+    let corners: Vec<[DVec3; 3]> = patches.iter().map(|p| p.v).collect();
+    let subdivisions: Vec<u32> = patches.iter().map(|p| p.n).collect();
+    let first_element: Vec<u32> = patches.iter().map(|p| p.first_element).collect();
+    let back_element: Vec<u32> = patches.iter().map(|p| p.back_element).collect();
+    let welded = weld(&corners, &subdivisions);
+    let front: Vec<ElementInfo> = (0..patches.len())
+        .into_par_iter()
+        .flat_map_iter(|p| {
+            let n = subdivisions[p];
+            let v = corners[p];
+            let base = welded.lattice_offset[p];
+            let ids = &welded.ids;
+            let face = patches[p].front_face;
+            (0..n * n).map(move |local| {
+                let c = element_corners(n, local);
+                let corner = |k: usize| lattice_point(&v, n, c[k].0, c[k].1);
+                let tri = [corner(0), corner(1), corner(2)];
+                let vid = |k: usize| ids[(base + lattice_index(n, c[k].0, c[k].1) as u64) as usize];
+                ElementInfo {
+                    patch: p as u32,
+                    vertices: [vid(0), vid(1), vid(2)],
+                    area: triangle_area(&tri),
+                    centroid: (tri[0] + tri[1] + tri[2]) / 3.0,
+                    face,
+                    parent: NO_PARENT,
+                    child: 0,
+                }
+            })
+        })
+        .collect();
+    with_back_faces(front, welded.positions, &first_element, &back_element)
+}
 
-    #[test]
-    fn two_coplanar_triangles_weld_along_the_diagonal() {
-        let a = DVec3::new(0.0, 0.0, 0.0);
-        let b = DVec3::new(1.0, 0.0, 0.0);
-        let c = DVec3::new(1.0, 1.0, 0.0);
-        let d = DVec3::new(0.0, 1.0, 0.0);
-        let w = weld(&[[a, b, c], [a, c, d]], &[4, 4]);
-        // A 4x4 quad lattice has 25 points.
-        assert_eq!(w.positions.len(), 25);
+fn with_back_faces(
+    front: Vec<ElementInfo>,
+    mut positions: Vec<DVec3>,
+    first_element: &[u32],
+    back_element: &[u32],
+) -> (Vec<ElementInfo>, Vec<DVec3>) {
+    let mut elements = front;
+    let fronts = elements.len();
+    let mut back_of = vec![u32::MAX; positions.len()];
+    for (p, &b) in back_element.iter().enumerate() {
+        if b == NO_BACK {
+            continue;
+        }
+        let first = first_element[p] as usize;
+        let end = first_element.get(p + 1).map_or(fronts, |&e| e as usize);
+        for e in first..end {
+            let mut info = elements[e];
+            for v in &mut info.vertices {
+                let i = *v as usize;
+                if back_of[i] == u32::MAX {
+                    back_of[i] = positions.len() as u32;
+                    positions.push(positions[i]);
+                }
+                *v = back_of[i];
+            }
+            info.face = Face::Back;
+            elements.push(info);
+        }
     }
-
-    #[test]
-    fn a_corner_between_walls_keeps_separate_vertices() {
-        let floor = [DVec3::new(0.0, 0.0, 0.0), DVec3::new(1.0, 0.0, 0.0), DVec3::new(0.0, 0.0, -1.0)];
-        let wall = [DVec3::new(0.0, 0.0, 0.0), DVec3::new(0.0, 1.0, 0.0), DVec3::new(1.0, 0.0, 0.0)];
-        let w = weld(&[floor, wall], &[2, 2]);
-        assert_eq!(w.positions.len(), 12);
-    }
-
-    #[test]
-    fn opposite_facing_triangles_do_not_weld() {
-        let a = DVec3::new(0.0, 0.0, 0.0);
-        let b = DVec3::new(1.0, 0.0, 0.0);
-        let c = DVec3::new(0.0, 1.0, 0.0);
-        let w = weld(&[[a, b, c], [a, c, b]], &[1, 1]);
-        assert_eq!(w.positions.len(), 6);
-    }
+    (elements, positions)
 }
