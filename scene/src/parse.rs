@@ -15,7 +15,8 @@ use toml::Spanned;
 
 use super::error::SceneError;
 use super::field::field_at;
-use super::mesh::{self, MaterialTable, MeshEntry, MeshShading, ReadFile, Transform};
+use super::load::load_mesh;
+use super::mesh::{MaterialTable, MeshEntry, MeshShading, ReadFile, Transform};
 use super::model::{
     Accel, Camera, CameraPath, DirectLight, Exposure, GridSpec, Light, Material, PatchDef, RenderSettings, Scene,
     SourceLoc, Spot, MAX_BOUNCE_RAYS, MAX_COORDINATE, MAX_GATHER_RAYS, MAX_RADIOMETRIC, MAX_REFINE_LEVELS,
@@ -710,7 +711,7 @@ impl PatchBuilder<'_, '_> {
             material,
             shading,
         };
-        for t in mesh::load_mesh(&entry, base_dir, read, &mut self.materials)? {
+        for t in load_mesh(&entry, base_dir, read, &mut self.materials)? {
             self.patches.push(PatchDef {
                 vertices: t.v,
                 material: t.material,

@@ -13,7 +13,7 @@ use super::NodeRow;
 use base64::Engine;
 use magg_cluster::events::ClusterEvent;
 use magg_core::color::Rgb;
-use magg_core::vrt::Subscreen;
+use magg_core::subscreen::Subscreen;
 use serde_json::{json, Value};
 use std::collections::{BTreeMap, HashMap};
 use std::sync::{Arc, Mutex, MutexGuard};

@@ -21,12 +21,14 @@
 use super::board::Board;
 use magg_core::blocks::{Block, BlockCache, BlockError, BlockSource};
 use magg_core::camera::CameraRig;
-use magg_core::energy::{interpolate, vertex_energy_blocks, Fixed};
+use magg_core::energy::{interpolate, vertex_energy_blocks};
+use magg_core::fixed::Fixed;
 use magg_core::prepared::PreparedScene;
 use magg_core::scene::Camera;
+use magg_core::subscreen::Subscreen;
 use magg_core::trace::TraceScratch;
 use magg_core::view::SceneView;
-use magg_core::vrt::{shade_pixels, Subscreen};
+use magg_core::vrt::shade_pixels;
 use std::collections::HashMap;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Condvar, Mutex};
