@@ -120,13 +120,28 @@ def references(path, with_tests):
             for p in use_paths(m.group(1)):
                 refs.append((inner, p))
         body = re.sub(r"\buse\s+[^;]*;", "", body, flags=re.S)
-        for m in re.finditer(r"\b((?:crate|super|self)(?:::(?:super|\w+))+)", body):
+        for m in re.finditer(r"(?<![\w:])((?:crate|super|self|[a-z_][a-z0-9_]*)(?:::(?:super|\w+))+)", body):
             refs.append((inner, m.group(1)))
     return refs
 
 
-def resolve(here, inner, ref, mods):
-    """The module file a path names, or None when it leaves the crate."""
+def reexports(path, key):
+    """`pub use` items of a module file: name -> the path it re-exports (as written),
+    `*` -> the module a glob re-exports."""
+    out = {}
+    text = "\n".join(strip_comments(l) for l in open(path, encoding="utf-8").read().split("\n"))
+    for m in re.finditer(r"\bpub(?:\([^)]*\))?\s+use\s+([^;]*);", text, re.S):
+        for p in use_paths(m.group(1)):
+            parts = p.split(" as ")
+            target = parts[0].strip()
+            name = parts[1].strip() if len(parts) > 1 else target.split("::")[-1]
+            out[name] = target
+    return out
+
+
+def resolve(here, inner, ref, mods, exports=None, depth=0):
+    """The module file a path names (following `pub use` re-exports to where the item
+    is defined), or None when it leaves the crate."""
     segs = ref.split("::")
     base = list(here) + list(inner)
     if segs[0] == "crate":
@@ -137,15 +152,31 @@ def resolve(here, inner, ref, mods):
             if segs[0] == "super":
                 cur = cur[:-1]
             segs = segs[1:]
+    elif tuple(base + segs[:1]) in mods:
+        # A path relative to this module: one of its child modules (`use cluster::x`).
+        cur = base
     else:
         return None
     full = cur + segs
     for n in range(len(full), -1, -1):
-        key = tuple(full[:n])
-        if key in mods:
-            return mods[key]
-        if n == 0:
-            return mods.get(("<root:lib>",)) or mods.get(("<root:main>",))
+        key = tuple(full[:n]) if n else None
+        file = mods.get(key) if n else (mods.get(("<root:lib>",)) or mods.get(("<root:main>",)))
+        if file is None:
+            continue
+        rest = full[n:]
+        if exports is not None and rest and depth < 8:
+            table = exports.get(file, {})
+            target = table.get(rest[0])
+            if target is not None:
+                again = resolve(key or (), (), "::".join([target] + rest[1:]), mods, exports, depth + 1)
+                if again:
+                    return again
+            if "*" in table:
+                for glob in [t for n2, t in table.items() if n2 == "*"]:
+                    again = resolve(key or (), (), glob.rstrip(":*") + "::" + "::".join(rest), mods, exports, depth + 1)
+                    if again and again != file:
+                        return again
+        return file
     return None
 
 
@@ -183,7 +214,17 @@ def sccs(graph):
 
 
 def tracked_lines(folder):
-    files = subprocess.run(["git", "ls-files", folder], cwd=ROOT, capture_output=True, text=True).stdout.split()
+    git = subprocess.run(["git", "ls-files", folder], cwd=ROOT, capture_output=True, text=True)
+    if git.returncode == 0:
+        files = git.stdout.split()
+    else:
+        # Not a git checkout (an exported tree): every file under the folder.
+        files = [
+            os.path.relpath(os.path.join(d, f), ROOT)
+            for d, _, fs in os.walk(os.path.join(ROOT, folder))
+            if "/target" not in d
+            for f in fs
+        ]
     total, long = 0, []
     for f in files:
         if f.endswith(".rs"):
@@ -213,13 +254,14 @@ def main():
             continue
         mods = module_files(src)
         by_file = {f: k for k, f in mods.items()}
+        exports = {f: reexports(f, k) for f, k in by_file.items()}
         graph = {f: set() for f in mods.values()}
         for f, key in by_file.items():
             if not args.with_tests and "tests" in key:
                 continue
             here = () if key[0].startswith("<root") else key
             for inner, ref in references(f, args.with_tests):
-                t = resolve(here, inner, ref, mods)
+                t = resolve(here, inner, ref, mods, exports)
                 if t and t != f:
                     graph[f].add(t)
         loops = sorted((c for c in sccs(graph) if len(c) > 1), key=len, reverse=True)
