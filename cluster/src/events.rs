@@ -6,7 +6,7 @@
 //! does, it only appends to its log).
 
 use magg_core::cluster::NodeReport;
-use magg_core::vrt::Subscreen;
+use magg_core::subscreen::Subscreen;
 use magg_proto::v1;
 
 /// Something the host service saw (or the driver did).

@@ -17,7 +17,7 @@ use magg_core::machine::{LightPass, Machine, MachineFigures, PhaseTimes, RenderE
 use magg_core::prepared::PreparedScene;
 use magg_core::progress::Progress;
 use magg_core::stats::EmulatedBusy;
-use magg_core::vrt::Subscreen;
+use magg_core::subscreen::Subscreen;
 use magg_plumbing::auth::CheckToken;
 use magg_plumbing::with_message_limits;
 use magg_proto::v1;
@@ -312,7 +312,7 @@ impl ClusterMachine {
         Ok(ClusterMachine {
             rt,
             prepared: prepared.clone(),
-            tiles: magg_core::phases::subscreens(s.width, s.height, opts.subscreen),
+            tiles: magg_core::subscreen::tile(s.width, s.height, opts.subscreen),
             opts: opts.clone(),
             forks,
             cpu0,

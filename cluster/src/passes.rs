@@ -11,7 +11,8 @@ use crate::failure::ClusterError;
 use magg_core::blocks::fork_of_block;
 use magg_core::cluster::check_ledgers;
 use magg_core::color::Rgb;
-use magg_core::energy::{vertex_energy_blocks, Fixed};
+use magg_core::energy::vertex_energy_blocks;
+use magg_core::fixed::Fixed;
 use magg_core::machine::{LightPass, ViewPass, ViewedFrame};
 use magg_core::progress::Progress;
 use magg_proto::convert::{block_to_wire, element_energies, ledger_digest};
@@ -201,7 +202,7 @@ impl ClusterMachine {
             st.phase = Phase::Vrt;
         }
         self.service().bump();
-        progress.begin(magg_core::progress::VIEW_PASS, magg_core::phases::pixels(&tiles));
+        progress.begin(magg_core::progress::VIEW_PASS, magg_core::subscreen::pixels(&tiles));
         let mut last_rows = (0u64, Instant::now());
         let mut last_check = Instant::now();
         loop {

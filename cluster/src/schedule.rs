@@ -9,7 +9,7 @@
 //! of a revoked subscreen are dropped, and the node sending them is told to stop.
 
 use magg_core::frame::Frame;
-use magg_core::vrt::Subscreen;
+use magg_core::subscreen::Subscreen;
 use std::collections::{BTreeMap, BTreeSet, VecDeque};
 use std::time::{Duration, Instant};
 
@@ -104,7 +104,7 @@ impl Scheduler {
     /// A scheduler over `tiles` for a `width` x `height` frame.
     pub fn new(width: u32, height: u32, tiles: Vec<Subscreen>) -> Self {
         Scheduler {
-            pixels_total: magg_core::phases::pixels(&tiles),
+            pixels_total: magg_core::subscreen::pixels(&tiles),
             queue: tiles.into(),
             active: BTreeMap::new(),
             revoked: BTreeSet::new(),
@@ -345,7 +345,7 @@ mod tests {
     #[test]
     fn a_request_takes_a_run_of_adjacent_subscreens_while_many_are_left() {
         // 4 bands of 4 subscreens 2x2, shared by 1 node: half the queue, within a band.
-        let tiles = magg_core::phases::subscreens(8, 8, 2);
+        let tiles = magg_core::subscreen::tile(8, 8, 2);
         let mut s = Scheduler::new(8, 8, tiles).merging(1);
         let mut got = Vec::new();
         loop {
@@ -368,7 +368,7 @@ mod tests {
 
     #[test]
     fn without_merging_each_request_gets_one_subscreen() {
-        let tiles = magg_core::phases::subscreens(8, 8, 2);
+        let tiles = magg_core::subscreen::tile(8, 8, 2);
         let mut s = Scheduler::new(8, 8, tiles);
         let Next::Trace(_, t) = s.next(0) else { panic!("expected work") };
         assert_eq!((t.w, t.h), (2, 2));

@@ -5,7 +5,7 @@
 //! fuzzing nodes expire, a well-behaved node still finishes the frame (no row is lost).
 
 use magg_cluster::schedule::{Next, Scheduler};
-use magg_core::vrt::Subscreen;
+use magg_core::subscreen::Subscreen;
 use proptest::prelude::*;
 use proptest::test_runner::{Config, RngAlgorithm, TestRng, TestRunner};
 use std::time::Duration;
@@ -33,7 +33,7 @@ fn any_sequence_of_node_calls_keeps_the_frame_consistent() {
     let (w, h) = (24u32, 20u32);
     runner
         .run(&proptest::collection::vec(call(), 0..80), |calls| {
-            let tiles = magg_core::phases::subscreens(w, h, 8);
+            let tiles = magg_core::subscreen::tile(w, h, 8);
             // Half the cases let requests take runs of adjacent subscreens.
             let mut s = Scheduler::new(w, h, tiles);
             if calls.len() % 2 == 0 {

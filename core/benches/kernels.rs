@@ -24,6 +24,7 @@ use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Through
 use magg_core::blocks::{BlockCache, BlockSource, MemStore};
 use magg_core::camera::CameraRig;
 use magg_core::energy::vertex_energy_blocks;
+use magg_core::pair::Pair;
 use magg_core::prepared::PreparedScene;
 use magg_core::progress::NoProgress;
 use magg_core::render::{render, RenderOptions};
@@ -66,21 +67,21 @@ fn new_view(f: &Fixture, cache: Option<usize>) -> SceneView {
     SceneView::new(f.prepared.header.clone(), BlockCache::new(source, cache))
 }
 
-/// The 64 pairs of one LRT iteration, as (light, element).
-fn pair_batch(f: &Fixture) -> Vec<(u32, u32)> {
+/// The 64 pairs of one LRT iteration.
+fn pair_batch(f: &Fixture) -> Vec<Pair> {
     let h = &f.prepared.header;
-    let n_el = h.counts.elements as u64;
-    let total = h.lights.len() as u64 * n_el;
+    let n_el = h.counts.elements;
+    let total = h.lights.len() as u64 * n_el as u64;
     let stride = (total / (PAIR_BATCH * PAIR_BATCHES)).max(1) * PAIR_BATCH;
     (0..PAIR_BATCHES)
         .flat_map(|b| (b * stride..b * stride + PAIR_BATCH).filter(move |&k| k < total))
-        .map(|k| ((k / n_el) as u32, (k % n_el) as u32))
+        .map(|k| Pair::from_id(k, n_el))
         .collect()
 }
 
-fn lrt_batch(v: &mut SceneView, s: &mut TraceScratch, pairs: &[(u32, u32)]) -> u64 {
+fn lrt_batch(v: &mut SceneView, s: &mut TraceScratch, pairs: &[Pair]) -> u64 {
     let before = v.counters.light_rays;
-    for &(light, element) in pairs {
+    for &Pair { light, element } in pairs {
         let r = lrt::trace_pair(v, s, light, element).unwrap_or_else(|e| panic!("{e}"));
         std::hint::black_box(r);
     }
@@ -90,7 +91,7 @@ fn lrt_batch(v: &mut SceneView, s: &mut TraceScratch, pairs: &[(u32, u32)]) -> u
 fn vrt_batch(v: &mut SceneView, s: &mut TraceScratch, rig: &CameraRig, x0: u32, y0: u32) -> u64 {
     let before = v.counters.view_rays;
     let mut px = Vec::with_capacity((PIXEL_BLOCK * PIXEL_BLOCK) as usize);
-    let block = vrt::Subscreen { x: x0, y: y0, w: PIXEL_BLOCK, h: PIXEL_BLOCK };
+    let block = magg_core::subscreen::Subscreen { x: x0, y: y0, w: PIXEL_BLOCK, h: PIXEL_BLOCK };
     vrt::shade_pixels(v, s, rig, block, &mut px).unwrap_or_else(|e| panic!("{e}"));
     std::hint::black_box(&px);
     v.counters.view_rays - before

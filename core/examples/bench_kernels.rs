@@ -25,10 +25,11 @@
 use magg_core::blocks::{BlockCache, BlockSource, MemStore};
 use magg_core::camera::CameraRig;
 use magg_core::energy::vertex_energy_blocks;
-use magg_core::phases::subscreens;
+use magg_core::pair::Pair;
 use magg_core::prepared::PreparedScene;
 use magg_core::progress::NoProgress;
 use magg_core::render::{render, RenderOptions};
+use magg_core::subscreen;
 use magg_core::trace::TraceScratch;
 use magg_core::view::SceneView;
 use magg_core::{lrt, scene, vrt};
@@ -179,8 +180,8 @@ fn view(f: &Fixture, cache: Option<usize>) -> SceneView {
 
 fn run_lrt(f: &Fixture, cache: Option<usize>, target_pairs: u64) -> Result<Measure, String> {
     let h = &f.prepared.header;
-    let n_el = h.counts.elements as u64;
-    let total = h.lights.len() as u64 * n_el;
+    let n_el = h.counts.elements;
+    let total = h.lights.len() as u64 * n_el as u64;
     let batches = total.div_ceil(PAIR_BATCH);
     let keep_every = (batches * PAIR_BATCH / target_pairs.max(1)).max(1);
     let mut v = view(f, cache);
@@ -189,7 +190,7 @@ fn run_lrt(f: &Fixture, cache: Option<usize>, target_pairs: u64) -> Result<Measu
     let t = Instant::now();
     for b in (0..batches).step_by(keep_every as usize) {
         for k in b * PAIR_BATCH..((b + 1) * PAIR_BATCH).min(total) {
-            let (light, element) = ((k / n_el) as u32, (k % n_el) as u32);
+            let Pair { light, element } = Pair::from_id(k, n_el);
             let r = lrt::trace_pair(&mut v, &mut scratch, light, element).map_err(|e| e.to_string())?;
             std::hint::black_box(r);
             work += 1;
@@ -202,7 +203,7 @@ fn run_vrt(f: &Fixture, cache: Option<usize>, target_pixels: u64) -> Result<Meas
     let h = &f.prepared.header;
     let s = &h.settings;
     let rig = CameraRig::new(&h.camera, s.width, s.height);
-    let tiles = subscreens(s.width, s.height, SUBSCREEN);
+    let tiles = subscreen::tile(s.width, s.height, SUBSCREEN);
     let per_tile = (SUBSCREEN * SUBSCREEN) as u64;
     let keep_every = (tiles.len() as u64 * per_tile / target_pixels.max(1)).max(1);
     let mut v = view(f, cache);

@@ -15,7 +15,7 @@
 //! ```
 
 use crate::blocks::CacheStats;
-use crate::energy::Fixed;
+use crate::fixed::Fixed;
 use crate::header::SceneHeader;
 use crate::lrt::LrtTally;
 use crate::view::OpCounters;

@@ -10,7 +10,7 @@
 use crate::blocks::BlockError;
 use crate::color::Rgb;
 use crate::geometry::Ray;
-use crate::lrt::intensity_towards;
+use crate::lights::intensity_towards;
 use crate::scatter::{offset_scale, Arrival};
 use crate::trace::{occluded, TraceScratch};
 use crate::view::SceneView;

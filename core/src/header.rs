@@ -144,7 +144,7 @@ pub struct SceneHeader {
 
 impl SceneHeader {
     /// LRT's light sources: the point lights, then the emitting elements. Pairs are
-    /// numbered over them light-major ([`crate::lrt::pair_id`]).
+    /// numbered over them light-major ([`crate::pair::Pair::id`]).
     pub fn light_sources(&self) -> u32 {
         (self.lights.len() + self.emitters.len()) as u32
     }

@@ -7,7 +7,8 @@
 //! and nodes that trace the pairs read and fill it.
 
 use crate::blocks::BlockError;
-use crate::lrt::{bin, bin_all, trace_pair, trace_pair_raw, PairResult, RawDeposit, RawPair};
+use crate::lrt::{bin, bin_all, trace_pair, trace_pair_raw, trace_pairs_each, PairResult, RawDeposit, RawPair};
+use crate::pair::Pair;
 use crate::trace::TraceScratch;
 use crate::view::SceneView;
 use std::sync::{Arc, Mutex, MutexGuard};
@@ -39,7 +40,7 @@ fn get(shard: &Shard, light: u32, at: usize) -> Option<&Arc<RawPair>> {
 /// light rays cost one entry each. Pairs of area lights are traced every time.
 ///
 /// When the render's light pass carries exactly the pilots' light, it reads the kept
-/// pairs ([`KeptPairs::raw`], through [`crate::lrt::trace_pairs_kept`]): the pair's
+/// pairs ([`KeptPairs::raw`], through [`trace_pairs_kept`]): the pair's
 /// element is a leaf there, as it was when the pair was traced, or split (the pair then
 /// deposits nothing), so binning gives what tracing it there gives, bit for bit.
 ///
@@ -103,7 +104,7 @@ impl KeptPairs {
         Ok(raw)
     }
 
-    /// [`KeptPairs::trace`] of each of `pairs` (light, element), handed to `each` in
+    /// [`KeptPairs::trace`] of each of `pairs`, handed to `each` in
     /// order (a pilot level's batch): the same results. With a bounded cache the batch's
     /// raw deposits are gathered first and binned together ([`crate::lrt::bin_all`]:
     /// the elements' records and the leaves under the deposits read in runs of blocks
@@ -112,23 +113,23 @@ impl KeptPairs {
         &self,
         view: &mut SceneView,
         scratch: &mut TraceScratch,
-        pairs: &[(u32, u32)],
+        pairs: &[Pair],
         mut each: impl FnMut(usize, PairResult),
     ) -> Result<(), BlockError> {
         if !view.cache_is_bounded() {
-            for (i, &(light, element)) in pairs.iter().enumerate() {
+            for (i, &Pair { light, element }) in pairs.iter().enumerate() {
                 each(i, self.trace(view, scratch, light, element)?);
             }
             return Ok(());
         }
         let points = view.header.lights.len();
         let mut raws = Vec::with_capacity(pairs.len());
-        for &(light, element) in pairs {
+        for &Pair { light, element } in pairs {
             let point = (light as usize) < points;
             raws.push(if point { Some(self.kept_or_traced(view, scratch, light, element)?) } else { None });
         }
         let results = bin_all(view, pairs, &raws)?;
-        for (i, (result, &(light, element))) in results.into_iter().zip(pairs).enumerate() {
+        for (i, (result, &Pair { light, element })) in results.into_iter().zip(pairs).enumerate() {
             // (An area light's pair is traced, as `trace` does.)
             let result = match result {
                 Some(r) => r,
@@ -211,4 +212,34 @@ impl std::fmt::Debug for KeptSlot {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         write!(f, "KeptSlot({} pairs)", self.len())
     }
+}
+
+/// [`trace_pairs_each`], where the pairs of `kept` (refinement's pilot pairs, see
+/// [`KeptPairs`]) are binned from their kept deposits rather than traced:
+/// the same results, handed to `each` in the batch's order.
+pub fn trace_pairs_kept(
+    view: &mut SceneView,
+    scratch: &mut TraceScratch,
+    pairs: &[Pair],
+    kept: Option<&KeptPairs>,
+    mut each: impl FnMut(usize, PairResult),
+) -> Result<(), BlockError> {
+    let Some(kept) = kept else {
+        return trace_pairs_each(view, scratch, pairs, each);
+    };
+    let raws: Vec<Option<Arc<RawPair>>> = pairs.iter().map(|p| kept.raw(p.light, p.element)).collect();
+    let mut kept_results = bin_all(view, pairs, &raws)?.into_iter();
+    // Runs of pairs not kept are traced together (as trace_pairs_each would).
+    let mut run = 0;
+    for i in 0..=pairs.len() {
+        let binned = kept_results.next().flatten();
+        if binned.is_some() || i == pairs.len() {
+            trace_pairs_each(view, scratch, &pairs[run..i], |k, r| each(run + k, r))?;
+            run = i + 1;
+        }
+        if let Some(r) = binned {
+            each(i, r);
+        }
+    }
+    Ok(())
 }

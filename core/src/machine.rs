@@ -19,12 +19,12 @@
 use crate::blocks::CacheSize;
 use crate::blocks::{BlockError, CacheStats};
 use crate::color::Rgb;
-use crate::energy::Fixed;
+use crate::fixed::Fixed;
 use crate::frame::Frame;
 use crate::lrt::LrtTally;
 use crate::scene::Camera;
 use crate::stats::{Emulation, NodeStats, Stages, Traffic};
-use crate::vrt::Subscreen;
+use crate::subscreen::Subscreen;
 use std::sync::Arc;
 
 /// Why a render failed.
@@ -145,7 +145,7 @@ pub struct ViewPass<'a> {
 impl ViewPass<'_> {
     /// The subscreens of this pass: `tiles` (the whole frame's) clipped to the window.
     pub fn tiles(&self, tiles: &[Subscreen]) -> Vec<Subscreen> {
-        crate::phases::clip(tiles, self.window)
+        crate::subscreen::clip(tiles, self.window)
     }
 }
 

@@ -9,50 +9,15 @@
 //! pilot passes while preparing the scene ([`crate::refine`]), before the render's
 //! machine starts its phases (a cluster runs each pilot level as a scene of its own).
 
-use crate::energy::{gather_vertices, interpolate, Fixed};
+use crate::energy::{gather_vertices, interpolate};
+
+use crate::fixed::Fixed;
 use crate::machine::{FrameSink, Machine, PhaseTimes, RenderError, RenderOutput, Sequence, ViewPass};
 use crate::prepared::PreparedScene;
 use crate::progress::Progress;
 use crate::stats::{RenderStats, Work};
 use crate::view::OpCounters;
-use crate::vrt::Subscreen;
 use std::time::Instant;
-
-/// Splits the screen into subscreens of `edge` pixels, row by row.
-pub fn subscreens(width: u32, height: u32, edge: u32) -> Vec<Subscreen> {
-    let edge = edge.max(1);
-    let mut v = Vec::new();
-    let mut y = 0;
-    while y < height {
-        let mut x = 0;
-        while x < width {
-            v.push(Subscreen { x, y, w: edge.min(width - x), h: edge.min(height - y) });
-            x += edge;
-        }
-        y += edge;
-    }
-    v
-}
-
-/// The parts of `tiles` inside `window` (all of them for `None`), each cut to it: the
-/// subscreens of a crop window keep the whole frame's tiling, so that every pixel is
-/// traced as in the whole frame.
-pub fn clip(tiles: &[Subscreen], window: Option<Subscreen>) -> Vec<Subscreen> {
-    let Some(w) = window else { return tiles.to_vec() };
-    tiles
-        .iter()
-        .filter_map(|t| {
-            let (x0, y0) = (t.x.max(w.x), t.y.max(w.y));
-            let (x1, y1) = ((t.x + t.w).min(w.x + w.w), (t.y + t.h).min(w.y + w.h));
-            (x0 < x1 && y0 < y1).then_some(Subscreen { x: x0, y: y0, w: x1 - x0, h: y1 - y0 })
-        })
-        .collect()
-}
-
-/// Pixels of `tiles`.
-pub fn pixels(tiles: &[Subscreen]) -> u64 {
-    tiles.iter().map(|t| t.w as u64 * t.h as u64).sum()
-}
 
 /// Runs the phases of a render of `prepared` on `machine`: the light pass once (not at all
 /// when `seq` brings energies), then one viewing pass per camera of `seq`, each frame

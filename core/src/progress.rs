@@ -1,6 +1,6 @@
 //! Progress reporting hooks, so that front ends can show bars without the core doing I/O.
 
-use crate::energy::Fixed;
+use crate::fixed::Fixed;
 
 /// The light pass's stage name, as [`Progress::begin`] gets it.
 pub const LIGHT_PASS: &str = "light ray tracing";
@@ -18,7 +18,7 @@ pub trait Progress: Sync {
     /// Frame `index` of `count` starts its viewing pass (more than one frame: a camera path).
     fn frame_begins(&self, _index: usize, _count: usize) {}
     /// Node `node` finished subscreen `t`; `px` holds its pixels row by row (for live views).
-    fn subscreen_done(&self, _node: u32, _t: crate::vrt::Subscreen, _px: &[crate::color::Rgb]) {}
+    fn subscreen_done(&self, _node: u32, _t: crate::subscreen::Subscreen, _px: &[crate::color::Rgb]) {}
     /// Whether a watcher wants a snapshot of the light pass's element flux now. Asked
     /// between batches of pairs, so it must be cheap; a true answer is a claim: the asker
     /// is expected to send [`Progress::light_snapshot`] next. Default: never.

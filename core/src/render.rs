@@ -13,20 +13,22 @@
 use crate::blocks::{home_fork_of_node, BlockCache, BlockError, BlockSource, CacheSize, MemStore};
 use crate::camera::CameraRig;
 use crate::color::Rgb;
-use crate::energy::{vertex_energy_blocks, Fixed};
+use crate::energy::vertex_energy_blocks;
+use crate::fixed::Fixed;
 use crate::frame::Frame;
 use crate::lrt::{trace_pairs, LrtTally, PairResult};
 use crate::machine::{
     self, FrameSink, Machine, MachineFigures, PhaseTimes, RenderError, RenderOutput, Sequence, ViewPass, ViewedFrame,
 };
-use crate::phases::subscreens;
+use crate::pair::Pair;
 use crate::prepared::PreparedScene;
 use crate::progress::Progress;
 use crate::scene::Camera;
 use crate::stats::{NodeStats, Stages, Traffic};
+use crate::subscreen::{self, Subscreen};
 use crate::trace::TraceScratch;
 use crate::view::SceneView;
-use crate::vrt::{shade_pixels, Subscreen};
+use crate::vrt::shade_pixels;
 use std::sync::atomic::{AtomicI64, AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::Instant;
@@ -83,7 +85,7 @@ struct LightPass {
 /// [`trace_pairs`], or a stand-in that gives the same results (refinement's pilots reuse
 /// a pair's rays).
 pub type PairTracer<'a> =
-    dyn Fn(&mut SceneView, &mut TraceScratch, &[(u32, u32)]) -> Result<Vec<PairResult>, BlockError> + Sync + 'a;
+    dyn Fn(&mut SceneView, &mut TraceScratch, &[Pair]) -> Result<Vec<PairResult>, BlockError> + Sync + 'a;
 
 fn light_pass(
     views: &mut [SceneView],
@@ -116,8 +118,7 @@ fn light_pass(
                             break;
                         }
                         let end = (start + PAIR_BATCH).min(total_pairs);
-                        let batch: Vec<(u32, u32)> =
-                            (start..end).map(|k| ((k / n_el as u64) as u32, (k % n_el as u64) as u32)).collect();
+                        let batch: Vec<Pair> = (start..end).map(|k| Pair::from_id(k, n_el)).collect();
                         for r in trace(view, &mut scratch, &batch)? {
                             for (e, f) in r.deposits {
                                 if let Some(slot) = flux.get(e as usize) {
@@ -176,7 +177,7 @@ fn view_pass(
     // Each worker copies a finished subscreen into the frame at once: the frame is
     // assembled while the others trace, not after the last of them.
     let frame = Mutex::new(Frame::new(s.width, s.height));
-    progress.begin(crate::progress::VIEW_PASS, crate::phases::pixels(tiles));
+    progress.begin(crate::progress::VIEW_PASS, subscreen::pixels(tiles));
     let vrt_results: Vec<Result<u64, RenderError>> = std::thread::scope(|sc| {
         let handles: Vec<_> = views
             .iter_mut()
@@ -258,7 +259,7 @@ impl EmbeddedMachine {
             })
             .collect();
         let s = &header.settings;
-        let tiles = subscreens(s.width, s.height, opts.subscreen);
+        let tiles = subscreen::tile(s.width, s.height, opts.subscreen);
         EmbeddedMachine {
             store,
             views,
@@ -297,9 +298,9 @@ impl Machine for EmbeddedMachine {
     fn light_pass(&mut self, progress: &dyn Progress) -> Result<machine::LightPass, RenderError> {
         match self.kept_pairs.take() {
             Some(kept) => {
-                let trace = |view: &mut SceneView, scratch: &mut TraceScratch, batch: &[(u32, u32)]| {
+                let trace = |view: &mut SceneView, scratch: &mut TraceScratch, batch: &[Pair]| {
                     let mut results = Vec::with_capacity(batch.len());
-                    crate::lrt::trace_pairs_kept(view, scratch, batch, Some(&kept), |_, r| results.push(r))?;
+                    crate::kept::trace_pairs_kept(view, scratch, batch, Some(&kept), |_, r| results.push(r))?;
                     Ok(results)
                 };
                 self.light_pass_with(&trace, progress)

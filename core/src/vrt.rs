@@ -15,6 +15,7 @@ use crate::geometry::{cosine_hemisphere, triangle_normal, Ray};
 use crate::rng::{hammersley, Rng};
 use crate::scatter::{arrive, offset_scale, Arrival, Dielectric};
 use crate::subdivision::locate;
+use crate::subscreen::Subscreen;
 use crate::trace::{cast, Bundled, Hit, TraceScratch, NO_PATCH};
 use crate::view::SceneView;
 use std::f64::consts::PI;
@@ -22,26 +23,6 @@ use std::f64::consts::PI;
 mod waves;
 
 pub use waves::shade_pixels;
-
-/// A rectangle of pixels: the paper's subscreen.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub struct Subscreen {
-    /// Left column.
-    pub x: u32,
-    /// Top row.
-    pub y: u32,
-    /// Width in pixels.
-    pub w: u32,
-    /// Height in pixels.
-    pub h: u32,
-}
-
-impl Subscreen {
-    /// Number of pixels.
-    pub fn pixels(&self) -> u64 {
-        self.w as u64 * self.h as u64
-    }
-}
 
 /// Linear radiance of pixel (x, y): the mean of its viewing rays ([`shade_pixels`] of
 /// one pixel).

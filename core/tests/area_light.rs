@@ -7,7 +7,8 @@
 mod common;
 use common::*;
 use magg_core::color::Rgb;
-use magg_core::energy::{element_irradiance, from_fixed};
+use magg_core::energy::element_irradiance;
+use magg_core::fixed::from_fixed;
 use magg_core::machine::RenderOutput;
 use magg_core::scene::{Camera, DirectLight, Material, Scene};
 use std::f64::consts::PI;

@@ -6,7 +6,7 @@
 
 mod common;
 use common::*;
-use magg_core::energy::from_fixed;
+use magg_core::fixed::from_fixed;
 use magg_core::machine::RenderOutput;
 use magg_core::prepared::PreparedScene;
 use magg_core::scene::{DirectLight, Scene};

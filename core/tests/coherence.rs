@@ -9,11 +9,13 @@ use magg_core::camera::CameraRig;
 use magg_core::color::Rgb;
 use magg_core::energy::vertex_energy_blocks;
 use magg_core::lrt::{bin, trace_pair, trace_pair_raw, trace_pairs, LrtTally};
+use magg_core::pair::Pair;
 use magg_core::prepared::PreparedScene;
 use magg_core::scene::parse_scene_with_path;
+use magg_core::subscreen::Subscreen;
 use magg_core::trace::TraceScratch;
 use magg_core::view::SceneView;
-use magg_core::vrt::{shade_pixel, shade_pixels, Subscreen};
+use magg_core::vrt::{shade_pixel, shade_pixels};
 use magg_prepare::prepare;
 use std::path::Path;
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -73,7 +75,7 @@ fn counted(p: &PreparedScene, blocks: usize, ahead: bool) -> (SceneView, Arc<Req
 
 /// The pairs of the scene's light with its mirror's and its glass's elements (the ones
 /// a light pass traces when direct light is computed at VRT), and some others.
-fn specular_pairs(p: &PreparedScene) -> Vec<(u32, u32)> {
+fn specular_pairs(p: &PreparedScene) -> Vec<Pair> {
     let mut v = view(p, None);
     let specular = |v: &mut SceneView, e: u32| {
         let patch = v.element(e).unwrap().patch;
@@ -81,9 +83,9 @@ fn specular_pairs(p: &PreparedScene) -> Vec<(u32, u32)> {
         v.header.materials[m as usize].is_specular()
     };
     let all = p.elements.len() as u32;
-    let mut pairs: Vec<(u32, u32)> = (0..all).filter(|&e| specular(&mut v, e)).step_by(3).map(|e| (0, e)).collect();
+    let mut pairs: Vec<Pair> = (0..all).filter(|&e| specular(&mut v, e)).step_by(3).map(|e| Pair::new(0, e)).collect();
     assert!(pairs.len() > 100, "{} specular pairs", pairs.len());
-    pairs.extend((0..all).step_by(997).map(|e| (0, e)));
+    pairs.extend((0..all).step_by(997).map(|e| Pair::new(0, e)));
     pairs
 }
 
@@ -93,7 +95,8 @@ fn a_batch_of_pairs_deposits_what_each_pair_deposits_alone() {
     let pairs = specular_pairs(&p);
     let mut scratch = TraceScratch::default();
     let mut v = view(&p, None);
-    let alone: Vec<_> = pairs.iter().map(|&(l, e)| trace_pair(&mut v, &mut scratch, l, e).unwrap()).collect();
+    let alone: Vec<_> =
+        pairs.iter().map(|&Pair { light: l, element: e }| trace_pair(&mut v, &mut scratch, l, e).unwrap()).collect();
     assert!(alone.iter().filter(|r| r.deposits.len() > 3).count() > 50, "the pairs deposit little");
     for batch in [1, 7, 64, pairs.len()] {
         // Through a bounded cache the rays go in waves (depth first with every block
@@ -117,7 +120,7 @@ fn a_batch_of_pairs_misses_a_small_cache_far_less_than_its_pairs_one_by_one() {
     let pairs = specular_pairs(&p);
     let mut scratch = TraceScratch::default();
     let mut one = view(&p, Some(40));
-    for &(l, e) in &pairs {
+    for &Pair { light: l, element: e } in &pairs {
         trace_pair(&mut one, &mut scratch, l, e).unwrap();
     }
     let mut batched = view(&p, Some(40));
@@ -178,7 +181,10 @@ fn fetched_ahead_the_light_and_viewing_passes_give_the_same_bits() {
     let rig = CameraRig::new(&p.header.camera, 64, 64);
     let mut scratch = TraceScratch::default();
     let mut resident = view(&p, None);
-    let alone: Vec<_> = pairs.iter().map(|&(l, e)| trace_pair(&mut resident, &mut scratch, l, e).unwrap()).collect();
+    let alone: Vec<_> = pairs
+        .iter()
+        .map(|&Pair { light: l, element: e }| trace_pair(&mut resident, &mut scratch, l, e).unwrap())
+        .collect();
     let s = Subscreen { x: 8, y: 30, w: 48, h: 30 };
     let mut pixels = Vec::new();
     for y in s.y..s.y + s.h {
@@ -213,11 +219,14 @@ fn fetching_ahead_asks_the_source_far_less_often() {
     // The pairs' deposits as the pilots keep them, binned to the leaves again (what
     // the light pass does with the pilots' pairs), then the viewing pass.
     let mut resident = view(&p, None);
-    let raw: Vec<_> = pairs.iter().map(|&(l, e)| trace_pair_raw(&mut resident, &mut scratch, l, e).unwrap()).collect();
+    let raw: Vec<_> = pairs
+        .iter()
+        .map(|&Pair { light: l, element: e }| trace_pair_raw(&mut resident, &mut scratch, l, e).unwrap())
+        .collect();
     let mut requests = Vec::new();
     for ahead in [false, true] {
         let (mut v, source) = counted(&p, 40, ahead);
-        for (&(_, e), r) in pairs.iter().zip(&raw) {
+        for (&Pair { element: e, .. }, r) in pairs.iter().zip(&raw) {
             bin(&mut v, e, r).unwrap();
         }
         let light = source.1.load(Ordering::Relaxed);
@@ -245,7 +254,10 @@ fn a_pilot_batch_through_a_small_cache_gives_what_each_pair_gives_alone() {
     let mut scratch = TraceScratch::default();
     let alone = |cache: Option<usize>, scratch: &mut TraceScratch| {
         let (kept, mut v) = (KeptPairs::default(), view(&p, cache));
-        pairs.iter().map(|&(l, e)| kept.trace(&mut v, scratch, l, e).unwrap()).collect::<Vec<_>>()
+        pairs
+            .iter()
+            .map(|&Pair { light: l, element: e }| kept.trace(&mut v, scratch, l, e).unwrap())
+            .collect::<Vec<_>>()
     };
     let (resident, small_alone) = (alone(None, &mut scratch), alone(Some(40), &mut scratch));
     assert!(resident.iter().filter(|r| r.deposits.len() > 3).count() > 50, "the pairs deposit little");

@@ -8,7 +8,7 @@ mod common;
 use common::*;
 use glam::DVec3;
 use magg_core::camera::CameraRig;
-use magg_core::energy::from_fixed;
+use magg_core::fixed::from_fixed;
 use magg_core::geometry::solid_angle;
 use magg_core::scene::{DirectLight, Scene};
 use std::f64::consts::PI;

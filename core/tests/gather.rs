@@ -6,7 +6,8 @@
 
 mod common;
 use common::*;
-use magg_core::energy::{from_fixed, gather_vertices};
+use magg_core::energy::gather_vertices;
+use magg_core::fixed::from_fixed;
 use magg_core::prepared::{Face, PreparedScene};
 use magg_core::scatter::Arrival;
 use magg_core::scene::{DirectLight, Scene};

@@ -3,7 +3,7 @@
 
 mod common;
 use common::*;
-use magg_core::energy::from_fixed;
+use magg_core::fixed::from_fixed;
 use magg_core::geometry::solid_angle;
 use std::f64::consts::PI;
 

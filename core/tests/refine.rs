@@ -7,7 +7,7 @@
 
 mod common;
 use common::*;
-use magg_core::energy::from_fixed;
+use magg_core::fixed::from_fixed;
 use magg_core::plan::EffectsPlan;
 use magg_core::prepared::PreparedScene;
 use magg_core::scene::Scene;

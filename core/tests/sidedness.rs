@@ -7,7 +7,7 @@
 
 mod common;
 use common::*;
-use magg_core::energy::from_fixed;
+use magg_core::fixed::from_fixed;
 use magg_core::prepared::Face;
 use magg_core::scene::{DirectLight, Scene};
 use std::f64::consts::PI;

@@ -16,6 +16,7 @@ use crate::peers::PeerAccess;
 use crate::shard::{Shard, MAX_IDS_PER_REQUEST, MAX_PAIRS_PER_REQUEST};
 use bytes::Bytes;
 use magg_core::cluster::{PairLease, ShardLoad};
+use magg_core::pair::Pair;
 use magg_plumbing::auth::Token;
 use magg_plumbing::transport::InProcess;
 use magg_proto::convert::block_bytes_from_wire;
@@ -267,9 +268,9 @@ fn own_pairs(shard: &Shard, t: &v1::TakePairsRequest) -> Result<PairLease, ForkE
 
 /// Stolen pairs must be real pairs of the fork they came from.
 fn check_stolen(shard: &Shard, peer: u32, pairs: &[u64]) -> Result<(), ForkError> {
-    let elements = shard.header().counts.elements.max(1) as u64;
+    let elements = shard.header().counts.elements.max(1);
     for &p in pairs {
-        if p >= shard.pair_count() || shard.element_owner((p % elements) as u32) != peer {
+        if p >= shard.pair_count() || shard.element_owner(Pair::element_of(p, elements)) != peer {
             let addr = shard.peers().addr(peer).to_string();
             return Err(ForkError::PeerReply { fork: peer, addr, detail: format!("pair {p} is not one of its pairs") });
         }

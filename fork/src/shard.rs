@@ -18,6 +18,7 @@ use bytes::Bytes;
 use magg_core::blocks::{fork_of_block, BLOCK_SIZE};
 use magg_core::cluster::{DepositBatch, ForkReport, PairDeposit, ShardLoad};
 use magg_core::header::SceneHeader;
+use magg_core::pair::Pair;
 use magg_plumbing::auth::NodeKey;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Mutex;
@@ -404,19 +405,15 @@ impl Shard {
         if pair >= pairs {
             return Err(ForkError::PairOutOfRange { pair, pairs });
         }
-        let elements = self.header.counts.elements as u64;
-        let at = self.owned_index((pair % elements) as u32)?;
-        Ok(pair / elements * self.owned.len() as u64 + at as u64)
+        let elements = self.header.counts.elements;
+        let at = self.owned_index(Pair::element_of(pair, elements))?;
+        Ok(Pair::light_of(pair, elements) * self.owned.len() as u64 + at as u64)
     }
 
     /// The pair id of local index `k` (inverse of [`Shard::local_pair`]).
     fn pair_of_local(&self, k: u64) -> u64 {
         let per_light = self.owned.len().max(1) as u64;
-        magg_core::lrt::pair_id(
-            (k / per_light) as u32,
-            self.owned[(k % per_light) as usize],
-            self.header.counts.elements,
-        )
+        Pair::new((k / per_light) as u32, self.owned[(k % per_light) as usize]).id(self.header.counts.elements)
     }
 
     /// Position of element `e` in the owned list, or why it is not there.
@@ -458,12 +455,12 @@ impl Shard {
         let mut slots = Vec::with_capacity(batch.deposits);
         let mut local = Vec::with_capacity(if batch.complete { n } else { 0 });
         let mut owners = Vec::with_capacity(n);
-        let elements = self.header.counts.elements.max(1) as u64;
+        let elements = self.header.counts.elements.max(1);
         for p in batch.pairs.clone() {
             if p.pair >= total_pairs {
                 return Err(ForkError::PairOutOfRange { pair: p.pair, pairs: total_pairs });
             }
-            owners.push(self.element_owner((p.pair % elements) as u32) as usize);
+            owners.push(self.element_owner(Pair::element_of(p.pair, elements)) as usize);
             if batch.complete {
                 local.push(self.local_pair(p.pair)?);
             }
@@ -476,7 +473,7 @@ impl Shard {
             for &e in p.elements {
                 slots.push(self.owned_index(e)?);
             }
-            self.check_flux(p.pair / elements, &p)?;
+            self.check_flux(Pair::light_of(p.pair, elements), &p)?;
         }
         let (mut applied, mut duplicates) = (0, 0);
         let mut slots = slots.into_iter();

@@ -3,7 +3,7 @@
 
 use magg_core::blocks::BLOCK_SIZE;
 use magg_core::cluster::PairLease;
-use magg_core::lrt::pair_id;
+use magg_core::pair::Pair;
 use magg_core::prepared::PreparedScene;
 use magg_core::scene::parse_scene_str;
 use magg_plumbing::auth::Authed;
@@ -300,7 +300,7 @@ async fn deposits_apply_exactly_once_and_energies_sum() {
     let (own0, own1) = (on(0), on(1));
     let (a, b) = (own1[0], own1[own1.len() - 1]);
     // Pair (light 1, a): complete on fork 1, which owns a.
-    let p = pair_id(1, a, e);
+    let p = Pair::new(1, a).id(e);
     let mut w = DepositWriter::new(true, 0);
     w.pair(p);
     w.deposit(a, [5, 6, 7]);
@@ -312,7 +312,7 @@ async fn deposits_apply_exactly_once_and_energies_sum() {
     let r2 = c.clients[1].deposit(req).await.unwrap().into_inner();
     assert_eq!((r2.applied, r2.duplicates), (0, 1));
     // A pair of fork 0's element whose secondary rays reached fork 1's element b.
-    let q = pair_id(0, own0[3], e);
+    let q = Pair::new(0, own0[3]).id(e);
     let r3 = c.clients[1].deposit(deposits(false, &[(q, b, [2, 3, 4])])).await.unwrap();
     assert_eq!(r3.into_inner().applied, 1);
     let r4 = c.clients[0].deposit(deposits(true, &[(q, own0[3], [100, 0, 0])])).await;
@@ -382,19 +382,19 @@ async fn bad_requests_get_the_right_codes_and_the_server_keeps_serving() {
     let own = |f: u32| (0..e).find(|&x| c.element_owner(x) == f).unwrap();
     let (a0, a1) = (own(0), own(1));
     let bad = [
-        ((pair_id(0, a0, e), a1, [1, 1, 1]), false),
-        ((pair_id(0, a0, e), e, [1, 1, 1]), false),
+        ((Pair::new(0, a0).id(e), a1, [1, 1, 1]), false),
+        ((Pair::new(0, a0).id(e), e, [1, 1, 1]), false),
         ((c.pairs(), a0, [1, 1, 1]), false),
-        ((pair_id(0, a1, e), a0, [1, 1, 1]), true),
+        ((Pair::new(0, a1).id(e), a0, [1, 1, 1]), true),
     ];
     for (i, (d, complete)) in bad.into_iter().enumerate() {
         // The good pair first: a refused request must apply nothing.
-        let good = (pair_id(1, a0, e), a0, [9, 9, 9]);
+        let good = (Pair::new(1, a0).id(e), a0, [9, 9, 9]);
         let (k, m) = code(c.clients[0].deposit(deposits(complete, &[good, d])).await);
         assert_eq!(k, Code::InvalidArgument, "case {i}: {m}");
     }
     // Arrays that do not fit together.
-    let mut torn = deposits(true, &[(pair_id(1, a0, e), a0, [9, 9, 9])]);
+    let mut torn = deposits(true, &[(Pair::new(1, a0).id(e), a0, [9, 9, 9])]);
     torn.energy = torn.energy.slice(..torn.energy.len() - 8);
     let (k, m) = code(c.clients[0].deposit(torn).await);
     assert_eq!(k, Code::InvalidArgument, "{m}");
@@ -402,7 +402,7 @@ async fn bad_requests_get_the_right_codes_and_the_server_keeps_serving() {
     let e0 = c.energies(0).await;
     assert!(e0.energy.iter().all(|&x| x == 0), "a refused deposit changed energies");
     assert_eq!(e0.pairs_done, 0);
-    let good = deposits(true, &[(pair_id(1, a0, e), a0, [9, 9, 9])]);
+    let good = deposits(true, &[(Pair::new(1, a0).id(e), a0, [9, 9, 9])]);
     let r = c.clients[0].deposit(good).await.unwrap().into_inner();
     assert_eq!((r.applied, r.duplicates), (1, 0), "the pair was not marked applied by the refused requests");
 

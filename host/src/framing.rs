@@ -4,7 +4,7 @@
 //! path (`orbit_0005.png`).
 
 use anyhow::{bail, Context};
-use magg_core::vrt::Subscreen;
+use magg_core::subscreen::Subscreen;
 use std::ops::Range;
 
 /// The crop and frame flags of `render`.

@@ -19,7 +19,7 @@ use magg_core::color::Rgb;
 use magg_core::frame::Frame;
 use magg_core::progress::Progress;
 use magg_core::scene::Exposure;
-use magg_core::vrt::Subscreen;
+use magg_core::subscreen::Subscreen;
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 use std::sync::{Arc, Mutex, MutexGuard};
@@ -252,7 +252,7 @@ impl Progress for PartialProgress<'_> {
     fn light_snapshot_due(&self) -> bool {
         self.inner.light_snapshot_due()
     }
-    fn light_snapshot(&self, element_flux: Vec<magg_core::energy::Fixed>) {
+    fn light_snapshot(&self, element_flux: Vec<magg_core::fixed::Fixed>) {
         self.inner.light_snapshot(element_flux);
     }
 }

@@ -80,6 +80,7 @@ impl Rounds {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use magg_core::pair::Pair;
     use magg_proto::deposits::read;
     use std::collections::BTreeMap;
 
@@ -123,13 +124,13 @@ mod tests {
     fn deposits_go_to_the_fork_owning_their_element_none_lost_none_doubled() {
         let l = layout();
         for forks in [1usize, 2, 5] {
-            let elements = 160u64;
+            let elements = 160;
             let owner_of = |e: u32| element_owner(&l, forks, e);
             let mut rounds = Rounds::new(forks, 3);
             let mut sent: BTreeMap<(u64, u32), Vec<[i64; 3]>> = BTreeMap::new();
             let mut also: BTreeMap<u64, Vec<u32>> = BTreeMap::new();
             for (pair, ds) in batch() {
-                let owner = owner_of((pair % elements) as u32);
+                let owner = owner_of(Pair::element_of(pair, elements));
                 for &(e, f) in &ds {
                     sent.entry((pair, e)).or_default().push(f);
                     if owner_of(e) != owner {
@@ -148,7 +149,7 @@ mod tests {
                     let req = w.finish();
                     assert_eq!((req.complete, req.epoch), (complete, 3));
                     for p in read(&req).unwrap().pairs() {
-                        let owner = owner_of((p.pair % elements) as u32);
+                        let owner = owner_of(Pair::element_of(p.pair, elements));
                         assert_eq!(fork == owner, complete, "pair {} in the wrong round on fork {fork}", p.pair);
                         if complete {
                             completed.push(p.pair);

@@ -10,10 +10,13 @@ use crate::timing::PassTimes;
 use crate::NodeError;
 use magg_core::camera::CameraRig;
 use magg_core::cluster::PairLease;
-use magg_core::lrt::{trace_pairs_kept, PairResult};
+use magg_core::kept::trace_pairs_kept;
+use magg_core::lrt::PairResult;
+use magg_core::pair::Pair;
+use magg_core::subscreen::Subscreen;
 use magg_core::trace::TraceScratch;
 use magg_core::view::SceneView;
-use magg_core::vrt::{shade_pixels, Subscreen};
+use magg_core::vrt::shade_pixels;
 use magg_plumbing::auth::Authed;
 use magg_plumbing::retry::retry;
 use magg_plumbing::retry::Backoff;
@@ -226,7 +229,7 @@ impl Worker {
     /// sent in the background (at most [`DEPOSITS_IN_FLIGHT`] batches behind).
     fn pairs(&mut self) -> Result<(), NodeError> {
         let h = self.view.header.clone();
-        let elements = h.counts.elements as u64;
+        let elements = h.counts.elements;
         let total = h.pair_count();
         let mut scratch = TraceScratch::default();
         let paper = self.scheme == Scheme::Paper;
@@ -294,14 +297,14 @@ impl Worker {
                 if pair >= total || elements == 0 {
                     return Err(NodeError::Convert(format!("pair {pair} out of range ({total} pairs)")));
                 }
-                leased.push(((pair / elements) as u32, (pair % elements) as u32));
+                leased.push(Pair::from_id(pair, elements));
             }
             // Each pair's deposits are routed as it comes back (while they are hot).
             let (layout, forks) = (self.view.header.layout, self.forks.len());
             let owner_of = |e: u32| element_owner(&layout, forks, e);
             let (delay, mine) = (self.pair_delay, &mut self.mine);
             let each = |i: usize, r: PairResult| {
-                let (pair, (_, element)) = (got.pairs[i], leased[i]);
+                let (pair, element) = (got.pairs[i], leased[i].element);
                 if !delay.is_zero() {
                     std::thread::sleep(delay);
                 }

@@ -126,7 +126,7 @@ fn prepare_here(
         camera: scene.camera.clone(),
         settings: scene.settings.clone(),
         lights: scene.lights.clone(),
-        energy_quantum: magg_core::energy::quantum_for(&scene.lights, &emitters),
+        energy_quantum: magg_core::fixed::quantum_for(&scene.lights, &emitters),
         emitters,
         materials: scene.materials.clone(),
         textures: packed.textures,

@@ -22,7 +22,7 @@
 //! the same effects plan), its pairs are the last pilot's and those of the elements the
 //! last level split: the pilots' raw pairs are then kept with the prepared scene
 //! ([`KeptPairs`], [`magg_core::stats::Refinement::kept`]), and the light pass bins them
-//! instead of tracing them again ([`magg_core::lrt::trace_pairs_kept`]): in the embedded
+//! instead of tracing them again ([`magg_core::kept::trace_pairs_kept`]): in the embedded
 //! renderer and on the cluster's nodes of the host's process all of them, on a node of
 //! a process of its own those it traced itself; the others are traced. The result is
 //! the same, bit for bit, as tracing every pair.
@@ -42,9 +42,11 @@
 
 use crate::{prepare_split_on, Shares};
 use magg_core::color::Rgb;
-use magg_core::energy::{element_irradiance, interpolate, Fixed};
+use magg_core::energy::{element_irradiance, interpolate};
+use magg_core::fixed::Fixed;
 use magg_core::kept::{KeptPairs, KeptSlot};
 use magg_core::machine::{LightPass, RenderError};
+use magg_core::pair::Pair;
 use magg_core::plan::EffectsPlan;
 use magg_core::prepared::PreparedScene;
 use magg_core::progress::{NoProgress, Progress, Renamed};
@@ -89,7 +91,7 @@ impl Pilots for EmbeddedPilots {
         pairs: &Arc<KeptPairs>,
         progress: &dyn Progress,
     ) -> Result<LightPass, RenderError> {
-        let trace = |view: &mut SceneView, scratch: &mut TraceScratch, batch: &[(u32, u32)]| {
+        let trace = |view: &mut SceneView, scratch: &mut TraceScratch, batch: &[Pair]| {
             let mut results = Vec::with_capacity(batch.len());
             pairs.trace_each(view, scratch, batch, |_, r| results.push(r))?;
             Ok(results)

@@ -23,6 +23,7 @@ pub mod math;
 mod error;
 mod field;
 mod gltf;
+mod load;
 mod mesh;
 mod model;
 mod normals;

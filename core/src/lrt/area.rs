@@ -19,14 +19,16 @@
 //! the emitter's plane, or a one-sided receiver whose front faces away from the whole
 //! emitter.
 
-use super::{scatter, LrtTally, PairTrees, RawDeposit, RayId, Surface, MIN_RELATIVE_FLUX};
+use super::landing::{land_primaries, Target};
+use super::result::{LrtTally, RawDeposit};
+use super::waves::PairTrees;
 use crate::blocks::{BlockError, NO_BACK};
 use crate::geometry::{solid_angle, triangle_normal, Ray, SphericalTriangle};
 use crate::header::Emitter;
 use crate::rng::{hammersley, Rng};
-use crate::scatter::{arrive, offset_scale};
+use crate::scatter::offset_scale;
 use crate::subdivision::element_triangle;
-use crate::trace::{occluded, TraceScratch};
+use crate::trace::{Bundled, TraceScratch};
 use crate::view::SceneView;
 use glam::DVec3;
 use std::f64::consts::PI;
@@ -100,6 +102,10 @@ pub(super) fn trace_emitter_pair(
     // Index among the pair's n rays of the first ray from the current point (for the
     // rays' bounce samples).
     let mut first_ray = 0u32;
+    // The pair's light rays, each with an occlusion query up to (just short of) the
+    // element; the rays from one point on the emitter walk the BVH in packets.
+    trees.shots.clear();
+    trees.bundle.clear();
 
     for i in 0..points {
         let (u0, u1) = hammersley(i, points, sx, sy);
@@ -137,26 +143,13 @@ pub(super) fn trace_emitter_pair(
             if !(t_plane > 0.0) || !t_plane.is_finite() {
                 continue;
             }
+            trees.shots.push((first_ray + j, flux, t_plane));
             let ray = Ray::new(p, w);
-            if occluded(view, scratch, &ray, eps0, t_plane * (1.0 - 1e-9), erec.patch)? {
-                tally.occluded = tally.occluded.add(flux);
-                continue;
-            }
-            tally.reached = tally.reached.add(flux);
-            if material.is_some_and(|m| m.refuses(w, normal)) {
-                tally.absorbed = tally.absorbed.add(flux);
-                continue;
-            }
-            let floor = flux.max_channel() * MIN_RELATIVE_FLUX;
-            let (at, albedo) = arrive(view, &prec, ray.at(t_plane), w, normal, None)?;
-            let bounce = Some(super::Strata { first: first_ray + j, count: 1, offset: (bx, by) });
-            let s = Surface { at, albedo, material: prec.material, patch: erec.patch };
-            let id = RayId::primary(header.settings.seed, light, element, first_ray + j);
-            scatter(view, id, &mut trees.spawned, &mut tally, s, bounce, flux, 0, 0, floor);
-            let deposit = plan.deposits_direct(true).then_some(RawDeposit::On(element, flux));
-            trees.root(view, scratch, &mut tally, deposit, out)?;
+            trees.bundle.push(Bundled { ray, tmin: eps0, tmax: t_plane * (1.0 - 1e-9), exclude: erec.patch });
         }
     }
+    let target = Target { light, element, erec, prec, normal, material, fan: 1, offset: (bx, by), emitter: true };
+    land_primaries(view, scratch, trees, &mut tally, &target, out)?;
     trees.trace(view, scratch, &mut tally, out)?;
     Ok(tally)
 }

@@ -20,7 +20,8 @@
 //! waves (through a bounded cache) or depth first (every block resident, where waves
 //! would only add bookkeeping).
 
-use super::{follow_one, LrtTally, Pending, RawDeposit};
+use super::landing::{follow_one, Pending};
+use super::result::{LrtTally, RawDeposit};
 use crate::blocks::BlockError;
 use crate::trace::TraceScratch;
 use crate::view::SceneView;

@@ -15,7 +15,7 @@
 //! same bits); a ray in the plane of a face (0 x inf = NaN) is not limited by that slab,
 //! so it can only enter more boxes, never fewer.
 
-use super::{Hit, NextUp, Query, TraceScratch};
+use super::query::{Hit, NextUp, Query, TraceScratch};
 use crate::blocks::bvh::{
     BvhNodeLanes, BvhTriangle, BVH_COUNT_AT, BVH_INDEX_AT, BVH_NODE_RECORD, BVH_NODE_SHIFT, BVH_NO_CHILD, BVH_ROW,
     BVH_TRIANGLE_RECORD, BVH_WIDTH, BVH_WIDTH_SHIFT,

@@ -4,7 +4,7 @@
 //! it is kept as a candidate and only accepted once traversal has passed its distance,
 //! so a nearer patch in a later subspace still wins.
 
-use super::{Hit, Query, TraceScratch};
+use super::query::{Hit, Query, TraceScratch};
 use crate::blocks::BlockError;
 use crate::view::SceneView;
 

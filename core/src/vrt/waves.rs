@@ -21,9 +21,9 @@ use crate::camera::CameraRig;
 use crate::color::Rgb;
 use crate::direct;
 use crate::geometry::Ray;
+use crate::subscreen::Subscreen;
 use crate::trace::{cast_all, TraceScratch, NO_PATCH};
 use crate::view::{patch_block, vertex_block, ElementPoint, LeafPoint, SceneView, NO_BLOCK};
-use crate::vrt::Subscreen;
 use glam::DVec3;
 
 /// One viewing ray of a row's trees.

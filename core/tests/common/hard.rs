@@ -5,7 +5,7 @@
 use crate::common::*;
 use glam::DVec3;
 use magg_core::color::Rgb;
-use magg_core::energy::from_fixed;
+use magg_core::fixed::from_fixed;
 use magg_core::geometry::{intersect_watertight, Ray};
 use magg_core::lrt::LrtTally;
 use magg_core::machine::RenderOutput;

@@ -11,7 +11,7 @@
 
 use crate::bits::Bitset;
 use magg_core::cluster::{LedgerDigest, PairDigest};
-use magg_core::energy::Fixed;
+use magg_core::fixed::Fixed;
 
 /// The ledger of one fork. Own pairs are named by their local index (see
 /// [`crate::shard::Shard::local_pair`]), every pair by its id.

@@ -1,7 +1,7 @@
 //! The queue of a fork's unassigned (light, element) pairs (paper §4.4).
 //!
 //! A fork's pairs are every (light, element) with an element the fork owns, handed out in
-//! ascending pair id (`light * elements + element`, see [`magg_core::lrt::pair_id`]).
+//! ascending pair id (`light * elements + element`, see [`magg_core::pair::Pair::id`]).
 //! The queue is a cursor over that sequence, so it costs no memory per pair however large
 //! the scene. Pairs whose lease expired (their node died or stalled) come back on a
 //! second, explicit queue of returned pairs that is popped before the cursor.
@@ -11,7 +11,7 @@
 //! after a lost fork recalls every lent pair.
 
 use magg_core::idhash::IdMap;
-use magg_core::lrt::pair_id;
+use magg_core::pair::Pair;
 use std::collections::BTreeSet;
 use std::time::{Duration, Instant};
 
@@ -65,7 +65,7 @@ impl PairQueue {
         let per_light = owned.len() as u64;
         out.extend(
             (self.next..self.next + n)
-                .map(|k| pair_id((k / per_light) as u32, owned[(k % per_light) as usize], elements)),
+                .map(|k| Pair::new((k / per_light) as u32, owned[(k % per_light) as usize]).id(elements)),
         );
         self.next += n;
         out

@@ -8,16 +8,50 @@
 //! itself. The latest preview of the light pass is kept apart from the log (each replaces
 //! the one before) and dropped when the viewing pass starts.
 
-use super::preview::PreviewImage;
-use super::NodeRow;
 use base64::Engine;
 use magg_cluster::events::ClusterEvent;
 use magg_core::color::Rgb;
-use magg_core::vrt::Subscreen;
+use magg_core::subscreen::Subscreen;
+use serde::Serialize;
 use serde_json::{json, Value};
 use std::collections::{BTreeMap, HashMap};
 use std::sync::{Arc, Mutex, MutexGuard};
 use std::time::Instant;
+
+/// One row of the page's node table.
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct NodeRow {
+    /// Node id.
+    pub node: u32,
+    /// Name it registered with (cluster) or `thread N` (embedded).
+    pub name: String,
+    /// Pairs traced.
+    pub pairs: u64,
+    /// Subscreens taken (redivided parts included).
+    pub subscreens: u64,
+    /// Light rays traced.
+    pub light_rays: u64,
+    /// Viewing rays traced.
+    pub view_rays: u64,
+    /// Cache hits.
+    pub hits: u64,
+    /// Cache misses (blocks over DMA or G-bus).
+    pub misses: u64,
+    /// Misses served from a fork other than the home fork (the G-bus path).
+    pub remote_misses: u64,
+    /// Bytes of its messages with the host (link path); unknown for the embedded renderer.
+    pub link_bytes: Option<u64>,
+}
+
+/// A traced preview: linear RGB, row by row.
+pub struct PreviewImage {
+    /// Width in pixels.
+    pub width: u32,
+    /// Height in pixels.
+    pub height: u32,
+    /// Linear RGB, 3 floats per pixel.
+    pub rgb: Vec<f32>,
+}
 
 /// The shared state, behind a lock, plus a version that wakes the pages' streams.
 pub struct Board {

@@ -26,43 +26,17 @@ use anyhow::Context;
 use board::Board;
 use magg_cluster::events::EventSender;
 use magg_core::color::Rgb;
-use magg_core::energy::Fixed;
+use magg_core::fixed::Fixed;
 use magg_core::frame::Frame;
 use magg_core::prepared::PreparedScene;
 use magg_core::progress::Progress;
 use magg_core::scene::{Camera, Exposure};
-use magg_core::vrt::Subscreen;
+use magg_core::subscreen::Subscreen;
 use preview::{Preview, Previewer};
-use serde::Serialize;
 use serde_json::json;
 use std::sync::atomic::Ordering;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
-
-/// One row of the page's node table.
-#[derive(Clone, Debug, Default, Serialize)]
-pub struct NodeRow {
-    /// Node id.
-    pub node: u32,
-    /// Name it registered with (cluster) or `thread N` (embedded).
-    pub name: String,
-    /// Pairs traced.
-    pub pairs: u64,
-    /// Subscreens taken (redivided parts included).
-    pub subscreens: u64,
-    /// Light rays traced.
-    pub light_rays: u64,
-    /// Viewing rays traced.
-    pub view_rays: u64,
-    /// Cache hits.
-    pub hits: u64,
-    /// Cache misses (blocks over DMA or G-bus).
-    pub misses: u64,
-    /// Misses served from a fork other than the home fork (the G-bus path).
-    pub remote_misses: u64,
-    /// Bytes of its messages with the host (link path); unknown for the embedded renderer.
-    pub link_bytes: Option<u64>,
-}
 
 /// A running live view.
 pub struct LiveView {

@@ -18,15 +18,17 @@
 //! most a fifth of one core from the render (a 128 px preview of scenes/cornell.toml
 //! traces in about 0.15 s on a shared 2-core machine: one every 0.8 s).
 
-use super::board::Board;
+use super::board::{Board, PreviewImage};
 use magg_core::blocks::{Block, BlockCache, BlockError, BlockSource};
 use magg_core::camera::CameraRig;
-use magg_core::energy::{interpolate, vertex_energy_blocks, Fixed};
+use magg_core::energy::{interpolate, vertex_energy_blocks};
+use magg_core::fixed::Fixed;
 use magg_core::prepared::PreparedScene;
 use magg_core::scene::Camera;
+use magg_core::subscreen::Subscreen;
 use magg_core::trace::TraceScratch;
 use magg_core::view::SceneView;
-use magg_core::vrt::{shade_pixels, Subscreen};
+use magg_core::vrt::shade_pixels;
 use std::collections::HashMap;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Condvar, Mutex};
@@ -39,16 +41,6 @@ pub const PREVIEW_WIDTH: u32 = 128;
 pub const PREVIEW_PERIOD: Duration = Duration::from_millis(250);
 /// `next_due` while a snapshot is claimed and its preview not yet drawn.
 const BUSY: u64 = u64::MAX;
-
-/// A traced preview: linear RGB, row by row.
-pub struct PreviewImage {
-    /// Width in pixels.
-    pub width: u32,
-    /// Height in pixels.
-    pub height: u32,
-    /// Linear RGB, 3 floats per pixel.
-    pub rgb: Vec<f32>,
-}
 
 /// The scene's blocks with the vertex-energy blocks of a snapshot in their place.
 struct SnapshotBlocks {

@@ -1,6 +1,7 @@
 //! Tests of the conversions: round trips, and what the wire may not carry.
 
 use super::*;
+use magg_core::scene::{Exposure, GridSpec, Spot};
 use prost::Message;
 use std::sync::Arc;
 

@@ -2,6 +2,7 @@
 
 use super::*;
 use crate::mesh::Transform;
+use base64::Engine;
 use std::collections::HashMap;
 
 /// The buffer: the triangle (0,0,0), (1,0,0), (0,1,0) as floats, then u16 indices 0 1 2.

@@ -29,7 +29,7 @@ use super::{
 use super::{quad_used, row_quad, widened_sse2};
 use crate::blocks::bvh::{BVH_NODE_RECORD, BVH_WIDTH};
 use crate::blocks::BlockError;
-use crate::trace::{Hit, NextUp, Query, TraceScratch};
+use crate::trace::query::{Hit, NextUp, Query, TraceScratch};
 use crate::view::SceneView;
 
 /// The most rays one packet walks together (one bit each in a `u32` mask).

@@ -4,8 +4,8 @@
 use std::path::{Path, PathBuf};
 
 use glam::DVec3;
-use magg_core::math::Normalized;
-use magg_core::scene::{parse_scene_str, GridSpec, PatchDef, Scene};
+use magg_scene::math::Normalized;
+use magg_scene::{parse_scene_str, GridSpec, PatchDef, Scene};
 
 fn scenes_dir() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("..").join("scenes")
