@@ -13,8 +13,10 @@
 
 use super::space::SpaceSplit;
 use super::weld::{self, PointId, WeldAnswer, WeldPoint};
-use glam::DVec3;
-use magg_core::blocks::NO_BACK;
+use glam::{DVec2, DVec3};
+use magg_core::blocks::{
+    Block, BlockLayout, ElementRecord, PatchRecord, ShadingRecord, BLOCK_SIZE, NO_BACK, NO_SHADING, NO_TEXTURE,
+};
 use magg_core::geometry::{triangle_area, triangle_normal};
 use magg_core::idhash::IdMap;
 use magg_core::prepared::{ElementInfo, Face, NO_PARENT};
@@ -36,6 +38,14 @@ pub struct SharePatch {
     pub back_element: u32,
     /// Whether its front elements hold one face's light or both.
     pub front_face: Face,
+    /// Its material.
+    pub material: u32,
+    /// Its shading record, or [`NO_SHADING`] (numbered in patch order by the host).
+    pub shading: u32,
+    /// Shading normals at its corners, `None` for a flat patch.
+    pub normals: Option<[DVec3; 3]>,
+    /// Texture coordinates at its corners and its texture.
+    pub uv: Option<([DVec2; 3], u32)>,
 }
 
 impl SharePatch {
@@ -91,9 +101,16 @@ pub struct Share {
     /// Back copies this share holds, by their vertex's root: (id, an own point of the
     /// vertex).
     back_ids: IdMap<u64, (u32, usize)>,
-    /// The vertex id each own point's root has, once known (`u32::MAX` until then).
+    /// The questions asked of other shares: (own point, question), in the order asked.
     pending: Vec<(usize, IdQuery)>,
+    /// Its elements, once made: (id, local index in its patch's record, element).
+    made: Vec<(u32, u32, ElementInfo)>,
 }
+
+/// Blocks a share wrote records into: (block id, the block with only those records; zero
+/// elsewhere), ascending ids. Shares write disjoint records, so the scene's block is the
+/// bitwise OR of every share's.
+pub type PartialBlocks = Vec<(u32, Box<Block>)>;
 
 /// A point's 64-bit key: patch, then lattice index.
 fn pack(p: PointId) -> u64 {
@@ -114,6 +131,7 @@ impl Share {
             front_id: Vec::new(),
             back_ids: IdMap::default(),
             pending: Vec::new(),
+            made: Vec::new(),
         }
     }
 
@@ -343,6 +361,7 @@ impl Share {
             }
         };
         let mut mesh = ShareMesh::default();
+        let mut made = Vec::new();
         for (k, p) in self.patches.iter().enumerate() {
             let (n, off) = (p.n, self.offset[k]);
             let corner_points =
@@ -359,10 +378,10 @@ impl Share {
                     parent: NO_PARENT,
                     child: 0,
                 };
-                mesh.elements.push((p.first_element + local, info));
+                made.push((p.first_element + local, local, info));
                 if p.has_back() {
                     let back = ElementInfo { vertices: c.map(back_id), face: Face::Back, ..info };
-                    mesh.elements.push((p.back_element + local, back));
+                    made.push((p.back_element + local, n * n + local, back));
                 }
             }
             for l in 0..lattice_count(n) as usize {
@@ -374,6 +393,43 @@ impl Share {
         }
         // A back copy sits where its vertex does: at its own member point.
         mesh.vertices.extend(self.back_ids.values().map(|&(id, i)| (id, self.points[i])));
+        mesh.elements = made.iter().map(|&(id, _, info)| (id, info)).collect();
+        self.made = made;
         mesh
+    }
+
+    /// Step 7: the records of its patches, their shading and its elements, written where
+    /// `layout` puts them.
+    pub fn pack(&self, layout: &BlockLayout) -> PartialBlocks {
+        let mut blocks: IdMap<u32, Box<Block>> = IdMap::default();
+        fn at(blocks: &mut IdMap<u32, Box<Block>>, block: u32) -> &mut Block {
+            blocks.entry(block).or_insert_with(|| Box::new([0u8; BLOCK_SIZE]))
+        }
+        for p in &self.patches {
+            let (b, off) = layout.patch_slot(p.id);
+            PatchRecord {
+                v: p.v,
+                material: p.material,
+                subdivisions: p.n,
+                first_element: p.first_element,
+                shading: p.shading,
+                back_element: p.back_element,
+            }
+            .encode(at(&mut blocks, b), off);
+            if p.shading != NO_SHADING {
+                let (uv, texture) = p.uv.unwrap_or(([DVec2::ZERO; 3], NO_TEXTURE));
+                let (b, off) = layout.shading_slot(p.shading);
+                ShadingRecord { normals: p.normals.unwrap_or([DVec3::ZERO; 3]), uv, texture }
+                    .encode(at(&mut blocks, b), off);
+            }
+        }
+        for &(id, local, e) in &self.made {
+            let (b, off) = layout.element_slot(id);
+            ElementRecord { patch: e.patch, local, vertices: e.vertices, child: e.child, area: e.area }
+                .encode(at(&mut blocks, b), off);
+        }
+        let mut out: PartialBlocks = blocks.into_iter().collect();
+        out.sort_unstable_by_key(|b| b.0);
+        out
     }
 }
