@@ -13,7 +13,7 @@ mod share;
 mod space;
 mod weld;
 
-pub use share::{IdQuery, PartialBlocks, PatchCounts, Share, ShareMesh, SharePatch};
+pub use share::{IdQuery, PartialBlocks, PatchCounts, Share, SharePatch, ShareVertices};
 pub use space::SpaceSplit;
 pub use weld::{WeldAnswer, WeldPoint};
 
@@ -140,7 +140,7 @@ impl LocalShares {
         let points = deliver(self.shares.par_iter_mut().map(|s| s.lattice(split)).collect(), n);
         let answers: Vec<Vec<Vec<WeldAnswer>>> = self
             .shares
-            .par_iter()
+            .par_iter_mut()
             .zip(points)
             .map(|(s, got)| s.resolve(n, got.into_iter().flatten().collect()))
             .collect();
@@ -153,16 +153,16 @@ impl LocalShares {
         let replies: Vec<Vec<Vec<u32>>> =
             self.shares.par_iter().zip(&asks).map(|(s, per)| per.iter().map(|q| s.answer(q)).collect()).collect();
         let replies = deliver(replies, n);
-        let meshes: Vec<ShareMesh> = self.shares.par_iter_mut().zip(replies).map(|(s, r)| s.elements(r)).collect();
+        let made: Vec<ShareVertices> = self.shares.par_iter_mut().zip(replies).map(|(s, r)| s.elements(r)).collect();
         let mut out_elements = vec![UNMADE; elements];
         let mut out_vertices = vec![DVec3::ZERO; vertices as usize];
-        for m in meshes {
-            for (id, info) in m.elements {
+        for (share, vertices) in self.shares.iter().zip(made) {
+            for (id, info) in share.made() {
                 if let Some(slot) = out_elements.get_mut(id as usize) {
-                    *slot = info;
+                    *slot = *info;
                 }
             }
-            for (id, at) in m.vertices {
+            for (id, at) in vertices {
                 if let Some(slot) = out_vertices.get_mut(id as usize) {
                     *slot = at;
                 }
