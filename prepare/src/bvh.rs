@@ -9,13 +9,11 @@
 //! follows it) with the leaves in the same order, a leaf never straddling two triangle
 //! blocks.
 
-use super::mesh::Mesh;
 use glam::DVec3;
 use magg_core::blocks::bvh::*;
 use magg_core::blocks::{Block, BLOCK_SIZE};
 use magg_core::geometry::Aabb;
 use magg_core::header::BvhHeader;
-use rayon::prelude::*;
 
 /// SAH bins per axis.
 const BINS: usize = 16;
@@ -168,7 +166,8 @@ fn build(prims: &mut [Prim], depth: u32) -> (Tree, u64) {
 
 /// Writes nodes and leaves depth first.
 struct Packer<'a> {
-    mesh: &'a Mesh,
+    /// The tree's patches, ascending by id: (id, corners).
+    corners: &'a [(u32, [DVec3; 3])],
     /// Outward padding of every box (absolute, from the scene's scale).
     pad: f64,
     nodes: Vec<BvhNode>,
@@ -192,7 +191,11 @@ impl Packer<'_> {
                 let block = self.triangle_blocks.len() - 1;
                 let first = ((block as u32) << BVH_TRIANGLE_SHIFT) | self.used as u32;
                 for &id in ids {
-                    let rec = BvhTriangle { v: self.mesh.patches[id as usize], patch: id };
+                    let v = match self.corners.binary_search_by_key(&id, |c| c.0) {
+                        Ok(k) => self.corners[k].1,
+                        Err(_) => [DVec3::ZERO; 3],
+                    };
+                    let rec = BvhTriangle { v, patch: id };
                     rec.encode(&mut self.triangle_blocks[block], self.used * BVH_TRIANGLE_RECORD);
                     self.used += 1;
                 }
@@ -232,61 +235,144 @@ impl Packer<'_> {
     }
 }
 
-/// Builds the hierarchy of `mesh`'s patches and packs it. Patches of zero area are left
-/// out (as the grid lists them in no subspace: they can carry no light).
-///
-/// Each share's patches ([`Mesh::share_of`]) get a tree of their own, built side by side,
-/// and a tree over the shares' trees (in share order, halved) joins them: with one share
-/// the tree is the SAH build of the whole scene. Rays find the same nearest hit through
-/// any tree, so the split changes no bit of the image.
-pub(super) fn build_and_pack(mesh: &Mesh) -> Bvh {
-    let shares = mesh.share_of.iter().map(|&s| s as usize + 1).max().unwrap_or(1);
-    let mut prims: Vec<Vec<Prim>> = vec![Vec::new(); shares];
-    for (i, v) in mesh.patches.iter().enumerate() {
-        if (v[1] - v[0]).cross(v[2] - v[0]) == DVec3::ZERO {
-            continue;
-        }
-        let bounds = Aabb::of_triangle(v);
-        let share = mesh.share_of.get(i).copied().unwrap_or(0) as usize;
-        prims[share].push(Prim { bounds, centroid: (bounds.min + bounds.max) * 0.5, id: i as u32 });
-    }
-    let all = prims.iter().map(|p| bounds_of(p).0).fold(Aabb::EMPTY, Aabb::union);
-    let any = prims.iter().any(|p| !p.is_empty());
-    let scale = if any { all.min.abs().max(all.max.abs()).max_element().max(1e-30) } else { 1.0 };
-    let trees: Vec<(Aabb, Tree, u64)> = prims
-        .par_iter_mut()
-        .filter(|p| !p.is_empty())
-        .map(|p| {
-            let bounds = bounds_of(p).0;
-            let (tree, binnings) = build(p, 0);
-            (bounds, tree, binnings)
+/// One share's tree, packed on its own: node records numbered from 0, triangle blocks
+/// from 0 ([`relocate`] moves them to where they go in the scene's BVH blocks).
+pub struct SubTree {
+    /// Node records (node 0 is the root when the tree has inner nodes).
+    pub nodes: Vec<BvhNode>,
+    /// Leaf triangle blocks.
+    pub triangle_blocks: Vec<Box<Block>>,
+    /// Leaf triangle records.
+    pub triangles: u32,
+    /// The whole tree as a child of a node: node 0, or the one leaf, or none.
+    pub root: BvhChild,
+    /// Primitive binnings made (the build's work, for the cost model).
+    pub binnings: u64,
+}
+
+/// Whether a triangle has zero area (no BVH, no subspace lists it: it can carry no light,
+/// and rounding in the watertight test could report a hit through a corner).
+pub fn degenerate(v: &[DVec3; 3]) -> bool {
+    (v[1] - v[0]).cross(v[2] - v[0]) == DVec3::ZERO
+}
+
+/// The padding of every box for a scene whose patches of non-zero area have bounds
+/// `bounds` (`Aabb::EMPTY`: none): 2^-20 of the largest coordinate.
+pub fn pad_for(bounds: Aabb) -> f64 {
+    let scale = if bounds.min.x <= bounds.max.x {
+        bounds.min.abs().max(bounds.max.abs()).max_element().max(1e-30)
+    } else {
+        1.0
+    };
+    scale * 2f64.powi(-20)
+}
+
+/// Builds and packs the tree of `patches` ((id, corners), ascending ids; those of zero
+/// area are left out), every box padded by `pad`.
+pub fn build_subtree(patches: &[(u32, [DVec3; 3])], pad: f64) -> SubTree {
+    let mut prims: Vec<Prim> = patches
+        .iter()
+        .filter(|(_, v)| !degenerate(v))
+        .map(|&(id, v)| {
+            let bounds = Aabb::of_triangle(&v);
+            Prim { bounds, centroid: (bounds.min + bounds.max) * 0.5, id }
         })
         .collect();
-    let binnings = trees.iter().map(|t| t.2).sum();
-    let tree = join(trees.into_iter().map(|(b, t, _)| (b, t)).collect()).map_or(Tree::Leaf(Vec::new()), |(_, t)| t);
-    let mut p = Packer {
-        mesh,
-        pad: scale * 2f64.powi(-20),
-        nodes: Vec::new(),
-        triangle_blocks: Vec::new(),
-        used: 0,
-        triangles: 0,
+    let all = bounds_of(&prims).0;
+    let (tree, binnings) = build(&mut prims, 0);
+    let mut p = Packer { corners: patches, pad, nodes: Vec::new(), triangle_blocks: Vec::new(), used: 0, triangles: 0 };
+    let root = match &tree {
+        Tree::Leaf(ids) if ids.is_empty() => BvhChild::NONE,
+        _ => p.child(&all, &tree),
     };
-    // The root record holds the whole tree's top children; a tree that is one leaf has
-    // it as the first child, and no patch at all leaves both empty.
-    match &tree {
-        Tree::Inner(children) => {
-            p.inner(children);
+    SubTree { nodes: p.nodes, triangle_blocks: p.triangle_blocks, triangles: p.triangles, root, binnings }
+}
+
+/// `child` of a subtree whose nodes start at node `node_base` and whose triangle blocks
+/// start at triangle block `triangle_base`.
+pub fn relocate(child: BvhChild, node_base: u32, triangle_base: u32) -> BvhChild {
+    match child {
+        c if c.index == BVH_NO_CHILD => c,
+        c if c.count == 0 => BvhChild { index: c.index + node_base, ..c },
+        c => BvhChild { index: c.index + (triangle_base << BVH_TRIANGLE_SHIFT), ..c },
+    }
+}
+
+/// The nodes above the shares' roots `roots` (in share order): none for one root that is
+/// an inner node (it is the scene's root, node 0); otherwise a root node over them, with
+/// nodes of eight below it while there are more than eight. Node 0 is the root.
+pub fn top(roots: &[BvhChild]) -> Vec<BvhNode> {
+    let roots: Vec<BvhChild> = roots.iter().copied().filter(|c| c.index != BVH_NO_CHILD).collect();
+    if roots.len() == 1 && roots[0].count == 0 {
+        return Vec::new();
+    }
+    // Levels of groups of eight, from the roots up; then numbered from the top.
+    let mut levels: Vec<Vec<Vec<BvhChild>>> = Vec::new();
+    let mut current: Vec<BvhChild> = roots;
+    while current.len() > BVH_WIDTH {
+        let groups: Vec<Vec<BvhChild>> = current.chunks(BVH_WIDTH).map(<[_]>::to_vec).collect();
+        current = groups.iter().map(|g| union(g)).collect();
+        levels.push(groups);
+    }
+    levels.push(vec![current]);
+    // Number the nodes: the root first, then each level down, in order.
+    let mut nodes: Vec<BvhNode> = Vec::new();
+    let mut first_of_level = 0u32;
+    for (depth, level) in levels.iter().rev().enumerate() {
+        let next_first = first_of_level + level.len() as u32;
+        for (g, group) in level.iter().enumerate() {
+            let mut node = BvhNode { children: [BvhChild::NONE; BVH_WIDTH] };
+            for (k, c) in group.iter().enumerate() {
+                node.children[k] = match depth + 1 < levels.len() {
+                    // An inner group: the node of the level below.
+                    true => BvhChild { index: next_first + (g * BVH_WIDTH + k) as u32, count: 0, ..*c },
+                    false => *c,
+                };
+            }
+            nodes.push(node);
         }
-        Tree::Leaf(ids) if ids.is_empty() => p.nodes.push(BvhNode { children: [BvhChild::NONE; BVH_WIDTH] }),
-        Tree::Leaf(_) => {
-            p.nodes.push(BvhNode { children: [BvhChild::NONE; BVH_WIDTH] });
-            let only = p.child(&all, &tree);
-            p.nodes[0].children[0] = only;
+        first_of_level = next_first;
+    }
+    nodes
+}
+
+/// A child whose box holds all of `children`, its index to be set.
+fn union(children: &[BvhChild]) -> BvhChild {
+    let mut u = BvhChild { index: 0, count: 0, ..BvhChild::NONE };
+    for c in children {
+        for a in 0..3 {
+            u.lo[a] = u.lo[a].min(c.lo[a]);
+            u.hi[a] = u.hi[a].max(c.hi[a]);
         }
     }
-    let mut blocks: Vec<Box<Block>> = p
-        .nodes
+    u
+}
+
+/// The scene's BVH from its shares' subtrees (in share order): the top nodes, then each
+/// subtree's nodes and triangle blocks after those of the subtrees before it. With one
+/// share whose tree has inner nodes, the subtree is the whole hierarchy as it was built.
+pub fn assemble(subtrees: Vec<SubTree>) -> Bvh {
+    let roots: Vec<BvhChild> = relocated_roots(&subtrees);
+    let mut nodes = top(&roots);
+    if nodes.is_empty() && roots.iter().all(|r| r.index == BVH_NO_CHILD || r.count > 0) {
+        // No patch at all, or a single leaf: a root record holding it.
+        let mut root = BvhNode { children: [BvhChild::NONE; BVH_WIDTH] };
+        if let Some(r) = roots.iter().find(|r| r.index != BVH_NO_CHILD) {
+            root.children[0] = *r;
+        }
+        nodes.push(root);
+    }
+    let (mut triangle_blocks, mut triangles, mut binnings) = (Vec::new(), 0, 0);
+    for t in subtrees {
+        let (node_base, triangle_base) = (nodes.len() as u32, triangle_blocks.len() as u32);
+        nodes.extend(
+            t.nodes.iter().map(|n| BvhNode { children: n.children.map(|c| relocate(c, node_base, triangle_base)) }),
+        );
+        triangle_blocks.extend(t.triangle_blocks);
+        triangles += t.triangles;
+        binnings += t.binnings;
+    }
+    let mut blocks: Vec<Box<Block>> = nodes
         .chunks(BVH_NODES_PER_BLOCK)
         .map(|chunk| {
             let mut b = Box::new([0u8; BLOCK_SIZE]);
@@ -297,33 +383,57 @@ pub(super) fn build_and_pack(mesh: &Mesh) -> Bvh {
         })
         .collect();
     let header = BvhHeader {
-        nodes: p.nodes.len() as u32,
+        nodes: nodes.len() as u32,
         node_blocks: blocks.len() as u32,
-        triangles: p.triangles,
-        triangle_blocks: p.triangle_blocks.len() as u32,
+        triangles,
+        triangle_blocks: triangle_blocks.len() as u32,
     };
-    blocks.append(&mut p.triangle_blocks);
+    blocks.append(&mut triangle_blocks);
     Bvh { blocks, header, binnings }
 }
 
-/// One tree over `trees` (in order): the first and second halves joined under a node,
-/// recursively; `None` for no tree.
-fn join(mut trees: Vec<(Aabb, Tree)>) -> Option<(Aabb, Tree)> {
-    match trees.len() {
-        0 => None,
-        1 => trees.pop(),
-        n => {
-            let right = trees.split_off(n / 2);
-            let (l, r) = (join(trees)?, join(right)?);
-            Some((l.0.union(r.0), Tree::Inner(Box::new([l, r]))))
-        }
+/// Each subtree's root where [`assemble`] puts it: nodes after the top's and the subtrees'
+/// before, triangle blocks after the subtrees' before.
+fn relocated_roots(subtrees: &[SubTree]) -> Vec<BvhChild> {
+    // The top's size depends only on how many roots there are and what they are.
+    let local: Vec<BvhChild> = subtrees.iter().map(|t| t.root).collect();
+    let top_nodes = top(&local).len() as u32;
+    let (mut node_base, mut triangle_base) = (top_nodes, 0u32);
+    let mut roots = Vec::with_capacity(subtrees.len());
+    for t in subtrees {
+        roots.push(relocate(t.root, node_base, triangle_base));
+        node_base += t.nodes.len() as u32;
+        triangle_base += t.triangle_blocks.len() as u32;
     }
+    roots
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
     use magg_core::rng::Rng;
+    use rayon::prelude::*;
+
+    /// The patches of a test scene and the share each belongs to (empty: one share).
+    struct Mesh {
+        patches: Vec<[DVec3; 3]>,
+        share_of: Vec<u32>,
+    }
+
+    /// The scene's hierarchy, each share's patches built side by side.
+    fn build_and_pack(mesh: &Mesh) -> Bvh {
+        let shares = mesh.share_of.iter().map(|&s| s as usize + 1).max().unwrap_or(1);
+        let mut of_share: Vec<Vec<(u32, [DVec3; 3])>> = vec![Vec::new(); shares];
+        let mut bounds = Aabb::EMPTY;
+        for (i, v) in mesh.patches.iter().enumerate() {
+            of_share[mesh.share_of.get(i).copied().unwrap_or(0) as usize].push((i as u32, *v));
+            if !degenerate(v) {
+                bounds = bounds.union(Aabb::of_triangle(v));
+            }
+        }
+        let pad = pad_for(bounds);
+        assemble(of_share.par_iter().map(|p| build_subtree(p, pad)).collect())
+    }
 
     fn mesh(n: usize, seed: u64) -> Mesh {
         let mut rng = Rng::from_words(&[seed, 0xb0]);
@@ -339,19 +449,7 @@ mod tests {
                 patches.push([c, c + DVec3::X, c + 2.0 * DVec3::X]);
             }
         }
-        Mesh {
-            patches,
-            materials: Vec::new(),
-            normals: Vec::new(),
-            textured: Vec::new(),
-            subdivisions: Vec::new(),
-            first_element: Vec::new(),
-            back_element: Vec::new(),
-            elements: Vec::new(),
-            vertex_positions: Vec::new(),
-            midpoints: Vec::new(),
-            share_of: Vec::new(),
-        }
+        Mesh { patches, share_of: Vec::new() }
     }
 
     fn contains(outer: &BvhChild, inner_lo: [f32; 3], inner_hi: [f32; 3]) -> bool {

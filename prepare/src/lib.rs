@@ -32,6 +32,7 @@ pub use shares::Shares;
 
 pub mod refine;
 
+use magg_core::geometry::Aabb;
 use magg_core::header::{Emitter, SceneHeader};
 use magg_core::plan::EffectsPlan;
 use magg_core::prepared::{ElementInfo, PrepareError, PrepareOps, PreparedScene};
@@ -117,7 +118,11 @@ fn prepare_here(
     let t_junctions = split::t_junctions(&mesh);
     let (grid, bvh) = match scene.settings.accel {
         Accel::Grid => (grid::build(scene, &mesh), None),
-        Accel::Bvh => (grid::bounds_only(&mesh), Some(bvh::build_and_pack(&mesh))),
+        Accel::Bvh => {
+            let solid = mesh.patches.iter().filter(|v| !bvh::degenerate(v));
+            let pad = bvh::pad_for(solid.fold(Aabb::EMPTY, |b, v| b.union(Aabb::of_triangle(v))));
+            (grid::bounds_only(&mesh), Some(bvh::assemble(mesh.shares.subtrees(pad))))
+        }
     };
     let binnings = bvh.as_ref().map_or(0, |b| b.binnings);
     let packed = pack::pack(&mesh, &grid, bvh, &scene.textures);

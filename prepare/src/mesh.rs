@@ -2,7 +2,7 @@
 
 use crate::shares::{self, SharePatch};
 use glam::DVec3;
-use magg_core::blocks::NO_BACK;
+use magg_core::blocks::{NO_BACK, NO_SHADING};
 use magg_core::prepared::{ElementInfo, Face, PrepareError};
 use magg_core::scene::Scene;
 use magg_core::subdivision::{element_count, lattice_count};
@@ -12,12 +12,6 @@ use rayon::prelude::*;
 pub(super) struct Mesh {
     /// Corners of each patch.
     pub patches: Vec<[DVec3; 3]>,
-    /// Material of each patch.
-    pub materials: Vec<u32>,
-    /// Shading normals of each patch, `None` for a flat one.
-    pub normals: Vec<Option<[DVec3; 3]>>,
-    /// Texture coordinates and texture of each textured patch.
-    pub textured: Vec<Option<([glam::DVec2; 3], u32)>>,
     /// Subdivision count n of each patch.
     pub subdivisions: Vec<u32>,
     /// First element id of each patch.
@@ -30,8 +24,10 @@ pub(super) struct Mesh {
     pub vertex_positions: Vec<DVec3>,
     /// Vertices refinement made: (edge end, edge end, midpoint), in the order made.
     pub midpoints: Vec<[u32; 3]>,
-    /// The share that prepared each patch ([`shares`]).
-    pub share_of: Vec<u32>,
+    /// Patches with a shading record.
+    pub shaded: u32,
+    /// The shares, which write the records of their patches and elements.
+    pub shares: shares::LocalShares,
 }
 
 /// The subdivision count n of a patch: its own, or `ceil(length / element_size)` with
@@ -102,24 +98,39 @@ pub(super) fn build(scene: &Scene, shares: shares::Shares) -> Result<Mesh, Prepa
         acc += if b { element_count(n) as u32 } else { 0 };
     }
 
+    // Shading records in patch order, numbered as they come: a patch with normals or a
+    // texture has one.
+    let mut shaded = 0u32;
     let share_patches: Vec<SharePatch> = (0..patches.len())
-        .map(|p| SharePatch {
-            id: p as u32,
-            v: patches[p],
-            n: subdivisions[p],
-            first_element: first_element[p],
-            back_element: back_element[p],
-            front_face: if one_sided[p] || has_back[p] { Face::Front } else { Face::Both },
+        .map(|p| {
+            let def = &scene.patches[p];
+            let uv = def.uv.zip(def.texture);
+            let shading = match def.normals.is_some() || uv.is_some() {
+                true => {
+                    shaded += 1;
+                    shaded - 1
+                }
+                false => NO_SHADING,
+            };
+            SharePatch {
+                id: p as u32,
+                v: patches[p],
+                n: subdivisions[p],
+                first_element: first_element[p],
+                back_element: back_element[p],
+                front_face: if one_sided[p] || has_back[p] { Face::Front } else { Face::Both },
+                material: def.material,
+                shading,
+                normals: def.normals,
+                uv,
+            }
         })
         .collect();
     let split = shares::split_space(&share_patches, shares.count(patches.len()));
-    let (elements, vertex_positions) = shares::weld_in_shares(share_patches, acc as usize, &split);
-    let share_of = patches.iter().map(|v| split.share_of((v[0] + v[1] + v[2]) / 3.0)).collect();
+    let mut local = shares::LocalShares::new(share_patches, split);
+    let (elements, vertex_positions) = local.weld(acc as usize);
 
     Ok(Mesh {
-        materials: scene.patches.iter().map(|p| p.material).collect(),
-        normals: scene.patches.iter().map(|p| p.normals).collect(),
-        textured: scene.patches.iter().map(|p| p.uv.zip(p.texture)).collect(),
         patches,
         subdivisions,
         first_element,
@@ -127,7 +138,8 @@ pub(super) fn build(scene: &Scene, shares: shares::Shares) -> Result<Mesh, Prepa
         elements,
         vertex_positions,
         midpoints: Vec::new(),
-        share_of,
+        shaded,
+        shares: local,
     })
 }
 

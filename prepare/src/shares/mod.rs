@@ -13,7 +13,7 @@ mod share;
 mod space;
 mod weld;
 
-pub use share::{IdQuery, PatchCounts, Share, ShareMesh, SharePatch};
+pub use share::{IdQuery, PartialBlocks, PatchCounts, Share, SharePatch, ShareVertices};
 pub use space::SpaceSplit;
 pub use weld::{WeldAnswer, WeldPoint};
 
@@ -100,44 +100,92 @@ fn deliver<T>(out: Vec<Vec<Vec<T>>>, shares: usize) -> Vec<Vec<Vec<T>>> {
     inbox
 }
 
-/// Every element and welded vertex of `patches` (ascending ids, with their element
-/// ids), prepared in the shares of `split`, all in this process: elements by id, vertex
-/// positions by id.
-pub fn weld_in_shares(patches: Vec<SharePatch>, elements: usize, split: &SpaceSplit) -> (Vec<ElementInfo>, Vec<DVec3>) {
-    let n = split.shares();
-    let mut by_share: Vec<Vec<SharePatch>> = vec![Vec::new(); n];
-    for p in patches {
-        by_share[split.share_of(centroid(&p)) as usize].push(p);
+/// What an element id no share made would hold (none is left so: every id is made by the
+/// share of its patch).
+const UNMADE: ElementInfo = ElementInfo {
+    patch: u32::MAX,
+    vertices: [u32::MAX; 3],
+    area: 0.0,
+    centroid: DVec3::ZERO,
+    face: magg_core::prepared::Face::Both,
+    parent: magg_core::prepared::NO_PARENT,
+    child: 0,
+};
+
+/// The shares of a scene, all in this process: the steps of [`Share`] run side by side
+/// (rayon), the messages between them moved by [`deliver`].
+pub struct LocalShares {
+    split: SpaceSplit,
+    shares: Vec<Share>,
+}
+
+impl LocalShares {
+    /// `patches` (every patch of the scene, ascending ids) given to the shares of
+    /// `split` by their centroids.
+    pub fn new(patches: Vec<SharePatch>, split: SpaceSplit) -> LocalShares {
+        let n = split.shares();
+        let mut by_share: Vec<Vec<SharePatch>> = vec![Vec::new(); n];
+        for p in patches {
+            by_share[split.share_of(centroid(&p)) as usize].push(p);
+        }
+        let shares = by_share.into_iter().enumerate().map(|(i, p)| Share::new(i as u32, p)).collect();
+        LocalShares { split, shares }
     }
-    let mut shares: Vec<Share> = by_share.into_iter().enumerate().map(|(i, p)| Share::new(i as u32, p)).collect();
-    let points = deliver(shares.par_iter_mut().map(|s| s.lattice(split)).collect(), n);
-    let answers: Vec<Vec<Vec<WeldAnswer>>> =
-        shares.par_iter().zip(points).map(|(s, got)| s.resolve(n, got.into_iter().flatten().collect())).collect();
-    let answers = deliver(answers, n);
-    let counts: Vec<Vec<PatchCounts>> =
-        shares.par_iter_mut().zip(answers).map(|(s, a)| s.settle(a.into_iter().flatten())).collect();
-    let (bases, _, vertices) = vertex_bases(&counts);
-    let asks = deliver(shares.par_iter_mut().zip(bases).map(|(s, b)| s.number(n, &b)).collect(), n);
-    // asks[owner][asker]: answered by the owner, delivered back to the asker.
-    let replies: Vec<Vec<Vec<u32>>> =
-        shares.par_iter().zip(&asks).map(|(s, per)| per.iter().map(|q| s.answer(q)).collect()).collect();
-    let replies = deliver(replies, n);
-    let meshes: Vec<ShareMesh> = shares.par_iter_mut().zip(replies).map(|(s, r)| s.elements(r)).collect();
-    let mut out_elements = vec![None; elements];
-    let mut out_vertices = vec![DVec3::ZERO; vertices as usize];
-    for m in meshes {
-        for (id, info) in m.elements {
-            if let Some(slot) = out_elements.get_mut(id as usize) {
-                *slot = Some(info);
+
+    /// Welds every share's lattice points and makes its elements (steps 1 to 6): every
+    /// element (`elements` of them) and welded vertex, by id.
+    pub fn weld(&mut self, elements: usize) -> (Vec<ElementInfo>, Vec<DVec3>) {
+        let n = self.shares.len();
+        let split = &self.split;
+        let points = deliver(self.shares.par_iter_mut().map(|s| s.lattice(split)).collect(), n);
+        let answers: Vec<Vec<Vec<WeldAnswer>>> = self
+            .shares
+            .par_iter_mut()
+            .zip(points)
+            .map(|(s, got)| s.resolve(n, got.into_iter().flatten().collect()))
+            .collect();
+        let answers = deliver(answers, n);
+        let counts: Vec<Vec<PatchCounts>> =
+            self.shares.par_iter_mut().zip(answers).map(|(s, a)| s.settle(a.into_iter().flatten())).collect();
+        let (bases, _, vertices) = vertex_bases(&counts);
+        let asks = deliver(self.shares.par_iter_mut().zip(bases).map(|(s, b)| s.number(n, &b)).collect(), n);
+        // asks[owner][asker]: answered by the owner, delivered back to the asker.
+        let replies: Vec<Vec<Vec<u32>>> =
+            self.shares.par_iter().zip(&asks).map(|(s, per)| per.iter().map(|q| s.answer(q)).collect()).collect();
+        let replies = deliver(replies, n);
+        let made: Vec<ShareVertices> = self.shares.par_iter_mut().zip(replies).map(|(s, r)| s.elements(r)).collect();
+        let mut out_elements = vec![UNMADE; elements];
+        let mut out_vertices = vec![DVec3::ZERO; vertices as usize];
+        for (share, vertices) in self.shares.iter().zip(made) {
+            for (id, info) in share.made() {
+                if let Some(slot) = out_elements.get_mut(id as usize) {
+                    *slot = *info;
+                }
+            }
+            for (id, at) in vertices {
+                if let Some(slot) = out_vertices.get_mut(id as usize) {
+                    *slot = at;
+                }
             }
         }
-        for (id, at) in m.vertices {
-            if let Some(slot) = out_vertices.get_mut(id as usize) {
-                *slot = at;
-            }
-        }
+        (out_elements, out_vertices)
     }
-    (out_elements.into_iter().map(|e| e.expect("every element id is made by one share")).collect(), out_vertices)
+
+    /// Each share's BVH, built side by side, every box padded by `pad`.
+    pub fn subtrees(&self, pad: f64) -> Vec<crate::bvh::SubTree> {
+        self.shares
+            .par_iter()
+            .map(|s| {
+                let corners: Vec<(u32, [DVec3; 3])> = s.patches().iter().map(|p| (p.id, p.v)).collect();
+                crate::bvh::build_subtree(&corners, pad)
+            })
+            .collect()
+    }
+
+    /// Every share's records written where `layout` puts them.
+    pub fn pack(&self, layout: &magg_core::blocks::BlockLayout) -> Vec<share::PartialBlocks> {
+        self.shares.par_iter().map(|s| s.pack(layout)).collect()
+    }
 }
 
 #[cfg(test)]

@@ -13,8 +13,10 @@
 
 use super::space::SpaceSplit;
 use super::weld::{self, PointId, WeldAnswer, WeldPoint};
-use glam::DVec3;
-use magg_core::blocks::NO_BACK;
+use glam::{DVec2, DVec3};
+use magg_core::blocks::{
+    Block, BlockLayout, ElementRecord, PatchRecord, ShadingRecord, BLOCK_SIZE, NO_BACK, NO_SHADING, NO_TEXTURE,
+};
 use magg_core::geometry::{triangle_area, triangle_normal};
 use magg_core::idhash::IdMap;
 use magg_core::prepared::{ElementInfo, Face, NO_PARENT};
@@ -36,6 +38,14 @@ pub struct SharePatch {
     pub back_element: u32,
     /// Whether its front elements hold one face's light or both.
     pub front_face: Face,
+    /// Its material.
+    pub material: u32,
+    /// Its shading record, or [`NO_SHADING`] (numbered in patch order by the host).
+    pub shading: u32,
+    /// Shading normals at its corners, `None` for a flat patch.
+    pub normals: Option<[DVec3; 3]>,
+    /// Texture coordinates at its corners and its texture.
+    pub uv: Option<([DVec2; 3], u32)>,
 }
 
 impl SharePatch {
@@ -49,6 +59,8 @@ impl SharePatch {
 struct Root {
     point: PointId,
     share: u32,
+    /// The root's index among its share's lattice points.
+    index: u32,
 }
 
 /// A question for another share: the id of a vertex it roots (front), or of the back
@@ -65,14 +77,8 @@ pub struct IdQuery {
 /// holds).
 pub type PatchCounts = (u32, u32, u32);
 
-/// A share's part of the elements and vertices, by global id.
-#[derive(Debug, Default)]
-pub struct ShareMesh {
-    /// Its elements (front, then back), each with its id.
-    pub elements: Vec<(u32, ElementInfo)>,
-    /// Its vertices (those it roots, and the back copies it holds), each with its id.
-    pub vertices: Vec<(u32, DVec3)>,
-}
+/// A share's vertices, by global id: those it roots, and the back copies it holds.
+pub type ShareVertices = Vec<(u32, DVec3)>;
 
 /// One share.
 pub struct Share {
@@ -91,13 +97,22 @@ pub struct Share {
     /// Back copies this share holds, by their vertex's root: (id, an own point of the
     /// vertex).
     back_ids: IdMap<u64, (u32, usize)>,
-    /// The vertex id each own point's root has, once known (`u32::MAX` until then).
+    /// The questions asked of other shares: (own point, question), in the order asked.
     pending: Vec<(usize, IdQuery)>,
+    /// Its elements, once made: (id, local index in its patch's record, element).
+    made: Vec<(u32, u32, ElementInfo)>,
 }
 
-/// A point's 64-bit key: patch, then lattice index.
+/// Blocks a share wrote records into: (block id, the block with only those records; zero
+/// elsewhere), ascending ids. Shares write disjoint records, so the scene's block is the
+/// bitwise OR of every share's.
+pub type PartialBlocks = Vec<(u32, Box<Block>)>;
+
+/// A point's 64-bit key for hash tables: the lattice index above the patch, so that the
+/// low bits, which pick a table's bucket, vary with the patch ([`IdMap`]'s hash carries
+/// a key's low bits only upwards).
 fn pack(p: PointId) -> u64 {
-    ((p.0 as u64) << 32) | p.1 as u64
+    ((p.1 as u64) << 32) | p.0 as u64
 }
 
 impl Share {
@@ -114,6 +129,7 @@ impl Share {
             front_id: Vec::new(),
             back_ids: IdMap::default(),
             pending: Vec::new(),
+            made: Vec::new(),
         }
     }
 
@@ -156,14 +172,14 @@ impl Share {
             let count = lattice_count(p.n) as u32;
             let owner = p.has_back().then_some((p.id, self.index));
             for l in 0..count {
-                self.roots.push(Root { point: (p.id, l), share: self.index });
+                let index = self.roots.len() as u32;
+                self.roots.push(Root { point: (p.id, l), share: self.index, index });
                 self.back_owner.push(owner);
             }
         }
         self.offset = offset;
         let index = self.index;
-        let mut homes: Vec<Vec<WeldPoint>> = vec![Vec::new(); split.shares()];
-        let boundary: Vec<(u32, WeldPoint)> = self
+        let boundary: Vec<WeldPoint> = self
             .patches
             .par_iter()
             .enumerate()
@@ -174,47 +190,70 @@ impl Share {
                     (0..=n - j).filter(move |&i| on_boundary(n, i, j)).map(move |i| {
                         let local = lattice_index(n, i, j);
                         let at = points[off + local as usize];
-                        let point =
-                            WeldPoint { key: weld::key(at), patch: p.id, local, normal, has_back, share: index };
-                        (split.share_of(at), point)
+                        let point = (off + local as usize) as u32;
+                        WeldPoint {
+                            key: weld::key(at),
+                            patch: p.id,
+                            local,
+                            normal,
+                            has_back,
+                            share: index,
+                            index: point,
+                        }
                     })
                 })
             })
             .collect();
-        for (home, point) in boundary {
-            homes[home as usize].push(point);
+        if split.shares() == 1 {
+            return vec![boundary];
+        }
+        let mut homes: Vec<Vec<WeldPoint>> = vec![Vec::new(); split.shares()];
+        for point in boundary {
+            // The point's position is its key's bits (the sign of zero aside).
+            let at =
+                DVec3::new(f64::from_bits(point.key[0]), f64::from_bits(point.key[1]), f64::from_bits(point.key[2]));
+            homes[split.share_of(at) as usize].push(point);
         }
         homes
     }
 
-    /// Step 2, at the home: the answers to every point it received, one list per share
-    /// that sent points.
-    pub fn resolve(&self, shares: usize, received: Vec<WeldPoint>) -> Vec<Vec<WeldAnswer>> {
+    /// Step 2, at the home: resolves every point it received; takes the answers about
+    /// its own points at once and returns the others, one list per share that sent them.
+    pub fn resolve(&mut self, shares: usize, received: Vec<WeldPoint>) -> Vec<Vec<WeldAnswer>> {
         let mut to: Vec<Vec<WeldAnswer>> = vec![Vec::new(); shares];
-        let senders: IdMap<u64, u32> = received.iter().map(|p| (pack((p.patch, p.local)), p.share)).collect();
         for a in weld::resolve(received) {
-            let share = senders.get(&pack(a.point)).copied().unwrap_or(0);
-            to[share as usize].push(a);
+            if a.share == self.index {
+                self.take(&a);
+            } else if let Some(list) = to.get_mut(a.share as usize) {
+                list.push(a);
+            }
         }
         to
+    }
+
+    /// Records what a home says of an own point.
+    fn take(&mut self, a: &WeldAnswer) {
+        let i = a.index as usize;
+        if i < self.roots.len() {
+            self.roots[i] = Root { point: a.root, share: a.root_share, index: a.root_index };
+            self.back_owner[i] = a.back_owner;
+        }
     }
 
     /// Step 3: takes the homes' answers about its points; returns each own patch's
     /// count of vertices it roots and of back copies it holds (in patch order).
     pub fn settle(&mut self, answers: impl IntoIterator<Item = WeldAnswer>) -> Vec<PatchCounts> {
         for a in answers {
-            if let Some(i) = self.point_index(a.point) {
-                self.roots[i] = Root { point: a.root, share: a.root_share };
-                self.back_owner[i] = a.back_owner;
-            }
+            self.take(&a);
         }
+        let mut backs: Vec<u64> = Vec::new();
         self.patches
             .iter()
             .enumerate()
             .map(|(k, p)| {
                 let range = self.offset[k]..self.offset[k] + lattice_count(p.n) as usize;
                 let mut roots = 0u32;
-                let mut backs: Vec<u64> = Vec::new();
+                backs.clear();
                 for i in range {
                     if self.roots[i].point == (p.id, (i - self.offset[k]) as u32) {
                         roots += 1;
@@ -276,8 +315,8 @@ impl Share {
                 continue;
             }
             if r.share == self.index {
-                match self.point_index(r.point) {
-                    Some(j) => self.front_id[i] = self.front_id[j],
+                match self.front_id.get(r.index as usize) {
+                    Some(&id) => self.front_id[i] = id,
                     None => continue,
                 }
             } else {
@@ -322,7 +361,7 @@ impl Share {
 
     /// Step 6: the answers to its questions (per share, in the order asked), then its
     /// elements and vertices.
-    pub fn elements(&mut self, answers: Vec<Vec<u32>>) -> ShareMesh {
+    pub fn elements(&mut self, answers: Vec<Vec<u32>>) -> ShareVertices {
         let mut foreign_back: IdMap<u64, u32> = IdMap::default();
         let mut cursor = vec![0usize; answers.len()];
         for &(i, q) in &self.pending {
@@ -342,7 +381,8 @@ impl Share {
                 None => foreign_back.get(&root).copied().unwrap_or(u32::MAX),
             }
         };
-        let mut mesh = ShareMesh::default();
+        let mut vertices = ShareVertices::new();
+        let mut made = Vec::new();
         for (k, p) in self.patches.iter().enumerate() {
             let (n, off) = (p.n, self.offset[k]);
             let corner_points =
@@ -359,21 +399,62 @@ impl Share {
                     parent: NO_PARENT,
                     child: 0,
                 };
-                mesh.elements.push((p.first_element + local, info));
+                made.push((p.first_element + local, local, info));
                 if p.has_back() {
                     let back = ElementInfo { vertices: c.map(back_id), face: Face::Back, ..info };
-                    mesh.elements.push((p.back_element + local, back));
+                    made.push((p.back_element + local, n * n + local, back));
                 }
             }
             for l in 0..lattice_count(n) as usize {
                 let i = off + l;
                 if self.roots[i].point == (p.id, l as u32) {
-                    mesh.vertices.push((self.front_id[i], self.points[i]));
+                    vertices.push((self.front_id[i], self.points[i]));
                 }
             }
         }
         // A back copy sits where its vertex does: at its own member point.
-        mesh.vertices.extend(self.back_ids.values().map(|&(id, i)| (id, self.points[i])));
-        mesh
+        vertices.extend(self.back_ids.values().map(|&(id, i)| (id, self.points[i])));
+        self.made = made;
+        vertices
+    }
+
+    /// Its elements, once made: (id, element).
+    pub fn made(&self) -> impl Iterator<Item = (u32, &ElementInfo)> {
+        self.made.iter().map(|(id, _, e)| (*id, e))
+    }
+
+    /// Step 7: the records of its patches, their shading and its elements, written where
+    /// `layout` puts them.
+    pub fn pack(&self, layout: &BlockLayout) -> PartialBlocks {
+        let mut blocks: IdMap<u32, Box<Block>> = IdMap::default();
+        fn at(blocks: &mut IdMap<u32, Box<Block>>, block: u32) -> &mut Block {
+            blocks.entry(block).or_insert_with(|| Box::new([0u8; BLOCK_SIZE]))
+        }
+        for p in &self.patches {
+            let (b, off) = layout.patch_slot(p.id);
+            PatchRecord {
+                v: p.v,
+                material: p.material,
+                subdivisions: p.n,
+                first_element: p.first_element,
+                shading: p.shading,
+                back_element: p.back_element,
+            }
+            .encode(at(&mut blocks, b), off);
+            if p.shading != NO_SHADING {
+                let (uv, texture) = p.uv.unwrap_or(([DVec2::ZERO; 3], NO_TEXTURE));
+                let (b, off) = layout.shading_slot(p.shading);
+                ShadingRecord { normals: p.normals.unwrap_or([DVec3::ZERO; 3]), uv, texture }
+                    .encode(at(&mut blocks, b), off);
+            }
+        }
+        for &(id, local, e) in &self.made {
+            let (b, off) = layout.element_slot(id);
+            ElementRecord { patch: e.patch, local, vertices: e.vertices, child: e.child, area: e.area }
+                .encode(at(&mut blocks, b), off);
+        }
+        let mut out: PartialBlocks = blocks.into_iter().collect();
+        out.sort_unstable_by_key(|b| b.0);
+        out
     }
 }

@@ -57,6 +57,10 @@ fn patches(seed: u64, tiles: usize) -> Vec<SharePatch> {
             first_element: acc,
             back_element: NO_BACK,
             front_face: Face::Both,
+            material: 0,
+            shading: magg_core::blocks::NO_SHADING,
+            normals: None,
+            uv: None,
         });
         acc += element_count(n) as u32;
     }
@@ -81,7 +85,7 @@ fn shares_weld_every_element_and_vertex_as_one_place_does() {
         let (want_e, want_v) = oracle::elements(&scene);
         for shares in [1usize, 2, 3, 5, 7] {
             let split = split_space(&scene, shares);
-            let (got_e, got_v) = weld_in_shares(scene.clone(), elements(&scene), &split);
+            let (got_e, got_v) = LocalShares::new(scene.clone(), split).weld(elements(&scene));
             assert_eq!(got_v.len(), want_v.len(), "seed {seed}, {shares} shares: vertex count");
             assert_eq!(format!("{got_v:?}"), format!("{want_v:?}"), "seed {seed}, {shares} shares: vertices");
             assert_eq!(format!("{got_e:?}"), format!("{want_e:?}"), "seed {seed}, {shares} shares: elements");
@@ -96,7 +100,7 @@ fn a_split_that_cuts_through_welded_floors_still_welds_them() {
     let homes: std::collections::HashSet<u32> = scene.iter().map(|p| split.share_of(p.v[0])).collect();
     assert!(homes.len() >= 5, "the split should spread the scene: {homes:?}");
     let (want_e, want_v) = oracle::elements(&scene);
-    let (got_e, got_v) = weld_in_shares(scene.clone(), elements(&scene), &split);
+    let (got_e, got_v) = LocalShares::new(scene.clone(), split).weld(elements(&scene));
     assert_eq!(format!("{got_v:?}"), format!("{want_v:?}"));
     assert_eq!(format!("{got_e:?}"), format!("{want_e:?}"));
 }

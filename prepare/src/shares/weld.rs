@@ -11,6 +11,7 @@
 //! first back element to use the vertex is one of that patch's.
 
 use glam::DVec3;
+use rayon::slice::ParallelSliceMut;
 
 /// A boundary lattice point on its way to its home.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -27,6 +28,8 @@ pub struct WeldPoint {
     pub has_back: bool,
     /// The share that holds its patch.
     pub share: u32,
+    /// Its index among that share's lattice points.
+    pub index: u32,
 }
 
 /// A lattice point, named by its patch and its index in the patch's lattice.
@@ -38,10 +41,16 @@ pub type PointId = (u32, u32);
 pub struct WeldAnswer {
     /// The point.
     pub point: PointId,
+    /// The share that sent it.
+    pub share: u32,
+    /// Its index among that share's lattice points.
+    pub index: u32,
     /// The root of its vertex, and the share holding the root's patch.
     pub root: PointId,
     /// Share of the root's patch.
     pub root_share: u32,
+    /// The root's index among its share's lattice points.
+    pub root_index: u32,
     /// The vertex's first patch with a back face and that patch's share, if any.
     pub back_owner: Option<(u32, u32)>,
 }
@@ -60,7 +69,7 @@ fn coplanar(a: DVec3, b: DVec3) -> bool {
 /// Resolves every point a home received (its own included): one answer per point, in
 /// the order of the points after sorting by (key, patch, lattice index).
 pub fn resolve(mut points: Vec<WeldPoint>) -> Vec<WeldAnswer> {
-    points.sort_unstable_by(|a, b| (a.key, a.patch, a.local).cmp(&(b.key, b.patch, b.local)));
+    points.par_sort_unstable_by(|a, b| (a.key, a.patch, a.local).cmp(&(b.key, b.patch, b.local)));
     let mut answers = Vec::with_capacity(points.len());
     let mut start = 0;
     let mut parent: Vec<usize> = Vec::new();
@@ -90,8 +99,11 @@ pub fn resolve(mut points: Vec<WeldPoint>) -> Vec<WeldAnswer> {
                 .next();
             answers.push(WeldAnswer {
                 point: (p.patch, p.local),
+                share: p.share,
+                index: p.index,
                 root: (r.patch, r.local),
                 root_share: r.share,
+                root_index: r.index,
                 back_owner,
             });
         }
@@ -113,7 +125,7 @@ mod tests {
     use super::*;
 
     fn point(p: DVec3, patch: u32, local: u32, normal: DVec3, share: u32) -> WeldPoint {
-        WeldPoint { key: key(p), patch, local, normal, has_back: false, share }
+        WeldPoint { key: key(p), patch, local, normal, has_back: false, share, index: patch * 100 + local }
     }
 
     #[test]
