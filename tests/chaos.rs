@@ -379,3 +379,47 @@ fn a_node_and_a_fork_lost_in_a_pilot_level_lose_nothing() {
     assert_eq!(stats["refine"]["pilots_on"], "nodes", "{}", stats["refine"]);
     assert_eq!(stats["refine"]["levels"], read_json(&base.stats)["refine"]["levels"]);
 }
+
+#[test]
+fn a_fork_killed_while_the_forks_prepare_the_scene_has_its_share_prepared_again() {
+    // The forks prepare the scene, each its shares of space; fork 1 dies after its
+    // first step (slow steps give the test the time to strike). The host sees the loss,
+    // prepares again in a new session on the forks as they are then (fork 1 restarted,
+    // empty), and the render is the embedded renderer's, bit for bit.
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let s = scene("cornell.toml");
+    let base = render(&s, d, "embedded", &[SMALL, &["--embedded"]].concat());
+    let mut procs = Procs(Vec::new());
+    let mut forks = Vec::new();
+    for i in 0..3 {
+        let (c, a) = spawn_fork(0, &["-v", "--slow-step-ms", "300"], &d.join(format!("prep-fork{i}.log")));
+        procs.0.push(c);
+        forks.push(a);
+    }
+    let out = Rendered::at(d, "prep");
+    let host_log = d.join("prep-host.log");
+    let mut host = out
+        .command(&s)
+        .args(["--forks-at", &forks.join(","), "--share-patches", "1", "--fork-timeout", "10", "--nodes", "2"])
+        .args(SMALL)
+        .stdout(Stdio::null())
+        .stderr(File::create(&host_log).unwrap())
+        .spawn()
+        .unwrap();
+    wait_in_file(&d.join("prep-fork1.log"), "preparing a share");
+    restart(&mut procs, 1, d, "prep-fork1-again", &forks[1]);
+    let status = wait_exit(&mut host, 90);
+    let text = std::fs::read_to_string(&host_log).unwrap_or_default();
+    if status.is_none() {
+        let _ = host.kill();
+        let _ = host.wait();
+    }
+    assert!(status.is_some_and(|s| s.success()), "the host failed: {text}");
+    assert!(text.contains("lost while preparing the scene"), "the loss went unseen: {text}");
+    assert_eq!(std::fs::read(&base.pfm).unwrap(), std::fs::read(&out.pfm).unwrap(), "image differs");
+    assert_eq!(std::fs::read(&base.energy).unwrap(), std::fs::read(&out.energy).unwrap(), "energies differ");
+    // Every fork took part in the second session: each logged a share of it.
+    let again = std::fs::read_to_string(d.join("prep-fork1-again.log")).unwrap();
+    assert!(again.contains("preparing a share"), "the restarted fork prepared nothing: {again}");
+}

@@ -33,6 +33,7 @@ mod figures;
 pub mod forks;
 mod machine;
 mod passes;
+pub mod preparing;
 pub mod schedule;
 pub mod service;
 

@@ -38,10 +38,22 @@ pub enum PrepareError {
         /// Scene label.
         file: String,
     },
+    /// The shares that prepare the scene (on the forks) could not finish it.
+    #[error("{file}: preparing the scene in shares ({place}) failed after {attempts} attempts: {why}")]
+    Shares {
+        /// Scene label.
+        file: String,
+        /// Where the shares ran.
+        place: String,
+        /// Attempts made.
+        attempts: u32,
+        /// The last attempt's error.
+        why: String,
+    },
 }
 
 /// An element as the host sees it (for interpolation and the energy file).
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct ElementInfo {
     /// Owning patch.
     pub patch: u32,
@@ -71,7 +83,7 @@ impl ElementInfo {
 }
 
 /// The faces of a patch whose light an element holds.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub enum Face {
     /// Both: a two-sided patch that keeps no back face (no diffuse part, or emitting).
     Both,

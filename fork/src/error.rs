@@ -11,7 +11,10 @@
 //! | [`ForkError::PeerUnavailable`] | `UNAVAILABLE` |
 //! | [`ForkError::Peer`] | the peer's own code |
 //! | [`ForkError::PeerReply`], [`ForkError::Internal`] | `INTERNAL` |
+//! | [`ForkError::Prepare`] of a share it does not hold ([`StepError::Unknown`]) | `ABORTED` |
+//! | [`ForkError::Prepare`] of a request it cannot take ([`StepError::Bad`]) | `INVALID_ARGUMENT` |
 
+use magg_prepare::shares::steps::StepError;
 use magg_proto::convert::ConvertError;
 use tonic::{Code, Status};
 
@@ -43,6 +46,9 @@ pub enum ForkError {
     /// The scene header does not convert.
     #[error("bad scene header: {0}")]
     BadHeader(ConvertError),
+    /// A preparation step the fork cannot take.
+    #[error("preparation: {0}")]
+    Prepare(#[from] StepError),
     /// A block does not convert (wrong size).
     #[error("bad block: {0}")]
     BadBlock(ConvertError),
@@ -184,6 +190,8 @@ impl ForkError {
             ForkError::PeerUnavailable { .. } => Code::Unavailable,
             ForkError::Peer { status, .. } => status.code(),
             ForkError::PeerReply { .. } | ForkError::Internal(_) => Code::Internal,
+            ForkError::Prepare(StepError::Unknown { .. }) => Code::Aborted,
+            ForkError::Prepare(StepError::Bad { .. }) => Code::InvalidArgument,
         }
     }
 }

@@ -45,6 +45,7 @@ mod locks;
 pub mod state;
 pub use state::pairs;
 pub mod peers;
+pub mod prepare;
 pub mod server;
 pub mod service;
 pub mod shard;

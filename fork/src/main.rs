@@ -28,6 +28,10 @@ struct Args {
     /// RESOURCE_EXHAUSTED and the estimate, before anything is allocated.
     #[arg(long, default_value_t = magg_fork::shard::DEFAULT_MAX_MEMORY_MB, value_name = "MB")]
     max_memory_mb: u64,
+    /// Waits this long before each step of preparing the scene (tests strike a fork in
+    /// the middle of preparation with it).
+    #[arg(long, default_value_t = 0, value_name = "MS", hide = true)]
+    slow_step_ms: u64,
     /// Profile, token, TLS and log level: the flags every cluster process shares.
     #[command(flatten)]
     cluster: magg_plumbing::flags::ClusterArgs,
@@ -61,8 +65,10 @@ fn run(args: Args) -> anyhow::Result<()> {
             let profile = magg_throttle::Profile::named(p)?;
             hw = hw.pinned_to(&profile.name);
         }
-        let service =
-            magg_fork::ForkService::with_token(token.clone()).on_hardware(hw).with_memory_limit(args.max_memory_mb);
+        let service = magg_fork::ForkService::with_token(token.clone())
+            .on_hardware(hw)
+            .with_memory_limit(args.max_memory_mb)
+            .with_slow_steps(std::time::Duration::from_millis(args.slow_step_ms));
         magg_fork::serve_service(service, token, listener, magg_plumbing::lifecycle::shutdown_signal())
             .await
             .context("serving")?;

@@ -33,19 +33,25 @@ use tonic::{Request, Response, Status};
 #[derive(Debug)]
 pub struct ForkService {
     shard: RwLock<Option<Arc<Shard>>>,
+    /// The shares of the scene this fork prepares (see [`crate::prepare`]).
+    preparing: Arc<std::sync::Mutex<magg_prepare::shares::steps::Serving>>,
     hw: Arc<ForkHardware>,
     access: PeerAccess,
     /// Memory a shard's pair bookkeeping may take, in MiB.
     max_memory_mb: u64,
+    /// A wait before each preparation step (tests only).
+    slow_step: std::time::Duration,
 }
 
 impl Default for ForkService {
     fn default() -> ForkService {
         ForkService {
             shard: RwLock::default(),
+            preparing: Arc::default(),
             hw: Arc::default(),
             access: PeerAccess::default(),
             max_memory_mb: crate::shard::DEFAULT_MAX_MEMORY_MB,
+            slow_step: std::time::Duration::ZERO,
         }
     }
 }
@@ -78,6 +84,13 @@ impl ForkService {
     /// `mb` MiB (`RESOURCE_EXHAUSTED`, with the estimate).
     pub fn with_memory_limit(mut self, mb: u64) -> ForkService {
         self.max_memory_mb = mb;
+        self
+    }
+
+    /// The same fork waiting `wait` before each preparation step (tests strike a fork in
+    /// the middle of preparation with it).
+    pub fn with_slow_steps(mut self, wait: std::time::Duration) -> ForkService {
+        self.slow_step = wait;
         self
     }
 
@@ -369,6 +382,14 @@ impl Fork for ForkService {
         let reply = v1::DepositReply { applied, duplicates, taken };
         shard.count_link(prost::Message::encoded_len(&r) + prost::Message::encoded_len(&reply));
         Ok(Response::new(reply))
+    }
+
+    async fn prepare(&self, req: Request<v1::PrepareRequest>) -> Result<Response<v1::PrepareReply>, Status> {
+        if !self.slow_step.is_zero() {
+            tokio::time::sleep(self.slow_step).await;
+        }
+        let payload = crate::prepare::step(self.preparing.clone(), req.into_inner()).await?;
+        Ok(Response::new(v1::PrepareReply { payload }))
     }
 
     async fn replay(&self, req: Request<v1::ReplayRequest>) -> Result<Response<v1::ReplayReply>, Status> {

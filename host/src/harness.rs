@@ -221,10 +221,11 @@ impl StartedCluster {
         }
     }
 
-    /// Prepares `scene` with `plan` ([`magg_prepare::refine::prepare_with`]), refinement's
-    /// pilot light passes run on this cluster's nodes: each level a scene of its own
-    /// on the forks and the host service, the nodes registering for each. `progress`
-    /// hears of each level.
+    /// Prepares `scene` with `plan` ([`magg_prepare::refine::prepare_with`]) on this
+    /// cluster's forks, each its shares of space ([`magg_cluster::preparing`]);
+    /// refinement's pilot light passes run on this cluster's nodes: each level a scene
+    /// of its own on the forks and the host service, the nodes registering for each.
+    /// `progress` hears of each level.
     pub fn prepare(
         &mut self,
         scene: &magg_core::scene::Scene,
@@ -233,8 +234,15 @@ impl StartedCluster {
         progress: &dyn Progress,
         shares: magg_prepare::Shares,
     ) -> anyhow::Result<PreparedScene> {
+        let mut forks = magg_cluster::preparing::ForkShares::new(
+            self.rt().handle().clone(),
+            self.links.clone(),
+            self.fork_addrs.clone(),
+            opts.faults.token.clone(),
+            opts.faults.fork_timeout,
+        );
         let mut pilots = ClusterPilots { cluster: self, opts, nodes: 0 };
-        Ok(magg_prepare::refine::prepare_with(scene, plan, &mut pilots, progress, shares)?)
+        Ok(magg_prepare::refine::prepare_with(scene, plan, &mut pilots, progress, shares, &mut forks)?)
     }
 }
 

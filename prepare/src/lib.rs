@@ -28,7 +28,7 @@ mod pack;
 pub mod shares;
 mod split;
 
-pub use shares::Shares;
+pub use shares::{LocalShareSet, ShareError, ShareSet, Shares};
 
 pub mod refine;
 
@@ -73,40 +73,102 @@ pub fn prepare_with_plan(scene: &Scene, plan: EffectsPlan) -> Result<PreparedSce
 /// [`prepare_with_plan`], then splitting the elements of each round of `splits` in turn
 /// (ascending element ids; see [`refine`], which chooses them).
 pub fn prepare_split(scene: &Scene, plan: EffectsPlan, splits: &[Vec<u32>]) -> Result<PreparedScene, PrepareError> {
-    prepare_split_on(scene, plan, splits, Shares::default())
+    prepare_split_on(scene, plan, splits, Shares::default(), &mut LocalShareSet::default())
 }
 
-/// [`prepare_split`] in `shares` ([`shares`]). The result is the same, bit for bit, for
-/// every split.
+/// [`prepare_split`] in `shares` ([`shares`]), run by `set`. The result is the same, bit
+/// for bit, for every split and every set.
 pub fn prepare_split_on(
     scene: &Scene,
     plan: EffectsPlan,
     splits: &[Vec<u32>],
     shares: Shares,
+    set: &mut dyn ShareSet,
 ) -> Result<PreparedScene, PrepareError> {
     // The pool's start and end count as preprocessing.
     let start = Instant::now();
     match rayon::ThreadPoolBuilder::new().thread_name(|i| format!("magg-preprocess-{i}")).build() {
-        Ok(pool) => pool.install(|| prepare_here(scene, plan, splits, shares, start)),
+        Ok(pool) => pool.install(|| prepare_here(scene, plan, splits, shares, set, start)),
         // No threads to be had: the global pool (or this thread) does the work.
-        Err(_) => prepare_here(scene, plan, splits, shares, start),
+        Err(_) => prepare_here(scene, plan, splits, shares, set, start),
     }
 }
 
-/// [`prepare_split`] on the current rayon pool, timed from `start`.
+/// Times a preparation is tried when a share's fork is lost during it: each attempt
+/// starts over in a new session (the forks' calls retry until the fork timeout first).
+pub const ATTEMPTS: u32 = 3;
+
+/// [`prepare_split_on`] on the current rayon pool, timed from `start`: again, in a new
+/// session, while the shares' forks are lost.
 fn prepare_here(
     scene: &Scene,
     plan: EffectsPlan,
     splits: &[Vec<u32>],
     shares: Shares,
+    set: &mut dyn ShareSet,
     start: Instant,
 ) -> Result<PreparedScene, PrepareError> {
     if scene.patches.is_empty() {
         return Err(PrepareError::Empty { file: scene.name.clone() });
     }
-    let mut mesh = mesh::build(scene, shares)?;
+    let mut attempt = 0;
+    loop {
+        attempt += 1;
+        let session = set.begin_session();
+        match prepare_session(scene, plan.clone(), splits, shares, set, session, start)? {
+            Ok(prepared) => return Ok(prepared),
+            Err(ShareError::Lost { at, why }) if attempt < ATTEMPTS => {
+                tracing::warn!("the fork at {at} was lost while preparing the scene ({why}); preparing again");
+            }
+            Err(e) => {
+                return Err(PrepareError::Shares {
+                    file: scene.name.clone(),
+                    place: set.place(),
+                    attempts: attempt,
+                    why: e.to_string(),
+                })
+            }
+        }
+    }
+}
+
+/// One attempt of [`prepare_here`], in session `session`. The outer error is the
+/// scene's; the inner, the shares'.
+fn prepare_session(
+    scene: &Scene,
+    plan: EffectsPlan,
+    splits: &[Vec<u32>],
+    shares: Shares,
+    set: &mut dyn ShareSet,
+    session: u64,
+    start: Instant,
+) -> Result<Result<PreparedScene, ShareError>, PrepareError> {
+    let mut mesh = match mesh::build(scene, shares, set, session)? {
+        Ok(mesh) => mesh,
+        Err(e) => return Ok(Err(e)),
+    };
+    let result = finish(scene, plan, splits, &mut mesh, set, session, start);
+    // The shares are dropped on their forks whatever happened (a lost fork has dropped
+    // them already).
+    let ended = shares::end(set, session, mesh.shares);
+    Ok(match result? {
+        Ok(prepared) => ended.map(|_| prepared),
+        Err(e) => Err(e),
+    })
+}
+
+/// Refinement's splits, the acceleration structure and the blocks of a welded `mesh`.
+fn finish(
+    scene: &Scene,
+    plan: EffectsPlan,
+    splits: &[Vec<u32>],
+    mesh: &mut mesh::Mesh,
+    set: &mut dyn ShareSet,
+    session: u64,
+    start: Instant,
+) -> Result<Result<PreparedScene, ShareError>, PrepareError> {
     for round in splits {
-        split::split(&mut mesh, round);
+        split::split(mesh, round);
     }
     let refined = mesh.elements.len() as u64;
     if refined > scene.settings.max_elements || refined >= u32::MAX as u64 / 2 {
@@ -115,17 +177,25 @@ fn prepare_here(
             what: format!("{refined} elements after refinement"),
         });
     }
-    let t_junctions = split::t_junctions(&mesh);
+    let t_junctions = split::t_junctions(mesh);
     let (grid, bvh) = match scene.settings.accel {
-        Accel::Grid => (grid::build(scene, &mesh), None),
+        Accel::Grid => (grid::build(scene, mesh), None),
         Accel::Bvh => {
             let solid = mesh.patches.iter().filter(|v| !bvh::degenerate(v));
             let pad = bvh::pad_for(solid.fold(Aabb::EMPTY, |b, v| b.union(Aabb::of_triangle(v))));
-            (grid::bounds_only(&mesh), Some(bvh::assemble(mesh.shares.subtrees(pad))))
+            match shares::subtrees(set, session, mesh.shares, pad) {
+                Ok(trees) => (grid::bounds_only(mesh), Some(bvh::assemble(trees))),
+                Err(e) => return Ok(Err(e)),
+            }
         }
     };
     let binnings = bvh.as_ref().map_or(0, |b| b.binnings);
-    let packed = pack::pack(&mesh, &grid, bvh, &scene.textures);
+    let shares = mesh.shares;
+    let packed =
+        match pack::pack(mesh, &grid, bvh, &scene.textures, |layout| shares::pack(set, session, shares, layout)) {
+            Ok(packed) => packed,
+            Err(e) => return Ok(Err(e)),
+        };
     let emitters = emitters_of(scene, &mesh.elements);
     let header = SceneHeader {
         camera: scene.camera.clone(),
@@ -147,17 +217,17 @@ fn prepare_here(
         vertices: mesh.vertex_positions.len() as u64,
         blocks: packed.blocks.len() as u64,
     };
-    Ok(PreparedScene {
+    Ok(Ok(PreparedScene {
         name: scene.name.clone(),
         header: Arc::new(header),
         blocks: packed.blocks,
-        elements: mesh.elements,
+        elements: std::mem::take(&mut mesh.elements),
         ops,
-        vertex_positions: mesh.vertex_positions,
+        vertex_positions: std::mem::take(&mut mesh.vertex_positions),
         t_junctions,
         splits: splits.to_vec(),
         preprocess_s: start.elapsed().as_secs_f64(),
         kept_pairs: Default::default(),
         refinement: Default::default(),
-    })
+    }))
 }

@@ -1,6 +1,6 @@
 //! Subdivision of patches into elements, with welded vertices.
 
-use crate::shares::{self, SharePatch};
+use crate::shares::{self, ShareError, SharePatch, ShareSet};
 use glam::DVec3;
 use magg_core::blocks::{NO_BACK, NO_SHADING};
 use magg_core::prepared::{ElementInfo, Face, PrepareError};
@@ -26,8 +26,9 @@ pub(super) struct Mesh {
     pub midpoints: Vec<[u32; 3]>,
     /// Patches with a shading record.
     pub shaded: u32,
-    /// The shares, which write the records of their patches and elements.
-    pub shares: shares::LocalShares,
+    /// How many shares prepared it (they hold their patches until the session ends,
+    /// and write those patches' and elements' records).
+    pub shares: usize,
 }
 
 /// The subdivision count n of a patch: its own, or `ceil(length / element_size)` with
@@ -46,8 +47,14 @@ pub fn subdivisions_of(v: &[DVec3; 3], fixed: Option<u32>, size_hint: Option<f64
     }
 }
 
-/// Subdivides and welds the patches of `scene`, prepared in `shares`.
-pub(super) fn build(scene: &Scene, shares: shares::Shares) -> Result<Mesh, PrepareError> {
+/// Subdivides and welds the patches of `scene`, prepared in `shares` by `set` in session
+/// `session`. The outer error is the scene's; the inner, the shares'.
+pub(super) fn build(
+    scene: &Scene,
+    shares: shares::Shares,
+    set: &mut dyn ShareSet,
+    session: u64,
+) -> Result<Result<Mesh, ShareError>, PrepareError> {
     let s = &scene.settings;
     let patches: Vec<[DVec3; 3]> = scene.patches.iter().map(|p| p.vertices).collect();
     let counts: Vec<f64> = scene
@@ -127,10 +134,13 @@ pub(super) fn build(scene: &Scene, shares: shares::Shares) -> Result<Mesh, Prepa
         })
         .collect();
     let split = shares::split_space(&share_patches, shares.count(patches.len()));
-    let mut local = shares::LocalShares::new(share_patches, split);
-    let (elements, vertex_positions) = local.weld(acc as usize);
+    let by_share = shares::by_share(share_patches, &split);
+    let (elements, vertex_positions) = match shares::weld(set, session, &split, by_share, acc as usize) {
+        Ok(welded) => welded,
+        Err(e) => return Ok(Err(e)),
+    };
 
-    Ok(Mesh {
+    Ok(Ok(Mesh {
         patches,
         subdivisions,
         first_element,
@@ -139,8 +149,8 @@ pub(super) fn build(scene: &Scene, shares: shares::Shares) -> Result<Mesh, Prepa
         vertex_positions,
         midpoints: Vec::new(),
         shaded,
-        shares: local,
-    })
+        shares: split.shares(),
+    }))
 }
 
 #[cfg(test)]

@@ -8,6 +8,7 @@
 use super::bvh::Bvh;
 use super::grid::Grid;
 use super::mesh::Mesh;
+use super::shares::{PartialBlocks, ShareError};
 use magg_core::blocks::*;
 use magg_core::header::{BvhHeader, Counts, GridHeader, TextureHeader};
 use magg_core::prepared::{Face, NO_PARENT};
@@ -29,7 +30,15 @@ fn zero_block() -> Box<Block> {
 /// Packs the subspace lists of `grid` (none for a scene traced through the BVH), the
 /// BVH's blocks if any, then the patches, the shading records of the smooth or textured
 /// ones, the texels of `textures`, the elements and vertex energies (zero).
-pub(super) fn pack(mesh: &Mesh, grid: &Grid, bvh: Option<Bvh>, textures: &[Texture]) -> Packed {
+/// The shares write their own records (patches, shading, elements) where the layout puts
+/// them: `records` asks them for their blocks.
+pub(super) fn pack(
+    mesh: &Mesh,
+    grid: &Grid,
+    bvh: Option<Bvh>,
+    textures: &[Texture],
+    records: impl FnOnce(&BlockLayout) -> Result<Vec<PartialBlocks>, ShareError>,
+) -> Result<Packed, ShareError> {
     let mut blocks: Vec<Box<Block>> = Vec::new();
     // Subspace blocks: one chain per non-empty cell.
     let mut cell_first_block = vec![NO_BLOCK; grid.cells.len()];
@@ -84,7 +93,7 @@ pub(super) fn pack(mesh: &Mesh, grid: &Grid, bvh: Option<Bvh>, textures: &[Textu
     blocks.append(&mut texels);
     blocks.resize_with(total as usize, zero_block);
     // The shares' records: disjoint, so OR-ed together.
-    for partial in mesh.shares.pack(&layout) {
+    for partial in records(&layout)? {
         for (id, part) in partial {
             if let Some(b) = blocks.get_mut(id as usize) {
                 for (x, y) in b.iter_mut().zip(part.iter()) {
@@ -122,12 +131,12 @@ pub(super) fn pack(mesh: &Mesh, grid: &Grid, bvh: Option<Bvh>, textures: &[Textu
         element_blocks: vertex_base - element_base,
         vertex_blocks,
     };
-    Packed {
+    Ok(Packed {
         blocks,
         layout,
         grid: GridHeader { min: grid.min, max: grid.max, dims: grid.dims, cell_first_block },
         bvh: bvh_header,
         counts,
         textures: texture_headers,
-    }
+    })
 }

@@ -40,7 +40,7 @@
 //! assert_eq!(prepared.elements.len(), 1664 + 4 * prepared.splits.iter().map(Vec::len).sum::<usize>());
 //! ```
 
-use crate::{prepare_split_on, Shares};
+use crate::{prepare_split_on, LocalShareSet, ShareSet, Shares};
 use magg_core::color::Rgb;
 use magg_core::energy::{element_irradiance, interpolate};
 use magg_core::fixed::Fixed;
@@ -112,17 +112,19 @@ impl Pilots for EmbeddedPilots {
 /// this process's cores (see the module doc); preprocessing time includes the pilot
 /// passes.
 pub fn prepare(scene: &Scene, plan: EffectsPlan) -> Result<PreparedScene, RenderError> {
-    prepare_with(scene, plan, &mut EmbeddedPilots, &NoProgress, Shares::default())
+    prepare_with(scene, plan, &mut EmbeddedPilots, &NoProgress, Shares::default(), &mut LocalShareSet::default())
 }
 
 /// [`prepare`] with the pilot light passes run by `pilots`, each level prepared in
-/// `shares`; `progress` hears of each (level `k` of `n` as the stage "refinement k/n").
+/// `shares` by `set`; `progress` hears of each (level `k` of `n` as the stage
+/// "refinement k/n").
 pub fn prepare_with(
     scene: &Scene,
     plan: EffectsPlan,
     pilots: &mut dyn Pilots,
     progress: &dyn Progress,
     shares: Shares,
+    set: &mut dyn ShareSet,
 ) -> Result<PreparedScene, RenderError> {
     let start = Instant::now();
     let mut splits: Vec<Vec<u32>> = Vec::new();
@@ -141,7 +143,7 @@ pub fn prepare_with(
         let keep = scene.settings.diffuse_bounces == 0 && plan == pilot_plan;
         let levels = scene.settings.refine.min(MAX_REFINE_LEVELS);
         for level in 1..=levels {
-            let pilot = Arc::new(prepare_split_on(&pilot_scene, pilot_plan.clone(), &splits, shares)?);
+            let pilot = Arc::new(prepare_split_on(&pilot_scene, pilot_plan.clone(), &splits, shares, set)?);
             if !pilot.header.plan.lrt {
                 break;
             }
@@ -166,7 +168,7 @@ pub fn prepare_with(
             kept = Some(pairs);
         }
     }
-    let mut prepared = prepare_split_on(scene, plan, &splits, shares)?;
+    let mut prepared = prepare_split_on(scene, plan, &splits, shares, set)?;
     prepared.preprocess_s = start.elapsed().as_secs_f64();
     prepared.kept_pairs = KeptSlot::new(kept.filter(|k| !k.is_empty()));
     prepared.refinement = figures;

@@ -44,7 +44,7 @@ pub const BVH_MAX_LEAF: u32 = 8;
 pub const BVH_NO_CHILD: u32 = u32::MAX;
 
 /// One child of a node record.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct BvhChild {
     /// Lower corner of the child's bounds (rounded down).
     pub lo: [f32; 3],
@@ -64,7 +64,7 @@ impl BvhChild {
 }
 
 /// A node record: up to [`BVH_WIDTH`] children, absent ones [`BvhChild::NONE`].
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct BvhNode {
     /// The children, in build order.
     pub children: [BvhChild; BVH_WIDTH],

@@ -63,7 +63,7 @@ pub enum BlockKind {
 /// blocks][vertex-energy blocks]`. A scene traced through the grid has no BVH block, one
 /// traced through the BVH no subspace block, one shaded flat no shading block, one without
 /// textures no texture block.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub struct BlockLayout {
     /// First BVH block (the subspace blocks are those before it).
     pub bvh_base: u32,

@@ -17,6 +17,7 @@ use magg_core::machine::{Energies, Sequence};
 use magg_core::plan::EffectsPlan;
 use magg_core::render;
 use magg_prepare::refine::EmbeddedPilots;
+use magg_prepare::LocalShareSet;
 use std::sync::Arc;
 
 /// Renders per `cfg` and writes every requested output. The frame in progress is kept in
@@ -85,32 +86,18 @@ pub fn run(cfg: RenderConfig, files: &scene_file::SceneFiles, partial: &partial:
                 token: faults.token.clone(),
                 transport: cfg.transport,
             };
-            if scene.settings.refine > 0 {
-                // Refinement's pilot light passes run on the cluster's nodes.
-                let mut cluster = StartedCluster::start(&shape)?;
-                (cluster.prepare(&scene, plan, nodes, &bars, cfg.shares)?, Some(cluster))
-            } else {
-                // The cluster's runtime, forks and listener start while the scene is
-                // preprocessed.
-                std::thread::scope(|s| {
-                    let cluster = std::thread::Builder::new()
-                        .name("magg-host-start".into())
-                        .spawn_scoped(s, || StartedCluster::start(&shape))
-                        .context("starting the cluster's start-up thread")?;
-                    let prepared = magg_prepare::refine::prepare_with(
-                        &scene,
-                        plan,
-                        &mut EmbeddedPilots,
-                        &magg_core::progress::NoProgress,
-                        cfg.shares,
-                    );
-                    let cluster = cluster.join().map_err(|_| anyhow::anyhow!("starting the cluster panicked"))?;
-                    // A scene error first: it is what the user has to fix.
-                    anyhow::Ok((prepared?, Some(cluster?)))
-                })?
-            }
+            // The forks prepare the scene, each its shares of space; refinement's
+            // pilot light passes run on the cluster's nodes.
+            let mut cluster = StartedCluster::start(&shape)?;
+            (cluster.prepare(&scene, plan, nodes, &bars, cfg.shares)?, Some(cluster))
         }
-        _ => (magg_prepare::refine::prepare_with(&scene, plan, &mut EmbeddedPilots, &bars, cfg.shares)?, None),
+        _ => {
+            let mut local = LocalShareSet::default();
+            (
+                magg_prepare::refine::prepare_with(&scene, plan, &mut EmbeddedPilots, &bars, cfg.shares, &mut local)?,
+                None,
+            )
+        }
     };
     if !prepared.splits.is_empty() {
         let (elements, pairs) = (prepared.elements.len() as u64, prepared.header.pair_count());

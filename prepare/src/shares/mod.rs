@@ -6,13 +6,17 @@
 //! ([`SharePatch`]), so every id is the same whatever prepares it; the shares then weld
 //! their lattice points, asking each point's home ([`space::SpaceSplit::share_of`]) where
 //! points of several shares meet, number their vertices from the host's prefix sums, and
-//! make their elements. [`weld_in_shares`] runs the steps with every share in this
-//! process; a cluster runs the same [`Share`] steps on its forks.
+//! make their elements. A [`ShareSet`] runs the steps ([`steps::serve`]): every share in
+//! this process ([`LocalShareSet`]), or each on the fork that holds it (magg-cluster).
 
+mod set;
 mod share;
 mod space;
+pub mod steps;
 mod weld;
+pub mod wire;
 
+pub use set::{end, pack, subtrees, weld, LocalShareSet, ShareError, ShareSet};
 pub use share::{IdQuery, PartialBlocks, PatchCounts, Share, SharePatch, ShareVertices};
 pub use space::SpaceSplit;
 pub use weld::{WeldAnswer, WeldPoint};
@@ -20,7 +24,6 @@ pub use weld::{WeldAnswer, WeldPoint};
 use glam::DVec3;
 use magg_core::geometry::Aabb;
 use magg_core::prepared::ElementInfo;
-use rayon::prelude::*;
 
 /// By default a share holds at least this many patches: a smaller scene is prepared as
 /// one share (welding across shares and a tree over their BVHs cost more than they save
@@ -90,7 +93,7 @@ pub fn centroid(p: &SharePatch) -> DVec3 {
 }
 
 /// `out[from][to]` turned into `in[to]`, the lists of each sender in sender order.
-fn deliver<T>(out: Vec<Vec<Vec<T>>>, shares: usize) -> Vec<Vec<Vec<T>>> {
+pub(crate) fn deliver<T>(out: Vec<Vec<Vec<T>>>, shares: usize) -> Vec<Vec<Vec<T>>> {
     let mut inbox: Vec<Vec<Vec<T>>> = (0..shares).map(|_| Vec::with_capacity(out.len())).collect();
     for lists in out {
         for (to, list) in lists.into_iter().enumerate() {
@@ -102,7 +105,7 @@ fn deliver<T>(out: Vec<Vec<Vec<T>>>, shares: usize) -> Vec<Vec<Vec<T>>> {
 
 /// What an element id no share made would hold (none is left so: every id is made by the
 /// share of its patch).
-const UNMADE: ElementInfo = ElementInfo {
+pub(crate) const UNMADE: ElementInfo = ElementInfo {
     patch: u32::MAX,
     vertices: [u32::MAX; 3],
     area: 0.0,
@@ -112,80 +115,14 @@ const UNMADE: ElementInfo = ElementInfo {
     child: 0,
 };
 
-/// The shares of a scene, all in this process: the steps of [`Share`] run side by side
-/// (rayon), the messages between them moved by [`deliver`].
-pub struct LocalShares {
-    split: SpaceSplit,
-    shares: Vec<Share>,
-}
-
-impl LocalShares {
-    /// `patches` (every patch of the scene, ascending ids) given to the shares of
-    /// `split` by their centroids.
-    pub fn new(patches: Vec<SharePatch>, split: SpaceSplit) -> LocalShares {
-        let n = split.shares();
-        let mut by_share: Vec<Vec<SharePatch>> = vec![Vec::new(); n];
-        for p in patches {
-            by_share[split.share_of(centroid(&p)) as usize].push(p);
-        }
-        let shares = by_share.into_iter().enumerate().map(|(i, p)| Share::new(i as u32, p)).collect();
-        LocalShares { split, shares }
+/// `patches` (every patch of the scene, ascending ids) dealt to the shares of `split` by
+/// their centroids.
+pub fn by_share(patches: Vec<SharePatch>, split: &SpaceSplit) -> Vec<Vec<SharePatch>> {
+    let mut by_share: Vec<Vec<SharePatch>> = vec![Vec::new(); split.shares()];
+    for p in patches {
+        by_share[split.share_of(centroid(&p)) as usize].push(p);
     }
-
-    /// Welds every share's lattice points and makes its elements (steps 1 to 6): every
-    /// element (`elements` of them) and welded vertex, by id.
-    pub fn weld(&mut self, elements: usize) -> (Vec<ElementInfo>, Vec<DVec3>) {
-        let n = self.shares.len();
-        let split = &self.split;
-        let points = deliver(self.shares.par_iter_mut().map(|s| s.lattice(split)).collect(), n);
-        let answers: Vec<Vec<Vec<WeldAnswer>>> = self
-            .shares
-            .par_iter_mut()
-            .zip(points)
-            .map(|(s, got)| s.resolve(n, got.into_iter().flatten().collect()))
-            .collect();
-        let answers = deliver(answers, n);
-        let counts: Vec<Vec<PatchCounts>> =
-            self.shares.par_iter_mut().zip(answers).map(|(s, a)| s.settle(a.into_iter().flatten())).collect();
-        let (bases, _, vertices) = vertex_bases(&counts);
-        let asks = deliver(self.shares.par_iter_mut().zip(bases).map(|(s, b)| s.number(n, &b)).collect(), n);
-        // asks[owner][asker]: answered by the owner, delivered back to the asker.
-        let replies: Vec<Vec<Vec<u32>>> =
-            self.shares.par_iter().zip(&asks).map(|(s, per)| per.iter().map(|q| s.answer(q)).collect()).collect();
-        let replies = deliver(replies, n);
-        let made: Vec<ShareVertices> = self.shares.par_iter_mut().zip(replies).map(|(s, r)| s.elements(r)).collect();
-        let mut out_elements = vec![UNMADE; elements];
-        let mut out_vertices = vec![DVec3::ZERO; vertices as usize];
-        for (share, vertices) in self.shares.iter().zip(made) {
-            for (id, info) in share.made() {
-                if let Some(slot) = out_elements.get_mut(id as usize) {
-                    *slot = *info;
-                }
-            }
-            for (id, at) in vertices {
-                if let Some(slot) = out_vertices.get_mut(id as usize) {
-                    *slot = at;
-                }
-            }
-        }
-        (out_elements, out_vertices)
-    }
-
-    /// Each share's BVH, built side by side, every box padded by `pad`.
-    pub fn subtrees(&self, pad: f64) -> Vec<crate::bvh::SubTree> {
-        self.shares
-            .par_iter()
-            .map(|s| {
-                let corners: Vec<(u32, [DVec3; 3])> = s.patches().iter().map(|p| (p.id, p.v)).collect();
-                crate::bvh::build_subtree(&corners, pad)
-            })
-            .collect()
-    }
-
-    /// Every share's records written where `layout` puts them.
-    pub fn pack(&self, layout: &magg_core::blocks::BlockLayout) -> Vec<share::PartialBlocks> {
-        self.shares.par_iter().map(|s| s.pack(layout)).collect()
-    }
+    by_share
 }
 
 #[cfg(test)]

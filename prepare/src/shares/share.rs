@@ -24,7 +24,7 @@ use magg_core::subdivision::{element_corners, lattice_count, lattice_index, latt
 use rayon::prelude::*;
 
 /// A patch as a share receives it: corners, subdivision and the ids the host gave it.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct SharePatch {
     /// Its id (input order).
     pub id: u32,
@@ -65,7 +65,7 @@ struct Root {
 
 /// A question for another share: the id of a vertex it roots (front), or of the back
 /// copy it holds, the vertex named by its root.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub struct IdQuery {
     /// The back copy, not the vertex.
     pub back: bool,
@@ -131,6 +131,11 @@ impl Share {
             pending: Vec::new(),
             made: Vec::new(),
         }
+    }
+
+    /// More patches (ascending ids, after the last), before the first step.
+    pub fn extend(&mut self, more: Vec<SharePatch>) {
+        self.patches.extend(more);
     }
 
     /// The share's patches.

@@ -19,7 +19,7 @@ const BITS: u32 = 5;
 const CELLS: u32 = 1 << BITS;
 
 /// Where each share's part of space begins along the Morton curve.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct SpaceSplit {
     /// Lower corner of the grid.
     min: DVec3,

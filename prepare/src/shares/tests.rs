@@ -85,7 +85,7 @@ fn shares_weld_every_element_and_vertex_as_one_place_does() {
         let (want_e, want_v) = oracle::elements(&scene);
         for shares in [1usize, 2, 3, 5, 7] {
             let split = split_space(&scene, shares);
-            let (got_e, got_v) = LocalShares::new(scene.clone(), split).weld(elements(&scene));
+            let (got_e, got_v) = weld_local(&scene, &split);
             assert_eq!(got_v.len(), want_v.len(), "seed {seed}, {shares} shares: vertex count");
             assert_eq!(format!("{got_v:?}"), format!("{want_v:?}"), "seed {seed}, {shares} shares: vertices");
             assert_eq!(format!("{got_e:?}"), format!("{want_e:?}"), "seed {seed}, {shares} shares: elements");
@@ -100,7 +100,76 @@ fn a_split_that_cuts_through_welded_floors_still_welds_them() {
     let homes: std::collections::HashSet<u32> = scene.iter().map(|p| split.share_of(p.v[0])).collect();
     assert!(homes.len() >= 5, "the split should spread the scene: {homes:?}");
     let (want_e, want_v) = oracle::elements(&scene);
-    let (got_e, got_v) = LocalShares::new(scene.clone(), split).weld(elements(&scene));
+    let (got_e, got_v) = weld_local(&scene, &split);
     assert_eq!(format!("{got_v:?}"), format!("{want_v:?}"));
     assert_eq!(format!("{got_e:?}"), format!("{want_e:?}"));
+}
+
+/// Welds `scene` in the shares of `split`, all in this process.
+fn weld_local(scene: &[SharePatch], split: &SpaceSplit) -> (Vec<ElementInfo>, Vec<glam::DVec3>) {
+    let mut set = LocalShareSet::default();
+    let session = set.begin_session();
+    weld(&mut set, session, split, by_share(scene.to_vec(), split), elements(scene)).unwrap()
+}
+
+/// Every share in this process, each request and reply through its bytes, as a fork's.
+#[derive(Default)]
+struct ThroughBytes(LocalShareSet);
+
+impl ShareSet for ThroughBytes {
+    fn begin_session(&mut self) -> u64 {
+        self.0.begin_session()
+    }
+    fn run(&mut self, session: u64, requests: Vec<(u32, steps::Request)>) -> Result<Vec<steps::Reply>, ShareError> {
+        let requests =
+            requests.into_iter().map(|(s, r)| (s, wire::decode_request(&wire::encode_request(&r)).unwrap())).collect();
+        let replies = self.0.run(session, requests)?;
+        Ok(replies.into_iter().map(|r| wire::decode_reply(&wire::encode_reply(&r)).unwrap()).collect())
+    }
+    fn place(&self) -> String {
+        "bytes".into()
+    }
+}
+
+#[test]
+fn shares_served_through_their_bytes_weld_as_in_process() {
+    let scene = patches(3, 8);
+    let split = split_space(&scene, 5);
+    let mut set = ThroughBytes::default();
+    let session = set.begin_session();
+    let got = weld(&mut set, session, &split, by_share(scene.clone(), &split), elements(&scene)).unwrap();
+    let want = weld_local(&scene, &split);
+    assert_eq!(format!("{got:?}"), format!("{want:?}"));
+}
+
+#[test]
+fn a_step_of_another_session_or_out_of_order_is_refused() {
+    use steps::{serve, Request, Serving, StepError};
+    let scene = patches(1, 3);
+    let split = split_space(&scene, 2);
+    let mut serving = Serving::default();
+    let mut mine = by_share(scene, &split);
+    let begin = Request::Begin { split: split.clone(), patches: std::mem::take(&mut mine[0]) };
+    assert!(serve(&mut serving, 7, 0, begin).is_ok());
+    assert!(matches!(serve(&mut serving, 8, 0, Request::Lattice), Err(StepError::Unknown { session: 8, share: 0 })));
+    assert!(matches!(serve(&mut serving, 7, 1, Request::Lattice), Err(StepError::Unknown { .. })));
+    assert!(matches!(serve(&mut serving, 7, 0, Request::Number(vec![])), Err(StepError::Bad { .. })));
+    assert!(serve(&mut serving, 7, 0, Request::Lattice).is_ok());
+    // A point that names a share past the split's.
+    let p = WeldPoint { key: [0; 3], patch: 0, local: 0, normal: glam::DVec3::Z, has_back: false, share: 9, index: 0 };
+    assert!(matches!(serve(&mut serving, 7, 0, Request::Resolve(vec![p])), Err(StepError::Bad { .. })));
+    // A new session's Begin replaces the old one's shares.
+    let again = Request::Begin { split: split.clone(), patches: vec![] };
+    assert!(serve(&mut serving, 9, 1, again).is_ok());
+    assert_eq!(serving.held(), 1);
+    assert!(matches!(serve(&mut serving, 7, 0, Request::Lattice), Err(StepError::Unknown { .. })));
+    // Patches out of order, a share past the split, absurd subdivisions.
+    let bad = |patches: Vec<SharePatch>, share: u32| {
+        let mut s = Serving::default();
+        matches!(serve(&mut s, 1, share, Request::Begin { split: split.clone(), patches }), Err(StepError::Bad { .. }))
+    };
+    let one = patches(2, 2);
+    assert!(bad(vec![one[1], one[0]], 0));
+    assert!(bad(vec![], 5));
+    assert!(bad(vec![SharePatch { n: u32::MAX, ..one[0] }], 0));
 }

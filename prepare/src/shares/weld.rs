@@ -14,7 +14,7 @@ use glam::DVec3;
 use rayon::slice::ParallelSliceMut;
 
 /// A boundary lattice point on its way to its home.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct WeldPoint {
     /// Its position's bits ([`key`]).
     pub key: [u64; 3],
@@ -37,7 +37,7 @@ pub type PointId = (u32, u32);
 
 /// What the home says of a point: the root of its vertex and who holds the vertex's
 /// back copy.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub struct WeldAnswer {
     /// The point.
     pub point: PointId,
