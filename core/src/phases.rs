@@ -98,6 +98,7 @@ pub fn run(
         plan: (&header.plan).into(),
         counts: header.counts,
         refine: prepared.refinement.clone(),
+        prepare: prepared.preparation.clone(),
         light: m.light,
         per_node: m.per_node,
         emulation: m.emulation,

@@ -132,6 +132,8 @@ pub struct PreparedScene {
     pub kept_pairs: crate::kept::KeptSlot,
     /// What refinement's pilot passes did (all zero without refinement).
     pub refinement: crate::stats::Refinement,
+    /// Where and how the scene was prepared.
+    pub preparation: crate::stats::Preparation,
     /// Operations preprocessing did (for the throttling layer's cost model).
     pub ops: PrepareOps,
 }

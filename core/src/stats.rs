@@ -176,6 +176,27 @@ pub struct Refinement {
     pub kept: bool,
 }
 
+/// Preparation (`magg_prepare`): where the scene was prepared, in how many shares, and
+/// the seconds of its steps (the last preparation's: the render's scene, after any
+/// refinement's pilot levels).
+#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+pub struct Preparation {
+    /// Shares of space the scene was prepared in.
+    pub shares: u32,
+    /// Where they were prepared: `in process` or the forks' addresses.
+    pub place: String,
+    /// Attempts (more than 1 when a fork was lost during preparation).
+    pub attempts: u32,
+    /// Seconds numbering the patches and elements and splitting space (the host).
+    pub plan_s: f64,
+    /// Seconds of the shares' welding and elements, messages included.
+    pub weld_s: f64,
+    /// Seconds of the BVH (the shares' subtrees and the top over them) or the grid.
+    pub accel_s: f64,
+    /// Seconds packing the blocks (the shares' records and the global blocks).
+    pub pack_s: f64,
+}
+
 /// Everything a run reports.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct RenderStats {
@@ -207,6 +228,8 @@ pub struct RenderStats {
     pub counts: Counts,
     /// Adaptive refinement's pilot passes.
     pub refine: Refinement,
+    /// Preparation's shares and steps.
+    pub prepare: Preparation,
     /// Where the light went (W per channel).
     pub light: LrtTally,
     /// Per-node figures.

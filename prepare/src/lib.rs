@@ -116,7 +116,11 @@ fn prepare_here(
         attempt += 1;
         let session = set.begin_session();
         match prepare_session(scene, plan.clone(), splits, shares, set, session, start)? {
-            Ok(prepared) => return Ok(prepared),
+            Ok(mut prepared) => {
+                prepared.preparation.attempts = attempt;
+                prepared.preparation.place = set.place();
+                return Ok(prepared);
+            }
             Err(ShareError::Lost { at, why }) if attempt < ATTEMPTS => {
                 tracing::warn!("the fork at {at} was lost while preparing the scene ({why}); preparing again");
             }
@@ -178,6 +182,7 @@ fn finish(
         });
     }
     let t_junctions = split::t_junctions(mesh);
+    let t_accel = Instant::now();
     let (grid, bvh) = match scene.settings.accel {
         Accel::Grid => (grid::build(scene, mesh), None),
         Accel::Bvh => {
@@ -190,6 +195,8 @@ fn finish(
         }
     };
     let binnings = bvh.as_ref().map_or(0, |b| b.binnings);
+    let accel_s = t_accel.elapsed().as_secs_f64();
+    let t_pack = Instant::now();
     let shares = mesh.shares;
     let packed =
         match pack::pack(mesh, &grid, bvh, &scene.textures, |layout| shares::pack(set, session, shares, layout)) {
@@ -229,5 +236,14 @@ fn finish(
         preprocess_s: start.elapsed().as_secs_f64(),
         kept_pairs: Default::default(),
         refinement: Default::default(),
+        preparation: magg_core::stats::Preparation {
+            shares: shares as u32,
+            place: String::new(),
+            attempts: 1,
+            plan_s: mesh.plan_s,
+            weld_s: mesh.weld_s,
+            accel_s,
+            pack_s: t_pack.elapsed().as_secs_f64(),
+        },
     }))
 }

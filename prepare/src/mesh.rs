@@ -26,6 +26,10 @@ pub(super) struct Mesh {
     pub midpoints: Vec<[u32; 3]>,
     /// Patches with a shading record.
     pub shaded: u32,
+    /// Seconds numbering and splitting (the host), then welding (the shares).
+    pub plan_s: f64,
+    /// Seconds of the shares' welding and elements.
+    pub weld_s: f64,
     /// How many shares prepared it (they hold their patches until the session ends,
     /// and write those patches' and elements' records).
     pub shares: usize,
@@ -55,6 +59,7 @@ pub(super) fn build(
     set: &mut dyn ShareSet,
     session: u64,
 ) -> Result<Result<Mesh, ShareError>, PrepareError> {
+    let start = std::time::Instant::now();
     let s = &scene.settings;
     let patches: Vec<[DVec3; 3]> = scene.patches.iter().map(|p| p.vertices).collect();
     let counts: Vec<f64> = scene
@@ -135,6 +140,7 @@ pub(super) fn build(
         .collect();
     let split = shares::split_space(&share_patches, shares.count(patches.len()));
     let by_share = shares::by_share(share_patches, &split);
+    let plan_s = start.elapsed().as_secs_f64();
     let (elements, vertex_positions) = match shares::weld(set, session, &split, by_share, acc as usize) {
         Ok(welded) => welded,
         Err(e) => return Ok(Err(e)),
@@ -149,6 +155,8 @@ pub(super) fn build(
         vertex_positions,
         midpoints: Vec::new(),
         shaded,
+        plan_s,
+        weld_s: start.elapsed().as_secs_f64() - plan_s,
         shares: split.shares(),
     }))
 }
