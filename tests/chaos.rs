@@ -417,6 +417,10 @@ fn a_fork_killed_while_the_forks_prepare_the_scene_has_its_share_prepared_again(
     }
     assert!(status.is_some_and(|s| s.success()), "the host failed: {text}");
     assert!(text.contains("lost while preparing the scene"), "the loss went unseen: {text}");
+    let prepare = &read_json(&out.stats)["prepare"];
+    assert_eq!(prepare["shares"], 3, "{prepare}");
+    assert!(prepare["attempts"].as_u64().is_some_and(|a| a >= 2), "{prepare}");
+    assert!(prepare["place"].as_str().is_some_and(|p| p.contains(&forks[1])), "{prepare}");
     assert_eq!(std::fs::read(&base.pfm).unwrap(), std::fs::read(&out.pfm).unwrap(), "image differs");
     assert_eq!(std::fs::read(&base.energy).unwrap(), std::fs::read(&out.energy).unwrap(), "energies differ");
     // Every fork took part in the second session: each logged a share of it.
