@@ -23,6 +23,7 @@ pub fn run(args: &InfoArgs, files: &scene_file::SceneFiles) -> anyhow::Result<()
             "blocks": h.layout.total,
             "plan": { "passes": h.plan.passes(), "reasons": h.plan.reasons },
             "preprocess_s": p.preprocess_s,
+            "prepare": p.preparation,
             "refined": p.splits.iter().map(Vec::len).collect::<Vec<_>>(),
         });
         println!("{}", serde_json::to_string_pretty(&v)?);
@@ -66,6 +67,11 @@ pub fn run(args: &InfoArgs, files: &scene_file::SceneFiles) -> anyhow::Result<()
         h.settings.width, h.settings.height, h.settings.pixel_samples, h.settings.light_rays
     );
     println!("preprocess {:.3} s", p.preprocess_s);
+    let f = &p.preparation;
+    println!(
+        "prepared   {:>9}  shares {}: plan {:.3} s, weld {:.3} s, accel {:.3} s, blocks {:.3} s",
+        f.shares, f.place, f.plan_s, f.weld_s, f.accel_s, f.pack_s
+    );
     print!("{}", h.plan);
     Ok(())
 }
