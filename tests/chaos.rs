@@ -417,7 +417,14 @@ fn a_fork_killed_while_the_forks_prepare_the_scene_has_its_share_prepared_again(
     }
     assert!(status.is_some_and(|s| s.success()), "the host failed: {text}");
     assert!(text.contains("lost while preparing the scene"), "the loss went unseen: {text}");
-    let prepare = &read_json(&out.stats)["prepare"];
+    let stats = read_json(&out.stats);
+    // Every process's peak memory: the host's and each fork's (separate processes).
+    let memory = &stats["memory"];
+    assert!(memory["host_bytes"].as_u64().is_some_and(|b| b > 0), "{memory}");
+    let forks_peak = memory["fork_bytes"].as_array().expect("fork_bytes");
+    assert_eq!(forks_peak.len(), 3, "{memory}");
+    assert!(forks_peak.iter().all(|b| b.as_u64().is_some_and(|b| b > 0)), "{memory}");
+    let prepare = &stats["prepare"];
     assert_eq!(prepare["shares"], 3, "{prepare}");
     assert!(prepare["attempts"].as_u64().is_some_and(|a| a >= 2), "{prepare}");
     assert!(prepare["place"].as_str().is_some_and(|p| p.contains(&forks[1])), "{prepare}");

@@ -38,8 +38,11 @@ impl ClusterMachine {
         let f = self.forks.len();
         let mut traffic = Traffic::default();
         let mut busy = self.busy;
+        let mut fork_peak_bytes = Vec::with_capacity(f);
         for i in 0..f {
             let r = self.forks.poll_until_up(i, EnergyPoll::Summary, false).await?;
+            let known = r.peak_rss_bytes > 0 && !self.forks.in_process(i);
+            fork_peak_bytes.push(known.then_some(r.peak_rss_bytes));
             traffic.dma_bytes += r.dma_bytes;
             traffic.gbus_bytes += r.gbus_bytes;
             traffic.rpcs += r.rpcs;
@@ -96,6 +99,7 @@ impl ClusterMachine {
                 busy,
             }),
             stages,
+            fork_peak_bytes,
         })
     }
 }

@@ -174,6 +174,11 @@ impl ForkSet {
         })
     }
 
+    /// Whether fork `i` runs in the host's process.
+    pub fn in_process(&self, i: usize) -> bool {
+        self.in_process.get(i) == Some(&true)
+    }
+
     /// The same forks, loaded for a render under hardware profile `profile` (wire form)
     /// with `nodes` expected nodes.
     pub fn for_render(mut self, profile: String, nodes: u32, node_key: NodeKey) -> ForkSet {

@@ -206,6 +206,8 @@ pub struct MachineFigures {
     pub emulation: Option<Emulation>,
     /// The stage times to report.
     pub stages: Stages,
+    /// Each fork process's peak memory (see [`crate::stats::MemoryPeaks`]).
+    pub fork_peak_bytes: Vec<Option<u64>>,
 }
 
 /// A machine that runs magg's passes: the embedded renderer or the cluster.

@@ -99,6 +99,7 @@ pub fn run(
         counts: header.counts,
         refine: prepared.refinement.clone(),
         prepare: prepared.preparation.clone(),
+        memory: crate::stats::MemoryPeaks { host_bytes: None, fork_bytes: m.fork_peak_bytes },
         light: m.light,
         per_node: m.per_node,
         emulation: m.emulation,

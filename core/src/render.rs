@@ -362,6 +362,7 @@ impl Machine for EmbeddedMachine {
             per_node,
             emulation: None,
             stages: Stages::measured(self.preprocess_s, times.lrt_s, times.interp_s, times.vrt_s, self.started),
+            fork_peak_bytes: Vec::new(),
         })
     }
 }

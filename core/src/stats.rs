@@ -197,6 +197,17 @@ pub struct Preparation {
     pub pack_s: f64,
 }
 
+/// Peak resident memory of each process of a render (Linux's `VmHWM`), where the
+/// platform tells.
+#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+pub struct MemoryPeaks {
+    /// The host's process (with its in-process forks and nodes), at the end of the render.
+    pub host_bytes: Option<u64>,
+    /// Each fork by index, as it answered the host's last poll: `null` for a fork in the
+    /// host's process (counted in `host_bytes`); empty in the embedded renderer.
+    pub fork_bytes: Vec<Option<u64>>,
+}
+
 /// Everything a run reports.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct RenderStats {
@@ -230,6 +241,8 @@ pub struct RenderStats {
     pub refine: Refinement,
     /// Preparation's shares and steps.
     pub prepare: Preparation,
+    /// Every process's peak memory.
+    pub memory: MemoryPeaks,
     /// Where the light went (W per channel).
     pub light: LrtTally,
     /// Per-node figures.

@@ -413,6 +413,7 @@ impl Fork for ForkService {
             self.hw.gbus(shard.placement().index, shard.peers(), prost::Message::encoded_len(&reply)).await;
         }
         (reply.service_busy_s, reply.dma_busy_s, reply.gbus_busy_s) = self.hw.busy_s();
+        reply.peak_rss_bytes = magg_plumbing::memory::peak_rss_bytes().unwrap_or(0);
         Ok(Response::new(reply))
     }
 

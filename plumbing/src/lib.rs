@@ -36,6 +36,7 @@ pub mod flags;
 pub mod health;
 pub mod lifecycle;
 pub mod logging;
+pub mod memory;
 pub mod net;
 pub mod reach;
 pub mod retry;

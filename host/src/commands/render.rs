@@ -182,7 +182,8 @@ pub fn run(cfg: RenderConfig, files: &scene_file::SceneFiles, partial: &partial:
             cluster.render(&prepared, &in_process, preprocessed + viewer_wait, progress, &mut sink)?
         }
     };
-    let stats = out.stats;
+    let mut stats = out.stats;
+    stats.memory.host_bytes = magg_plumbing::memory::peak_rss_bytes();
 
     if let Some(path) = &cfg.energy {
         energy_csv::write(path, &prepared, &out.element_flux, &out.vertex_irradiance)
