@@ -4,7 +4,10 @@
 //! The estimate counts elements the way preprocessing will make them
 //! ([`subdivisions_of`]) and charges each one what a render costs per element (host
 //! tables, blocks on the forks, node caches, energies: about 400 bytes, measured 270 on
-//! the embedded path with 1 and 4 million elements), plus the frame, plus the pair
+//! the embedded path with 1 and 4 million elements), each patch what preparing and
+//! holding it costs (the parsed patch, its share's copy, lattice points and their
+//! welding messages, its records and BVH leaf: about 2.5 KB, from a 1M-triangle model's
+//! 3.8 GB peak), plus the frame, plus the pair
 //! bookkeeping of the forks this process runs: one bit per pair of the scene on each
 //! fork for the deposits it applied, and one bit per own pair for its complete pairs and
 //! for each other fork they may deposit on ([`magg_fork::shard::pair_state_bytes`]),
@@ -17,6 +20,8 @@ use magg_prepare::subdivisions_of;
 
 /// Bytes charged per element.
 pub const BYTES_PER_ELEMENT: f64 = 400.0;
+/// Bytes charged per patch.
+pub const BYTES_PER_PATCH: f64 = 2560.0;
 /// Bytes charged per pixel (linear frame, tone-mapped copy, rows in flight).
 pub const BYTES_PER_PIXEL: f64 = 64.0;
 /// Default limit of `--max-memory-mb`.
@@ -48,7 +53,8 @@ pub fn estimate(scene: &Scene, forks: u32) -> (f64, f64, f64) {
 fn bytes(scene: &Scene, elements: f64, pairs: f64, forks: u32) -> f64 {
     let pixels = scene.settings.width as f64 * scene.settings.height as f64;
     let pair_bytes = pairs * 2.0 * forks as f64 / 8.0;
-    elements * BYTES_PER_ELEMENT + pixels * BYTES_PER_PIXEL + pair_bytes
+    let patches = scene.patches.len() as f64;
+    elements * BYTES_PER_ELEMENT + patches * BYTES_PER_PATCH + pixels * BYTES_PER_PIXEL + pair_bytes
 }
 
 /// After adaptive refinement (which adds elements no estimate can foresee): refuses the

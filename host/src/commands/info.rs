@@ -9,6 +9,9 @@ pub fn run(args: &InfoArgs, files: &scene_file::SceneFiles) -> anyhow::Result<()
     let p = magg_prepare::refine::prepare(&scene, magg_core::plan::EffectsPlan::for_scene(&scene))?;
     let h = &p.header;
     let c = h.counts;
+    // What a render in one process would hold (the memory check's estimate, with the
+    // cluster's five in-process forks).
+    let memory_mb = crate::memory::estimate(&scene, 5).2 / (1u64 << 20) as f64;
     if args.json {
         let v = serde_json::json!({
             "scene": p.name,
@@ -24,6 +27,7 @@ pub fn run(args: &InfoArgs, files: &scene_file::SceneFiles) -> anyhow::Result<()
             "plan": { "passes": h.plan.passes(), "reasons": h.plan.reasons },
             "preprocess_s": p.preprocess_s,
             "prepare": p.preparation,
+            "memory_estimate_mb": memory_mb,
             "refined": p.splits.iter().map(Vec::len).collect::<Vec<_>>(),
         });
         println!("{}", serde_json::to_string_pretty(&v)?);
@@ -72,6 +76,7 @@ pub fn run(args: &InfoArgs, files: &scene_file::SceneFiles) -> anyhow::Result<()
         "prepared   {:>9}  shares {}: plan {:.3} s, weld {:.3} s, accel {:.3} s, blocks {:.3} s",
         f.shares, f.place, f.plan_s, f.weld_s, f.accel_s, f.pack_s
     );
+    println!("memory     about {memory_mb:.0} MB for a render in one process (the memory check's estimate)");
     print!("{}", h.plan);
     Ok(())
 }
