@@ -11,7 +11,7 @@
 use std::path::Path;
 
 use super::error::SceneError;
-use super::mesh::{MaterialTable, MeshEntry, MeshFormat, ModelTriangle, ReadFile};
+use super::mesh::{swap_corners, MaterialTable, MeshEntry, MeshFormat, ModelTriangle, ReadFile};
 use super::model::MAX_COORDINATE;
 use super::shape::is_degenerate;
 
@@ -56,13 +56,7 @@ fn place(entry: &MeshEntry<'_>, label: &str, triangles: Vec<ModelTriangle>) -> R
             t.normals.filter(|_| entry.shading.file_normals).map(|n| n.map(|n| entry.transform.normal(n)));
         let mut uv = t.uv;
         if flip {
-            v.swap(1, 2);
-            if let Some(n) = normals.as_mut() {
-                n.swap(1, 2);
-            }
-            if let Some(c) = uv.as_mut() {
-                c.swap(1, 2);
-            }
+            swap_corners(&mut v, &mut normals, &mut uv);
         }
         if !v.iter().all(|p| p.is_finite() && p.abs().max_element() <= MAX_COORDINATE) {
             return Err(entry.err("scale", format!("the transform sends a vertex past {MAX_COORDINATE:e}")));
