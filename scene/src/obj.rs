@@ -23,99 +23,141 @@ use crate::color::Rgb;
 use glam::{DVec2, DVec3};
 
 /// Parses a mesh's OBJ file `bytes` (read from `obj_path`, named `label`) and its MTL
-/// files (read through `read`), and returns its triangles in the model's space with their
-/// material indices.
+/// files (read through `read`), and hands its triangles in the model's space with their
+/// material indices to `visit`, a window of the file at a time, in file order.
 ///
 /// A `usemtl` name is looked up first in the OBJ's own MTL files, whose materials are added
 /// to `materials` (once, in order of first use) as `objfile:mtlname` (e.g.
 /// `meshes/sphere.obj:glass`), then among the `[[material]]` tables by plain name.
-pub(super) fn load(
+///
+/// The `mtllib` and `usemtl` statements are found first (a quick pass that parses only
+/// their lines), so that faces have their materials as they are read. Errors come in the
+/// order of a reader that parses the whole file before it looks at materials: any error of
+/// the OBJ's text first, then the MTL files', then a face without a material. The
+/// triangles of the windows before an error have been handed on by then.
+pub(super) fn stream(
     entry: &MeshEntry<'_>,
     obj_path: &Path,
     obj_label: &str,
     bytes: &[u8],
     read: ReadFile<'_>,
     materials: &mut MaterialTable,
-) -> Result<Vec<ModelTriangle>, SceneError> {
-    let mesh = parse_obj(obj_label, utf8(obj_label, "obj", bytes)?)?;
-
-    // Material of each `usemtl` name (None: defined nowhere, reported at its first face).
-    // ... and its texture (`map_Kd`), if any.
-    let mut usemtl_ids = Vec::new();
-    let mut usemtl_textures: Vec<Option<u32>> = Vec::new();
-    if entry.material.is_none() {
-        let mtl = load_mtllibs(&mesh, obj_path, obj_label, read)?;
-        for name in &mesh.usemtl_names {
-            let (id, texture) = match mtl.iter().find(|mm| mm.material.name == *name) {
-                Some(mm) => {
-                    let id = materials.add_file_material(entry, &mm.material).map_err(|m| entry.file_err(m))?;
-                    let texture = match &mm.map_kd {
-                        Some((path, line)) => Some(materials.texture(path, read).map_err(|m| {
-                            SceneError::new(SourceLoc { file: mm.label.clone(), line: *line }, "map_Kd", m)
-                        })?),
-                        None => None,
-                    };
-                    (Some(id), texture)
-                }
-                None => (materials.toml.get(name).copied(), None),
-            };
-            usemtl_ids.push(id);
-            usemtl_textures.push(texture);
+    visit: &mut dyn FnMut(Vec<ModelTriangle>),
+) -> Result<(), SceneError> {
+    let text = utf8(obj_label, "obj", bytes)?;
+    // An error found before the text is all parsed waits: a parse error would come first.
+    let mut pending: Option<SceneError> = None;
+    let usemtl = if entry.material.is_none() {
+        let (mtllibs, names) = statements::material_statements(text);
+        usemtl_materials(entry, &mtllibs, &names, obj_path, obj_label, read, materials).unwrap_or_else(|e| {
+            pending = Some(e);
+            Vec::new()
+        })
+    } else {
+        Vec::new()
+    };
+    chunked::stream(obj_label, text, chunked::DEFAULT_CHUNK_BYTES, &mut |mesh, faces| {
+        if pending.is_some() {
+            return;
         }
-    }
-
-    let mut out = Vec::with_capacity(mesh.faces.len());
-    for face in &mesh.faces {
-        let material = match (entry.material, face.usemtl) {
-            (Some(id), _) => id,
-            (None, Some(u)) => match usemtl_ids.get(u as usize).copied().flatten() {
-                Some(id) => id,
-                None => {
-                    let name = mesh.usemtl_names.get(u as usize).map_or("", String::as_str);
-                    let msg = format!(
-                        "{obj_label}:{}: material '{name}' is not defined (neither in the OBJ's MTL files nor a [[material]])",
-                        face.line
-                    );
-                    return Err(entry.file_err(msg));
+        let mut out = Vec::with_capacity(faces.len());
+        for face in faces {
+            match triangle(entry, obj_label, mesh, face, &usemtl) {
+                Ok(t) => out.push(t),
+                Err(e) => {
+                    pending = Some(e);
+                    return;
                 }
-            },
-            (None, None) => return Err(entry.no_material(&format!("{obj_label}:{}", face.line))),
-        };
-        let mut v = [DVec3::ZERO; 3];
-        for (o, &k) in v.iter_mut().zip(&face.corners) {
-            // parse_obj checked every index; stay safe anyway.
-            *o = mesh
-                .positions
-                .get(k as usize)
-                .copied()
-                .ok_or_else(|| entry.file_err("face index out of range".into()))?;
+            }
         }
-        let normals = face.normals.and_then(|n| {
-            let [a, b, c] = n.map(|k| mesh.normals.get(k as usize).copied());
-            Some([a?, b?, c?])
+        visit(out);
+    })?;
+    pending.map_or(Ok(()), Err)
+}
+
+/// The material and texture of each `usemtl` name (the material `None` where neither the
+/// MTL files nor a `[[material]]` define it: an error at its first face).
+fn usemtl_materials(
+    entry: &MeshEntry<'_>,
+    mtllibs: &[MtlLib],
+    names: &[String],
+    obj_path: &Path,
+    obj_label: &str,
+    read: ReadFile<'_>,
+    materials: &mut MaterialTable,
+) -> Result<Vec<(Option<u32>, Option<u32>)>, SceneError> {
+    let mtl = load_mtllibs(mtllibs, obj_path, obj_label, read)?;
+    let mut out = Vec::with_capacity(names.len());
+    for name in names {
+        out.push(match mtl.iter().find(|mm| mm.material.name == *name) {
+            Some(mm) => {
+                let id = materials.add_file_material(entry, &mm.material).map_err(|m| entry.file_err(m))?;
+                let texture = match &mm.map_kd {
+                    Some((path, line)) => Some(materials.texture(path, read).map_err(|m| {
+                        SceneError::new(SourceLoc { file: mm.label.clone(), line: *line }, "map_Kd", m)
+                    })?),
+                    None => None,
+                };
+                (Some(id), texture)
+            }
+            None => (materials.toml.get(name).copied(), None),
         });
-        let uv = face.uvs.and_then(|t| {
-            let [a, b, c] = t.map(|k| mesh.uvs.get(k as usize).copied());
-            Some([a?, b?, c?])
-        });
-        let texture =
-            face.usemtl.and_then(|u| usemtl_textures.get(u as usize).copied().flatten()).filter(|_| uv.is_some());
-        out.push(ModelTriangle { v, material, normals, uv, texture });
     }
     Ok(out)
+}
+
+/// The triangle of `face` with its material, or why it has none.
+fn triangle(
+    entry: &MeshEntry<'_>,
+    obj_label: &str,
+    mesh: &ObjMesh,
+    face: &ObjFace,
+    usemtl: &[(Option<u32>, Option<u32>)],
+) -> Result<ModelTriangle, SceneError> {
+    let of = |u: u32| usemtl.get(u as usize).copied().unwrap_or((None, None));
+    let material = match (entry.material, face.usemtl) {
+        (Some(id), _) => id,
+        (None, Some(u)) => match of(u).0 {
+            Some(id) => id,
+            None => {
+                let name = mesh.usemtl_names.get(u as usize).map_or("", String::as_str);
+                let msg = format!(
+                    "{obj_label}:{}: material '{name}' is not defined (neither in the OBJ's MTL files nor a [[material]])",
+                    face.line
+                );
+                return Err(entry.file_err(msg));
+            }
+        },
+        (None, None) => return Err(entry.no_material(&format!("{obj_label}:{}", face.line))),
+    };
+    let mut v = [DVec3::ZERO; 3];
+    for (o, &k) in v.iter_mut().zip(&face.corners) {
+        // parse_obj checked every index; stay safe anyway.
+        *o = mesh.positions.get(k as usize).copied().ok_or_else(|| entry.file_err("face index out of range".into()))?;
+    }
+    let normals = face.normals.and_then(|n| {
+        let [a, b, c] = n.map(|k| mesh.normals.get(k as usize).copied());
+        Some([a?, b?, c?])
+    });
+    let uv = face.uvs.and_then(|t| {
+        let [a, b, c] = t.map(|k| mesh.uvs.get(k as usize).copied());
+        Some([a?, b?, c?])
+    });
+    let texture = face.usemtl.and_then(|u| of(u).1).filter(|_| uv.is_some());
+    Ok(ModelTriangle { v, material, normals, uv, texture })
 }
 
 /// Reads and parses every `mtllib` of an OBJ, relative to the OBJ's directory; a name
 /// defined in two of them is an error.
 fn load_mtllibs(
-    mesh: &ObjMesh,
+    mtllibs: &[MtlLib],
     obj_path: &Path,
     obj_label: &str,
     read: ReadFile<'_>,
 ) -> Result<Vec<MtlMaterial>, SceneError> {
     let dir = obj_path.parent().map_or_else(PathBuf::new, Path::to_path_buf);
     let mut out: Vec<MtlMaterial> = Vec::new();
-    for lib in &mesh.mtllibs {
+    for lib in mtllibs {
         let path = dir.join(&lib.file);
         let label = path.display().to_string();
         let bytes = read(&path).map_err(|e| {
@@ -212,6 +254,7 @@ pub(super) const OBJ_FREEFORM: &[&str] =
 
 /// Parses an OBJ file; `label` names it in errors. It is read in chunks on every core
 /// ([`chunked`]).
+#[cfg(test)]
 pub(super) fn parse_obj(label: &str, text: &str) -> Result<ObjMesh, SceneError> {
     chunked::parse(label, text, chunked::DEFAULT_CHUNK_BYTES)
 }
@@ -401,5 +444,6 @@ fn parse_colour(args: &[&str]) -> Result<Rgb, String> {
 mod chunked;
 #[cfg(test)]
 mod reference;
+mod statements;
 #[cfg(test)]
 mod tests;

@@ -15,7 +15,7 @@ use toml::Spanned;
 
 use super::error::SceneError;
 use super::field::field_at;
-use super::load::load_mesh;
+use super::load::stream_mesh;
 use super::mesh::{MaterialTable, MeshEntry, MeshShading, ReadFile, Transform};
 use super::model::{
     Accel, Camera, CameraPath, DirectLight, Exposure, GridSpec, Light, Material, PatchDef, RenderSettings, Scene,

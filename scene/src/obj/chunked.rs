@@ -88,6 +88,7 @@ pub(super) fn stream(
 }
 
 /// [`stream`] keeping every face: the whole mesh.
+#[cfg(test)]
 pub(super) fn parse(label: &str, text: &str, chunk_bytes: usize) -> Result<ObjMesh, SceneError> {
     let mut faces = Vec::new();
     let mut mesh = stream(label, text, chunk_bytes, &mut |_, new| faces.extend_from_slice(new))?;

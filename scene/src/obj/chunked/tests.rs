@@ -155,3 +155,13 @@ fn a_stream_hands_on_every_face_once_in_order() {
     assert_eq!(seen, whole.faces);
     assert_eq!(rest, ObjMesh { faces: Vec::new(), ..whole });
 }
+
+#[test]
+fn the_quick_pass_finds_the_material_statements_the_reader_records() {
+    for seed in 0..40 {
+        let text = random_obj(seed, 400, 0) + "\nv 1 2 3 # usemtl not_this\n   usemtl  two words \nmtllib c.mtl";
+        let mesh = parse("m.obj", &text, 100).unwrap();
+        let (mtllibs, names) = crate::obj::statements::material_statements(&text);
+        assert_eq!((mtllibs, names), (mesh.mtllibs, mesh.usemtl_names), "seed {seed}");
+    }
+}
