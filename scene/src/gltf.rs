@@ -62,7 +62,7 @@ fn parse_document(label: &str, bytes: &[u8]) -> Result<(Document, Option<Vec<u8>
         let line = u32::try_from(e.line()).unwrap_or(u32::MAX);
         let file =
             if bin.is_some() || bytes.starts_with(b"glTF") { format!("{label} (JSON chunk)") } else { label.into() };
-        SceneError::new(SourceLoc { file, line }, "gltf", format!("{what} at column {}", e.column()))
+        SceneError::new(SourceLoc { file: file.into(), line }, "gltf", format!("{what} at column {}", e.column()))
     })?;
     // The crate's validation indexes the POSITION accessor without checking it first.
     for (m, mesh) in root.meshes.iter().enumerate() {
@@ -421,7 +421,7 @@ fn gltf_material(doc: &Document, m: usize, names: &[String], label: &str) -> Opt
         ior: 1.5,
         one_sided: false,
         emit: Rgb(emit),
-        loc: SourceLoc { file: label.to_string(), line: 0 },
+        loc: SourceLoc { file: label.into(), line: 0 },
     })
 }
 
@@ -453,7 +453,7 @@ pub fn gltf_stage(label: &str, bytes: &[u8]) -> Result<GltfStage, SceneError> {
     for (node, world) in &nodes {
         let eye = world.transform_point3(DVec3::ZERO);
         let forward = world.transform_vector3(DVec3::NEG_Z);
-        let loc = SourceLoc { file: label.to_string(), line: 0 };
+        let loc = SourceLoc { file: label.into(), line: 0 };
         if let Some(cam) = node.camera() {
             if let ::gltf::camera::Projection::Perspective(p) = cam.projection() {
                 let up = world.transform_vector3(DVec3::Y);

@@ -217,7 +217,7 @@ pub(super) fn utf8<'b>(label: &str, field: &str, bytes: &'b [u8]) -> Result<&'b 
         let at = e.valid_up_to();
         let line = 1 + bytes[..at].iter().filter(|&&b| b == b'\n').count();
         let line = u32::try_from(line).unwrap_or(u32::MAX);
-        SceneError::new(SourceLoc { file: label.to_string(), line }, field, "not UTF-8 text")
+        SceneError::new(SourceLoc { file: label.into(), line }, field, "not UTF-8 text")
     })
 }
 

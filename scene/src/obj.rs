@@ -94,7 +94,7 @@ fn usemtl_materials(
                 let id = materials.add_file_material(entry, &mm.material).map_err(|m| entry.file_err(m))?;
                 let texture = match &mm.map_kd {
                     Some((path, line)) => Some(materials.texture(path, read).map_err(|m| {
-                        SceneError::new(SourceLoc { file: mm.label.clone(), line: *line }, "map_Kd", m)
+                        SceneError::new(SourceLoc { file: mm.label.as_str().into(), line: *line }, "map_Kd", m)
                     })?),
                     None => None,
                 };
@@ -161,7 +161,7 @@ fn load_mtllibs(
         let path = dir.join(&lib.file);
         let label = path.display().to_string();
         let bytes = read(&path).map_err(|e| {
-            let at = SourceLoc { file: obj_label.to_string(), line: lib.line };
+            let at = SourceLoc { file: obj_label.into(), line: lib.line };
             SceneError::new(at, "mtllib", format!("cannot read MTL file '{label}': {e}"))
         })?;
         for (mm, map) in parse_mtl_maps(&label, utf8(&label, "mtl", &bytes)?)? {
@@ -342,7 +342,7 @@ impl MtlPending {
             ior: self.ni.map_or(1.5, |n| n.clamp(1.0, 4.0)),
             one_sided: false,
             emit: Rgb(self.ke.unwrap_or(Rgb::BLACK).0.map(|x| x.clamp(0.0, MAX_RADIOMETRIC))),
-            loc: SourceLoc { file: label.to_string(), line: self.line },
+            loc: SourceLoc { file: label.into(), line: self.line },
         }
     }
 }
@@ -369,7 +369,7 @@ pub(super) fn parse_mtl_maps(label: &str, text: &str) -> Result<Vec<(Material, O
     let mut pending: Option<MtlPending> = None;
     for (n, raw_line) in text.lines().enumerate() {
         let line = u32::try_from(n + 1).unwrap_or(u32::MAX);
-        let err = |msg: String| SceneError::new(SourceLoc { file: label.to_string(), line }, "mtl", msg);
+        let err = |msg: String| SceneError::new(SourceLoc { file: label.into(), line }, "mtl", msg);
         let content = raw_line.split('#').next().unwrap_or("").trim();
         let mut tokens = content.split_whitespace();
         let Some(keyword) = tokens.next() else {

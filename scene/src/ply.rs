@@ -145,7 +145,7 @@ pub(super) fn parse_ply(label: &str, bytes: &[u8]) -> Result<PlyMesh, SceneError
 /// [`parse_ply`] with the data in chunks of about `chunk_bytes`, or (`None`) read value
 /// after value only.
 fn parse_ply_in(label: &str, bytes: &[u8], chunk_bytes: Option<usize>) -> Result<PlyMesh, SceneError> {
-    let at = |line: u32, msg: String| SceneError::new(SourceLoc { file: label.to_string(), line }, "ply", msg);
+    let at = |line: u32, msg: String| SceneError::new(SourceLoc { file: label.into(), line }, "ply", msg);
     let header = parse_header(bytes).map_err(|(line, msg)| at(line, msg))?;
     if let Some(mesh) = chunk_bytes.and_then(|c| parallel::read(&header, bytes, c)) {
         return Ok(mesh);

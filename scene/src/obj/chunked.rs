@@ -278,7 +278,7 @@ impl Stitch {
     fn absorb(&mut self, label: &str, chunk: RawParse, faces: &mut Vec<ObjFace>) -> Result<(), SceneError> {
         let line_of = |local: u32| u32::try_from(self.lines.saturating_add(local as usize)).unwrap_or(u32::MAX);
         let err = |local: u32, msg: String| {
-            SceneError::new(SourceLoc { file: label.to_string(), line: line_of(local) }, "obj", msg)
+            SceneError::new(SourceLoc { file: label.into(), line: line_of(local) }, "obj", msg)
         };
         let base = [self.mesh.positions.len(), self.mesh.uvs.len(), self.mesh.normals.len()];
         let names: Vec<u32> = chunk

@@ -13,7 +13,7 @@ pub(super) fn parse_obj_by_lines(label: &str, text: &str) -> Result<ObjMesh, Sce
     let mut current: Option<usize> = None;
     for (n, raw_line) in text.lines().enumerate() {
         let line = u32::try_from(n + 1).unwrap_or(u32::MAX);
-        let err = |msg: String| SceneError::new(SourceLoc { file: label.to_string(), line }, "obj", msg);
+        let err = |msg: String| SceneError::new(SourceLoc { file: label.into(), line }, "obj", msg);
         let content = raw_line.split('#').next().unwrap_or("").trim();
         let mut tokens = content.split_whitespace();
         let Some(keyword) = tokens.next() else {
