@@ -1,6 +1,6 @@
 //! Times reading a scene (its TOML and every mesh it names) through the public API, as
 //! `magg-host` reads it, and prints one line: seconds, patches, patches per second and
-//! the process's peak resident memory. `deploy/bench-startup.sh` runs it (`READ_ONLY=1`).
+//! the process's peak resident memory (docs/PERFORMANCE.md, "Start-up on a large mesh").
 //!
 //! ```text
 //! cargo run --release -p magg-scene --example read_scene -- scenes/large.toml
