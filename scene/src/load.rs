@@ -18,7 +18,8 @@ use super::shape::is_degenerate;
 /// Reads a mesh's file through `read` (by its format) and hands its triangles, after the
 /// entry's transform, with their material indices, to `visit` in runs, in file order, as
 /// they are read, so that the caller need not hold them all: an OBJ is parsed a window
-/// at a time (PLY and glTF files are read whole, then handed on in runs). Zero-area
+/// of chunks at a time and handed on chunk by chunk (PLY and glTF files are read whole,
+/// then handed on in runs). Zero-area
 /// triangles are skipped; a file without any other is an error. A mesh smoothed by a
 /// crease angle is handed on in one run, once it is all read and smoothed.
 ///

@@ -24,7 +24,7 @@ use glam::{DVec2, DVec3};
 
 /// Parses a mesh's OBJ file `bytes` (read from `obj_path`, named `label`) and its MTL
 /// files (read through `read`), and hands its triangles in the model's space with their
-/// material indices to `visit`, a window of the file at a time, in file order.
+/// material indices to `visit`, a chunk of the file at a time, in file order.
 ///
 /// A `usemtl` name is looked up first in the OBJ's own MTL files, whose materials are added
 /// to `materials` (once, in order of first use) as `objfile:mtlname` (e.g.
@@ -34,7 +34,7 @@ use glam::{DVec2, DVec3};
 /// their lines), so that faces have their materials as they are read. Errors come in the
 /// order of a reader that parses the whole file before it looks at materials: any error of
 /// the OBJ's text first, then the MTL files', then a face without a material. The
-/// triangles of the windows before an error have been handed on by then.
+/// triangles of the chunks before an error have been handed on by then.
 pub(super) fn stream(
     entry: &MeshEntry<'_>,
     obj_path: &Path,

@@ -62,11 +62,11 @@ struct RawParse {
     stop: Option<Stop>,
 }
 
-/// Parses an OBJ text; `label` names it in errors. Each window of chunks is handed to
-/// `visit` once stitched, as the mesh so far (positions, normals, texture coordinates,
+/// Parses an OBJ text; `label` names it in errors. Each chunk is handed to `visit` once
+/// stitched, as the mesh so far (positions, normals, texture coordinates,
 /// `mtllib`s and `usemtl` names, but no faces) and its new faces, so a caller need not
 /// keep the faces. Gives the mesh without faces, or the first error in file order (after
-/// handing on the windows before it). `chunk_bytes` is [`CHUNK_BYTES`] but for tests.
+/// handing on the chunks before it). `chunk_bytes` is [`CHUNK_BYTES`] but for tests.
 pub(super) fn stream(
     label: &str,
     text: &str,
@@ -78,11 +78,13 @@ pub(super) fn stream(
     let mut faces = Vec::new();
     for window in chunks.chunks(window_chunks()) {
         let parsed: Vec<RawParse> = window.par_iter().map(|r| parse_chunk(text.get(r.clone()).unwrap_or(""))).collect();
+        // Handed on chunk by chunk: a run of a chunk's triangles stays small enough for
+        // the allocator to reuse its memory rather than map fresh pages every time.
         for chunk in parsed {
             stitch.absorb(label, chunk, &mut faces)?;
+            visit(&stitch.mesh, &faces);
+            faces.clear();
         }
-        visit(&stitch.mesh, &faces);
-        faces.clear();
     }
     Ok(stitch.mesh)
 }
