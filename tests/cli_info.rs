@@ -14,6 +14,10 @@ fn paper_scene_counts_as_json() {
     assert_eq!(c["subspaces"].as_u64(), Some(336), "{v:#}");
     assert_eq!(v["grid"], serde_json::json!([8, 7, 6]));
     assert_eq!(v["lights"].as_u64(), Some(1));
+    // Reading and preparing are separate stages.
+    for k in ["read_s", "preprocess_s"] {
+        assert!(v[k].as_f64().is_some_and(|x| x.is_finite() && x >= 0.0), "{k}: {v:#}");
+    }
     // The blocks of every kind add up to the total.
     let kinds: u64 = ["patch_blocks", "element_blocks", "vertex_blocks", "subspace_blocks"]
         .iter()
@@ -32,6 +36,7 @@ fn paper_scene_text_shows_counts_and_plan() {
     assert!(text.contains("effects plan"), "{text}");
     assert!(text.contains("1664"), "{text}");
     assert!(text.contains("grid 8x7x6"), "{text}");
+    assert!(text.contains("\nread ") && text.contains("\npreprocess "), "{text}");
 }
 
 #[test]

@@ -44,9 +44,15 @@ fn stats_json_has_every_design_key() {
     assert_eq!(get(&s, "forks").as_u64(), Some(2));
     assert_eq!(get(&s, "cache_blocks").as_u64(), Some(40));
     assert_eq!(get(&s, "profile").as_str(), Some("native"));
-    for k in
-        ["stages.preprocess_s", "stages.lrt_s", "stages.interp_s", "stages.vrt_s", "stages.total_s", "cache.hit_ratio"]
-    {
+    for k in [
+        "read_s",
+        "stages.preprocess_s",
+        "stages.lrt_s",
+        "stages.interp_s",
+        "stages.vrt_s",
+        "stages.total_s",
+        "cache.hit_ratio",
+    ] {
         let x = get(&s, k).as_f64().unwrap_or_else(|| panic!("{k} is not a number"));
         assert!(x.is_finite() && x >= 0.0, "{k} = {x}");
     }

@@ -48,12 +48,15 @@ pub struct EnergyOrigin {
     pub saved_to: Option<String>,
 }
 
-/// The stats file: the core's stats, flattened, plus `energy` and `frames`.
+/// The stats file: the core's stats, flattened, plus `read_s`, `energy` and `frames`.
 #[derive(Debug, Serialize)]
 pub struct RunStats<'a> {
     /// The render's figures.
     #[serde(flatten)]
     pub render: &'a RenderStats,
+    /// Seconds reading the scene (its TOML and every mesh file), a stage before
+    /// `stages.preprocess_s` and not part of `stages.total_s`.
+    pub read_s: f64,
     /// Where the energies came from.
     pub energy: EnergyOrigin,
     /// Every frame written, in order.
@@ -63,10 +66,17 @@ pub struct RunStats<'a> {
 impl<'a> RunStats<'a> {
     /// Stats of a run that loaded its energies from `loaded` (if any) and saved them to
     /// `saved` (if asked).
-    pub fn new(render: &'a RenderStats, loaded: Option<&Path>, saved: Option<&Path>, frames: Vec<FrameRecord>) -> Self {
+    pub fn new(
+        render: &'a RenderStats,
+        read_s: f64,
+        loaded: Option<&Path>,
+        saved: Option<&Path>,
+        frames: Vec<FrameRecord>,
+    ) -> Self {
         let show = |p: Option<&Path>| p.map(|p| p.display().to_string());
         RunStats {
             render,
+            read_s,
             energy: EnergyOrigin {
                 light_passes: if loaded.is_some() { 0 } else { 1 },
                 source: if loaded.is_some() { "loaded" } else { "traced" },

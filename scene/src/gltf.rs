@@ -28,8 +28,10 @@ use ::gltf::mesh::Mode;
 use ::gltf::Document;
 use glam::{DMat3, DMat4, DQuat, DVec2, DVec3};
 
+use rayon::prelude::*;
+
 use super::error::SceneError;
-use super::mesh::{MaterialTable, MeshEntry, ModelTriangle, ReadFile, MAX_MESH_TRIANGLES};
+use super::mesh::{swap_corners, MaterialTable, MeshEntry, ModelTriangle, ReadFile, MAX_MESH_TRIANGLES};
 use super::model::{Camera, Light, Material, SourceLoc, Spot, MAX_COORDINATE, MAX_RADIOMETRIC};
 use crate::color::Rgb;
 
@@ -60,7 +62,7 @@ fn parse_document(label: &str, bytes: &[u8]) -> Result<(Document, Option<Vec<u8>
         let line = u32::try_from(e.line()).unwrap_or(u32::MAX);
         let file =
             if bin.is_some() || bytes.starts_with(b"glTF") { format!("{label} (JSON chunk)") } else { label.into() };
-        SceneError::new(SourceLoc { file, line }, "gltf", format!("{what} at column {}", e.column()))
+        SceneError::new(SourceLoc { file: file.into(), line }, "gltf", format!("{what} at column {}", e.column()))
     })?;
     // The crate's validation indexes the POSITION accessor without checking it first.
     for (m, mesh) in root.meshes.iter().enumerate() {
@@ -250,28 +252,27 @@ pub(super) fn load(
             let normal_matrix = DMat3::from_mat4(world).inverse().transpose();
             let tris =
                 primitive_triangles(&prim, &buffers, texture.map(|t| t.1)).map_err(|m| err(format!("{at}: {m}")))?;
-            for (corners, normals, uv) in tris {
-                let mut v = corners.map(|p| world.transform_point3(p));
-                let mut normals = normals.map(|n| n.map(|n| normal_matrix * n));
-                if !v.iter().all(|p| p.is_finite() && p.abs().max_element() <= MAX_COORDINATE) {
-                    let msg = format!("{at}: node {} places a vertex past {MAX_COORDINATE:e}", node.index());
-                    return Err(err(msg));
-                }
-                if flip {
-                    v.swap(1, 2);
-                    if let Some(n) = normals.as_mut() {
-                        n.swap(1, 2);
+            // Placed on every core: each triangle on its own, the same message for any
+            // vertex sent too far, so the result and the error do not depend on the split.
+            let texture_id = texture.map(|t| t.0);
+            let placed: Vec<ModelTriangle> = tris
+                .into_par_iter()
+                .map(|(corners, normals, uv)| {
+                    let mut v = corners.map(|p| world.transform_point3(p));
+                    let mut normals = normals.map(|n| n.map(|n| normal_matrix * n));
+                    if !v.iter().all(|p| p.is_finite() && p.abs().max_element() <= MAX_COORDINATE) {
+                        return Err(());
                     }
-                }
-                let mut uv = uv;
-                if flip {
-                    if let Some(c) = uv.as_mut() {
-                        c.swap(1, 2);
+                    let mut uv = uv;
+                    if flip {
+                        swap_corners(&mut v, &mut normals, &mut uv);
                     }
-                }
-                let texture = texture.map(|t| t.0).filter(|_| uv.is_some());
-                out.push(ModelTriangle { v, material, normals, uv, texture });
-            }
+                    let texture = texture_id.filter(|_| uv.is_some());
+                    Ok(ModelTriangle { v, material, normals, uv, texture })
+                })
+                .collect::<Result<_, ()>>()
+                .map_err(|()| err(format!("{at}: node {} places a vertex past {MAX_COORDINATE:e}", node.index())))?;
+            out.extend(placed);
             if out.len() > MAX_MESH_TRIANGLES {
                 return Err(err(format!("more than {MAX_MESH_TRIANGLES} triangles once placed by its nodes")));
             }
@@ -361,16 +362,19 @@ fn primitive_triangles(
         let uv = uvs.as_ref().map(|t| [t[a], t[b], t[c]]);
         ([positions[a], positions[b], positions[c]], normals, uv)
     };
+    // Made on every core, in order.
     let tris: Vec<PrimitiveTriangle> = match mode {
         Mode::Triangles => {
             if n % 3 != 0 {
                 return Err(format!("{n} indices is not a whole number of triangles"));
             }
-            (0..n / 3).map(|t| triangle(3 * t, 3 * t + 1, 3 * t + 2)).collect()
+            (0..n / 3).into_par_iter().map(|t| triangle(3 * t, 3 * t + 1, 3 * t + 2)).collect()
         }
         // The spec's orders: strip i = (i, i + 1 + i % 2, i + 2 - i % 2); fan i = (i + 1, i + 2, 0).
-        Mode::TriangleStrip => (0..n.saturating_sub(2)).map(|i| triangle(i, i + 1 + i % 2, i + 2 - i % 2)).collect(),
-        _ => (0..n.saturating_sub(2)).map(|i| triangle(i + 1, i + 2, 0)).collect(),
+        Mode::TriangleStrip => {
+            (0..n.saturating_sub(2)).into_par_iter().map(|i| triangle(i, i + 1 + i % 2, i + 2 - i % 2)).collect()
+        }
+        _ => (0..n.saturating_sub(2)).into_par_iter().map(|i| triangle(i + 1, i + 2, 0)).collect(),
     };
     Ok(tris)
 }
@@ -417,7 +421,7 @@ fn gltf_material(doc: &Document, m: usize, names: &[String], label: &str) -> Opt
         ior: 1.5,
         one_sided: false,
         emit: Rgb(emit),
-        loc: SourceLoc { file: label.to_string(), line: 0 },
+        loc: SourceLoc { file: label.into(), line: 0 },
     })
 }
 
@@ -449,7 +453,7 @@ pub fn gltf_stage(label: &str, bytes: &[u8]) -> Result<GltfStage, SceneError> {
     for (node, world) in &nodes {
         let eye = world.transform_point3(DVec3::ZERO);
         let forward = world.transform_vector3(DVec3::NEG_Z);
-        let loc = SourceLoc { file: label.to_string(), line: 0 };
+        let loc = SourceLoc { file: label.into(), line: 0 };
         if let Some(cam) = node.camera() {
             if let ::gltf::camera::Projection::Perspective(p) = cam.projection() {
                 let up = world.transform_vector3(DVec3::Y);

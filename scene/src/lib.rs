@@ -20,6 +20,7 @@
 pub mod color;
 pub mod math;
 
+mod chunks;
 mod error;
 mod field;
 mod gltf;

@@ -11,19 +11,28 @@
 use std::path::Path;
 
 use super::error::SceneError;
-use super::mesh::{MaterialTable, MeshEntry, MeshFormat, ModelTriangle, ReadFile};
+use super::mesh::{swap_corners, MaterialTable, MeshEntry, MeshFormat, ModelTriangle, ReadFile};
 use super::model::MAX_COORDINATE;
 use super::shape::is_degenerate;
 
-/// Reads a mesh's file through `read` (by its format) and returns its triangles after
-/// the entry's transform, with their material indices. Zero-area triangles are skipped;
-/// a file without any other is an error.
-pub(super) fn load_mesh(
+/// Reads a mesh's file through `read` (by its format) and hands its triangles, after the
+/// entry's transform, with their material indices, to `visit` in runs, in file order, as
+/// they are read, so that the caller need not hold them all: an OBJ is parsed a window
+/// of chunks at a time and handed on chunk by chunk (PLY and glTF files are read whole,
+/// then handed on in runs). Zero-area
+/// triangles are skipped; a file without any other is an error. A mesh smoothed by a
+/// crease angle is handed on in one run, once it is all read and smoothed.
+///
+/// The errors are those of a whole read, in its order: the file's (its text, then its
+/// materials, then a face without one), then the placement's, then "no faces". After an
+/// error, the runs handed on before it are to be dropped.
+pub(super) fn stream_mesh(
     entry: &MeshEntry<'_>,
     base_dir: &Path,
     read: ReadFile<'_>,
     materials: &mut MaterialTable,
-) -> Result<Vec<ModelTriangle>, SceneError> {
+    visit: &mut dyn FnMut(Vec<ModelTriangle>),
+) -> Result<(), SceneError> {
     let path = base_dir.join(entry.file);
     let label = path.display().to_string();
     let Some(format) = MeshFormat::of(&path) else {
@@ -32,22 +41,66 @@ pub(super) fn load_mesh(
     };
     let bytes =
         read(&path).map_err(|e| entry.file_err(format!("cannot read {} file '{label}': {e}", format.name())))?;
-    let triangles = match format {
-        MeshFormat::Obj => super::obj::load(entry, &path, &label, &bytes, read, materials)?,
-        MeshFormat::Ply => super::ply::load(entry, &label, &bytes)?,
-        MeshFormat::Gltf => super::gltf::load(entry, &path, &label, &bytes, read, materials)?,
+    let smooth = entry.shading.crease_cos;
+    let mut whole = Vec::new();
+    let mut placed_any = false;
+    // A placement error waits for the file's errors, which come first.
+    let mut pending: Option<SceneError> = None;
+    let mut take = |triangles: Vec<ModelTriangle>| {
+        if pending.is_some() {
+            return;
+        }
+        match place(entry, triangles) {
+            Ok(p) if smooth.is_some() => whole.extend(p),
+            Ok(p) => {
+                placed_any |= !p.is_empty();
+                if !p.is_empty() {
+                    visit(p);
+                }
+            }
+            Err(e) => pending = Some(e),
+        }
     };
-    let mut placed = place(entry, &label, triangles)?;
-    if let Some(crease_cos) = entry.shading.crease_cos {
-        super::normals::smooth_by_crease(&mut placed, crease_cos);
+    match format {
+        MeshFormat::Obj => super::obj::stream(entry, &path, &label, &bytes, read, materials, &mut take)?,
+        MeshFormat::Ply => in_runs(super::ply::load(entry, &label, &bytes)?, &mut take),
+        MeshFormat::Gltf => in_runs(super::gltf::load(entry, &path, &label, &bytes, read, materials)?, &mut take),
     }
-    Ok(placed)
+    if let Some(e) = pending {
+        return Err(e);
+    }
+    if let Some(crease_cos) = smooth {
+        super::normals::smooth_by_crease(&mut whole, crease_cos);
+        placed_any = !whole.is_empty();
+        if placed_any {
+            visit(whole);
+        }
+    }
+    if !placed_any {
+        return Err(entry.file_err(format!("mesh file '{label}' has no faces of non-zero area")));
+    }
+    Ok(())
 }
 
-/// Applies the entry's transform to a file's triangles and their normals, keeping the
-/// patches' fronts outward under a mirroring transform, refusing vertices sent past
-/// [`MAX_COORDINATE`] and skipping zero-area triangles.
-fn place(entry: &MeshEntry<'_>, label: &str, triangles: Vec<ModelTriangle>) -> Result<Vec<ModelTriangle>, SceneError> {
+/// Triangles per run handed on from a file read whole.
+const RUN: usize = 1 << 16;
+
+/// Hands `triangles` to `take` in runs of [`RUN`], in order.
+fn in_runs(triangles: Vec<ModelTriangle>, take: &mut dyn FnMut(Vec<ModelTriangle>)) {
+    let mut all = triangles.into_iter();
+    loop {
+        let run: Vec<ModelTriangle> = all.by_ref().take(RUN).collect();
+        if run.is_empty() {
+            return;
+        }
+        take(run);
+    }
+}
+
+/// Applies the entry's transform to a run of a file's triangles and their normals,
+/// keeping the patches' fronts outward under a mirroring transform, refusing vertices
+/// sent past [`MAX_COORDINATE`] and skipping zero-area triangles.
+fn place(entry: &MeshEntry<'_>, triangles: Vec<ModelTriangle>) -> Result<Vec<ModelTriangle>, SceneError> {
     let flip = entry.transform.flips_winding();
     let mut out = Vec::with_capacity(triangles.len());
     for t in triangles {
@@ -56,13 +109,7 @@ fn place(entry: &MeshEntry<'_>, label: &str, triangles: Vec<ModelTriangle>) -> R
             t.normals.filter(|_| entry.shading.file_normals).map(|n| n.map(|n| entry.transform.normal(n)));
         let mut uv = t.uv;
         if flip {
-            v.swap(1, 2);
-            if let Some(n) = normals.as_mut() {
-                n.swap(1, 2);
-            }
-            if let Some(c) = uv.as_mut() {
-                c.swap(1, 2);
-            }
+            swap_corners(&mut v, &mut normals, &mut uv);
         }
         if !v.iter().all(|p| p.is_finite() && p.abs().max_element() <= MAX_COORDINATE) {
             return Err(entry.err("scale", format!("the transform sends a vertex past {MAX_COORDINATE:e}")));
@@ -71,9 +118,6 @@ fn place(entry: &MeshEntry<'_>, label: &str, triangles: Vec<ModelTriangle>) -> R
             let normals = normals.and_then(|n| super::normals::shading_normals(&v, n));
             out.push(ModelTriangle { v, material: t.material, normals, uv, texture: t.texture });
         }
-    }
-    if out.is_empty() {
-        return Err(entry.file_err(format!("mesh file '{label}' has no faces of non-zero area")));
     }
     Ok(out)
 }

@@ -45,6 +45,18 @@ impl ModelTriangle {
         ModelTriangle { v, material, normals: None, uv: None, texture: None }
     }
 }
+/// Swaps a triangle's second and third corners, with the normals and texture
+/// coordinates they carry: the same triangle, facing the other way.
+pub(super) fn swap_corners(v: &mut [DVec3; 3], normals: &mut Option<[DVec3; 3]>, uv: &mut Option<[DVec2; 3]>) {
+    v.swap(1, 2);
+    if let Some(n) = normals.as_mut() {
+        n.swap(1, 2);
+    }
+    if let Some(c) = uv.as_mut() {
+        c.swap(1, 2);
+    }
+}
+
 /// The scene's materials, which meshes extend with the materials their files define.
 pub(super) struct MaterialTable {
     /// Every material, referenced by index (`[[material]]` tables first).
@@ -205,7 +217,7 @@ pub(super) fn utf8<'b>(label: &str, field: &str, bytes: &'b [u8]) -> Result<&'b 
         let at = e.valid_up_to();
         let line = 1 + bytes[..at].iter().filter(|&&b| b == b'\n').count();
         let line = u32::try_from(line).unwrap_or(u32::MAX);
-        SceneError::new(SourceLoc { file: label.to_string(), line }, field, "not UTF-8 text")
+        SceneError::new(SourceLoc { file: label.into(), line }, field, "not UTF-8 text")
     })
 }
 

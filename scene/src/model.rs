@@ -10,8 +10,9 @@ use glam::DVec3;
 /// Where an entity came from, so that later errors can name the file and line.
 #[derive(Clone, Debug, Default, PartialEq, Eq)]
 pub struct SourceLoc {
-    /// File name as the user gave it (or a label such as `<inline>`).
-    pub file: String,
+    /// File name as the user gave it (or a label such as `<inline>`), shared: the
+    /// patches of a mesh all point at one copy rather than each holding its own.
+    pub file: std::sync::Arc<str>,
     /// 1-based line number, 0 when unknown.
     pub line: u32,
 }

@@ -18,103 +18,150 @@ use std::path::{Path, PathBuf};
 
 use super::error::SceneError;
 use super::mesh::{shown, utf8, MaterialTable, MeshEntry, ModelTriangle, ReadFile};
-use super::model::{Material, SourceLoc, MAX_COORDINATE, MAX_RADIOMETRIC};
+use super::model::{Material, SourceLoc, MAX_RADIOMETRIC};
 use crate::color::Rgb;
 use glam::{DVec2, DVec3};
 
 /// Parses a mesh's OBJ file `bytes` (read from `obj_path`, named `label`) and its MTL
-/// files (read through `read`), and returns its triangles in the model's space with their
-/// material indices.
+/// files (read through `read`), and hands its triangles in the model's space with their
+/// material indices to `visit`, a chunk of the file at a time, in file order.
 ///
 /// A `usemtl` name is looked up first in the OBJ's own MTL files, whose materials are added
 /// to `materials` (once, in order of first use) as `objfile:mtlname` (e.g.
 /// `meshes/sphere.obj:glass`), then among the `[[material]]` tables by plain name.
-pub(super) fn load(
+///
+/// The `mtllib` and `usemtl` statements are found first (a quick pass that parses only
+/// their lines), so that faces have their materials as they are read. Errors come in the
+/// order of a reader that parses the whole file before it looks at materials: any error of
+/// the OBJ's text first, then the MTL files', then a face without a material. The
+/// triangles of the chunks before an error have been handed on by then.
+pub(super) fn stream(
     entry: &MeshEntry<'_>,
     obj_path: &Path,
     obj_label: &str,
     bytes: &[u8],
     read: ReadFile<'_>,
     materials: &mut MaterialTable,
-) -> Result<Vec<ModelTriangle>, SceneError> {
-    let mesh = parse_obj(obj_label, utf8(obj_label, "obj", bytes)?)?;
-
-    // Material of each `usemtl` name (None: defined nowhere, reported at its first face).
-    // ... and its texture (`map_Kd`), if any.
-    let mut usemtl_ids = Vec::new();
-    let mut usemtl_textures: Vec<Option<u32>> = Vec::new();
-    if entry.material.is_none() {
-        let mtl = load_mtllibs(&mesh, obj_path, obj_label, read)?;
-        for name in &mesh.usemtl_names {
-            let (id, texture) = match mtl.iter().find(|mm| mm.material.name == *name) {
-                Some(mm) => {
-                    let id = materials.add_file_material(entry, &mm.material).map_err(|m| entry.file_err(m))?;
-                    let texture = match &mm.map_kd {
-                        Some((path, line)) => Some(materials.texture(path, read).map_err(|m| {
-                            SceneError::new(SourceLoc { file: mm.label.clone(), line: *line }, "map_Kd", m)
-                        })?),
-                        None => None,
-                    };
-                    (Some(id), texture)
-                }
-                None => (materials.toml.get(name).copied(), None),
-            };
-            usemtl_ids.push(id);
-            usemtl_textures.push(texture);
+    visit: &mut dyn FnMut(Vec<ModelTriangle>),
+) -> Result<(), SceneError> {
+    let text = utf8(obj_label, "obj", bytes)?;
+    // An error found before the text is all parsed waits: a parse error would come first.
+    let mut pending: Option<SceneError> = None;
+    let usemtl = if entry.material.is_none() {
+        let (mtllibs, names) = statements::material_statements(text);
+        usemtl_materials(entry, &mtllibs, &names, obj_path, obj_label, read, materials).unwrap_or_else(|e| {
+            pending = Some(e);
+            Vec::new()
+        })
+    } else {
+        Vec::new()
+    };
+    chunked::stream(obj_label, text, chunked::DEFAULT_CHUNK_BYTES, &mut |mesh, faces| {
+        if pending.is_some() {
+            return;
         }
-    }
-
-    let mut out = Vec::with_capacity(mesh.faces.len());
-    for face in &mesh.faces {
-        let material = match (entry.material, face.usemtl) {
-            (Some(id), _) => id,
-            (None, Some(u)) => match usemtl_ids.get(u).copied().flatten() {
-                Some(id) => id,
-                None => {
-                    let name = mesh.usemtl_names.get(u).map_or("", String::as_str);
-                    let msg = format!(
-                        "{obj_label}:{}: material '{name}' is not defined (neither in the OBJ's MTL files nor a [[material]])",
-                        face.line
-                    );
-                    return Err(entry.file_err(msg));
+        let mut out = Vec::with_capacity(faces.len());
+        for face in faces {
+            match triangle(entry, obj_label, mesh, face, &usemtl) {
+                Ok(t) => out.push(t),
+                Err(e) => {
+                    pending = Some(e);
+                    return;
                 }
-            },
-            (None, None) => return Err(entry.no_material(&format!("{obj_label}:{}", face.line))),
-        };
-        let mut v = [DVec3::ZERO; 3];
-        for (o, &k) in v.iter_mut().zip(&face.corners) {
-            // parse_obj checked every index; stay safe anyway.
-            *o = mesh.positions.get(k).copied().ok_or_else(|| entry.file_err("face index out of range".into()))?;
+            }
         }
-        let normals = face.normals.and_then(|n| {
-            let [a, b, c] = n.map(|k| mesh.normals.get(k).copied());
-            Some([a?, b?, c?])
+        visit(out);
+    })?;
+    pending.map_or(Ok(()), Err)
+}
+
+/// The material and texture of each `usemtl` name (the material `None` where neither the
+/// MTL files nor a `[[material]]` define it: an error at its first face).
+fn usemtl_materials(
+    entry: &MeshEntry<'_>,
+    mtllibs: &[MtlLib],
+    names: &[String],
+    obj_path: &Path,
+    obj_label: &str,
+    read: ReadFile<'_>,
+    materials: &mut MaterialTable,
+) -> Result<Vec<(Option<u32>, Option<u32>)>, SceneError> {
+    let mtl = load_mtllibs(mtllibs, obj_path, obj_label, read)?;
+    let mut out = Vec::with_capacity(names.len());
+    for name in names {
+        out.push(match mtl.iter().find(|mm| mm.material.name == *name) {
+            Some(mm) => {
+                let id = materials.add_file_material(entry, &mm.material).map_err(|m| entry.file_err(m))?;
+                let texture = match &mm.map_kd {
+                    Some((path, line)) => Some(materials.texture(path, read).map_err(|m| {
+                        SceneError::new(SourceLoc { file: mm.label.as_str().into(), line: *line }, "map_Kd", m)
+                    })?),
+                    None => None,
+                };
+                (Some(id), texture)
+            }
+            None => (materials.toml.get(name).copied(), None),
         });
-        let uv = face.uvs.and_then(|t| {
-            let [a, b, c] = t.map(|k| mesh.uvs.get(k).copied());
-            Some([a?, b?, c?])
-        });
-        let texture = face.usemtl.and_then(|u| usemtl_textures.get(u).copied().flatten()).filter(|_| uv.is_some());
-        out.push(ModelTriangle { v, material, normals, uv, texture });
     }
     Ok(out)
+}
+
+/// The triangle of `face` with its material, or why it has none.
+fn triangle(
+    entry: &MeshEntry<'_>,
+    obj_label: &str,
+    mesh: &ObjMesh,
+    face: &ObjFace,
+    usemtl: &[(Option<u32>, Option<u32>)],
+) -> Result<ModelTriangle, SceneError> {
+    let of = |u: u32| usemtl.get(u as usize).copied().unwrap_or((None, None));
+    let material = match (entry.material, face.usemtl) {
+        (Some(id), _) => id,
+        (None, Some(u)) => match of(u).0 {
+            Some(id) => id,
+            None => {
+                let name = mesh.usemtl_names.get(u as usize).map_or("", String::as_str);
+                let msg = format!(
+                    "{obj_label}:{}: material '{name}' is not defined (neither in the OBJ's MTL files nor a [[material]])",
+                    face.line
+                );
+                return Err(entry.file_err(msg));
+            }
+        },
+        (None, None) => return Err(entry.no_material(&format!("{obj_label}:{}", face.line))),
+    };
+    let mut v = [DVec3::ZERO; 3];
+    for (o, &k) in v.iter_mut().zip(&face.corners) {
+        // parse_obj checked every index; stay safe anyway.
+        *o = mesh.positions.get(k as usize).copied().ok_or_else(|| entry.file_err("face index out of range".into()))?;
+    }
+    let normals = face.normals.and_then(|n| {
+        let [a, b, c] = n.map(|k| mesh.normals.get(k as usize).copied());
+        Some([a?, b?, c?])
+    });
+    let uv = face.uvs.and_then(|t| {
+        let [a, b, c] = t.map(|k| mesh.uvs.get(k as usize).copied());
+        Some([a?, b?, c?])
+    });
+    let texture = face.usemtl.and_then(|u| of(u).1).filter(|_| uv.is_some());
+    Ok(ModelTriangle { v, material, normals, uv, texture })
 }
 
 /// Reads and parses every `mtllib` of an OBJ, relative to the OBJ's directory; a name
 /// defined in two of them is an error.
 fn load_mtllibs(
-    mesh: &ObjMesh,
+    mtllibs: &[MtlLib],
     obj_path: &Path,
     obj_label: &str,
     read: ReadFile<'_>,
 ) -> Result<Vec<MtlMaterial>, SceneError> {
     let dir = obj_path.parent().map_or_else(PathBuf::new, Path::to_path_buf);
     let mut out: Vec<MtlMaterial> = Vec::new();
-    for lib in &mesh.mtllibs {
+    for lib in mtllibs {
         let path = dir.join(&lib.file);
         let label = path.display().to_string();
         let bytes = read(&path).map_err(|e| {
-            let at = SourceLoc { file: obj_label.to_string(), line: lib.line };
+            let at = SourceLoc { file: obj_label.into(), line: lib.line };
             SceneError::new(at, "mtllib", format!("cannot read MTL file '{label}': {e}"))
         })?;
         for (mm, map) in parse_mtl_maps(&label, utf8(&label, "mtl", &bytes)?)? {
@@ -156,17 +203,18 @@ pub(super) struct ObjMesh {
     pub usemtl_names: Vec<String>,
 }
 
-/// One triangle of an OBJ face.
-#[derive(Clone, Debug, PartialEq)]
+/// One triangle of an OBJ face: 44 bytes, no heap (its line, not its text, says where
+/// it is; messages are made from it when needed).
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub(super) struct ObjFace {
     /// Indices into [`ObjMesh::positions`] (checked in range).
-    pub corners: [usize; 3],
+    pub corners: [u32; 3],
     /// Indices into [`ObjMesh::uvs`] (checked in range), when every corner names one.
-    pub uvs: Option<[usize; 3]>,
+    pub uvs: Option<[u32; 3]>,
     /// Indices into [`ObjMesh::normals`] (checked in range), when every corner names one.
-    pub normals: Option<[usize; 3]>,
+    pub normals: Option<[u32; 3]>,
     /// Index into [`ObjMesh::usemtl_names`] of the `usemtl` in force, if any.
-    pub usemtl: Option<usize>,
+    pub usemtl: Option<u32>,
     /// 1-based line of the `f` statement.
     pub line: u32,
 }
@@ -181,7 +229,7 @@ pub(super) struct MtlLib {
 }
 
 /// OBJ statements that do not describe triangle surfaces and are skipped.
-const OBJ_IGNORED: &[&str] = &[
+pub(super) const OBJ_IGNORED: &[&str] = &[
     "o",
     "g",
     "s",
@@ -201,135 +249,19 @@ const OBJ_IGNORED: &[&str] = &[
     "csh",
 ];
 /// OBJ free-form statements, which are refused rather than silently dropped.
-const OBJ_FREEFORM: &[&str] =
+pub(super) const OBJ_FREEFORM: &[&str] =
     &["cstype", "deg", "bmat", "step", "curv", "curv2", "surf", "parm", "trim", "hole", "scrv", "sp", "end", "con"];
 
-/// Parses an OBJ file; `label` names it in errors.
+/// Parses an OBJ file; `label` names it in errors. It is read in chunks on every core
+/// ([`chunked`]).
+#[cfg(test)]
 pub(super) fn parse_obj(label: &str, text: &str) -> Result<ObjMesh, SceneError> {
-    let mut mesh = ObjMesh::default();
-    let mut current: Option<usize> = None;
-    for (n, raw_line) in text.lines().enumerate() {
-        let line = u32::try_from(n + 1).unwrap_or(u32::MAX);
-        let err = |msg: String| SceneError::new(SourceLoc { file: label.to_string(), line }, "obj", msg);
-        let content = raw_line.split('#').next().unwrap_or("").trim();
-        let mut tokens = content.split_whitespace();
-        let Some(keyword) = tokens.next() else {
-            continue;
-        };
-        match keyword {
-            "v" => {
-                let mut xyz = [0.0; 3];
-                let mut count = 0;
-                for tok in tokens {
-                    let x = parse_number(tok).map_err(|m| err(format!("v: {m}")))?;
-                    if x.abs() > MAX_COORDINATE {
-                        return Err(err(format!("v: {x:e} is out of range [-{MAX_COORDINATE:e}, {MAX_COORDINATE:e}]")));
-                    }
-                    if let Some(slot) = xyz.get_mut(count) {
-                        *slot = x;
-                    }
-                    count += 1;
-                }
-                if !(3..=7).contains(&count) {
-                    return Err(err(format!("v needs 3 coordinates, found {count} numbers")));
-                }
-                mesh.positions.push(DVec3::from_array(xyz));
-            }
-            "vt" => {
-                let uv = tokens
-                    .map(|tok| parse_number(tok).map_err(|m| err(format!("vt: {m}"))))
-                    .collect::<Result<Vec<_>, _>>()?;
-                // `vt u [v [w]]`: v defaults to 0, w is ignored.
-                let (Some(&u), 1..=3) = (uv.first(), uv.len()) else {
-                    return Err(err(format!("vt needs 1 to 3 numbers, found {}", uv.len())));
-                };
-                mesh.uvs.push(DVec2::new(u, uv.get(1).copied().unwrap_or(0.0)));
-            }
-            "vn" => {
-                let xyz = tokens
-                    .map(|tok| parse_number(tok).map_err(|m| err(format!("vn: {m}"))))
-                    .collect::<Result<Vec<_>, _>>()?;
-                let [x, y, z] = xyz[..] else {
-                    return Err(err(format!("vn needs 3 numbers, found {}", xyz.len())));
-                };
-                mesh.normals.push(DVec3::new(x, y, z));
-            }
-            "f" => {
-                let corners = tokens
-                    .map(|tok| resolve_corner(tok, [mesh.positions.len(), mesh.uvs.len(), mesh.normals.len()]))
-                    .collect::<Result<Vec<_>, _>>()
-                    .map_err(|m| err(format!("f: {m}")))?;
-                if corners.len() < 3 {
-                    return Err(err(format!("f needs at least 3 vertices, found {}", corners.len())));
-                }
-                let first = corners[0];
-                for pair in corners[1..].windows(2) {
-                    if let [b, c] = pair {
-                        let all = |k: usize| match (first[k], b[k], c[k]) {
-                            (Some(x), Some(y), Some(z)) => Some([x, y, z]),
-                            _ => None,
-                        };
-                        let corners = all(0).unwrap_or_default();
-                        let (uvs, normals) = (all(1), all(2));
-                        mesh.faces.push(ObjFace { corners, uvs, normals, usemtl: current, line });
-                    }
-                }
-            }
-            "usemtl" => {
-                let name = rest_after_keyword(content, keyword);
-                if name.is_empty() {
-                    return Err(err("usemtl needs a material name".to_string()));
-                }
-                current = Some(match mesh.usemtl_names.iter().position(|m| m == name) {
-                    Some(k) => k,
-                    None => {
-                        mesh.usemtl_names.push(name.to_string());
-                        mesh.usemtl_names.len() - 1
-                    }
-                });
-            }
-            "mtllib" => {
-                let before = mesh.mtllibs.len();
-                mesh.mtllibs.extend(tokens.map(|t| MtlLib { file: t.to_string(), line }));
-                if mesh.mtllibs.len() == before {
-                    return Err(err("mtllib needs a file name".to_string()));
-                }
-            }
-            k if OBJ_IGNORED.contains(&k) => {}
-            k if OBJ_FREEFORM.contains(&k) => {
-                return Err(err(format!("free-form geometry ('{k}') is not supported: export triangles or polygons")));
-            }
-            k => return Err(err(format!("unknown statement {}", shown(k)))),
-        }
-    }
-    Ok(mesh)
-}
-
-/// One face corner (`v`, `v/vt`, `v//vn`, `v/vt/vn`), resolved against the counts of
-/// positions, texture coordinates and normals defined so far: the 0-based position, `vt`
-/// and `vn` indices (the last two where the corner names them).
-fn resolve_corner(tok: &str, counts: [usize; 3]) -> Result<[Option<usize>; 3], String> {
-    let parts: Vec<&str> = tok.split('/').collect();
-    let bad = || format!("{} is not a vertex reference (v, v/vt, v//vn or v/vt/vn)", shown(tok));
-    if parts.len() > 3 || parts[1..].iter().any(|p| !p.is_empty() && p.parse::<i64>().is_err()) {
-        return Err(bad());
-    }
-    let i: i64 = parts[0].parse().map_err(|_| format!("{} is not a vertex index", shown(tok)))?;
-    let mut out = [Some(resolve_index(i, counts[0], "vertex", "vertices")?), None, None];
-    for (k, (what, plural)) in
-        [(1, ("texture coordinate", "texture coordinates (vt)")), (2, ("normal", "normals (vn)"))]
-    {
-        if let Some(p) = parts.get(k).filter(|p| !p.is_empty()) {
-            let j: i64 = p.parse().map_err(|_| bad())?;
-            out[k] = Some(resolve_index(j, counts[k], what, plural)?);
-        }
-    }
-    Ok(out)
+    chunked::parse(label, text, chunked::DEFAULT_CHUNK_BYTES)
 }
 
 /// A 1-based (or negative, relative) OBJ index among `count` entries defined so far, as
 /// a 0-based index.
-fn resolve_index(i: i64, count: usize, what: &str, plural: &str) -> Result<usize, String> {
+pub(super) fn resolve_index(i: i64, count: usize, what: &str, plural: &str) -> Result<usize, String> {
     let count_i = i64::try_from(count).unwrap_or(i64::MAX);
     let index = match i {
         0 => return Err(format!("{what} index 0 is not valid (OBJ indices start at 1)")),
@@ -343,7 +275,7 @@ fn resolve_index(i: i64, count: usize, what: &str, plural: &str) -> Result<usize
 }
 
 /// A finite number, or why not.
-fn parse_number(tok: &str) -> Result<f64, String> {
+pub(super) fn parse_number(tok: &str) -> Result<f64, String> {
     match tok.parse::<f64>() {
         Ok(x) if x.is_finite() => Ok(x),
         Ok(x) => Err(format!("{x} is not a finite number")),
@@ -352,7 +284,7 @@ fn parse_number(tok: &str) -> Result<f64, String> {
 }
 
 /// The rest of a statement after its keyword, trimmed (names may contain spaces).
-fn rest_after_keyword<'t>(content: &'t str, keyword: &str) -> &'t str {
+pub(super) fn rest_after_keyword<'t>(content: &'t str, keyword: &str) -> &'t str {
     content.strip_prefix(keyword).unwrap_or("").trim()
 }
 
@@ -410,7 +342,7 @@ impl MtlPending {
             ior: self.ni.map_or(1.5, |n| n.clamp(1.0, 4.0)),
             one_sided: false,
             emit: Rgb(self.ke.unwrap_or(Rgb::BLACK).0.map(|x| x.clamp(0.0, MAX_RADIOMETRIC))),
-            loc: SourceLoc { file: label.to_string(), line: self.line },
+            loc: SourceLoc { file: label.into(), line: self.line },
         }
     }
 }
@@ -437,7 +369,7 @@ pub(super) fn parse_mtl_maps(label: &str, text: &str) -> Result<Vec<(Material, O
     let mut pending: Option<MtlPending> = None;
     for (n, raw_line) in text.lines().enumerate() {
         let line = u32::try_from(n + 1).unwrap_or(u32::MAX);
-        let err = |msg: String| SceneError::new(SourceLoc { file: label.to_string(), line }, "mtl", msg);
+        let err = |msg: String| SceneError::new(SourceLoc { file: label.into(), line }, "mtl", msg);
         let content = raw_line.split('#').next().unwrap_or("").trim();
         let mut tokens = content.split_whitespace();
         let Some(keyword) = tokens.next() else {
@@ -509,5 +441,9 @@ fn parse_colour(args: &[&str]) -> Result<Rgb, String> {
     }
 }
 
+mod chunked;
+#[cfg(test)]
+mod reference;
+mod statements;
 #[cfg(test)]
 mod tests;

@@ -15,7 +15,7 @@ use toml::Spanned;
 
 use super::error::SceneError;
 use super::field::field_at;
-use super::load::load_mesh;
+use super::load::stream_mesh;
 use super::mesh::{MaterialTable, MeshEntry, MeshShading, ReadFile, Transform};
 use super::model::{
     Accel, Camera, CameraPath, DirectLight, Exposure, GridSpec, Light, Material, PatchDef, RenderSettings, Scene,
@@ -256,7 +256,7 @@ impl<'a> Ctx<'a> {
     }
 
     pub(super) fn loc<T>(&self, s: &Spanned<T>) -> SourceLoc {
-        SourceLoc { file: self.file.to_string(), line: self.line(s.span().start) }
+        SourceLoc { file: self.file.into(), line: self.line(s.span().start) }
     }
 
     pub(super) fn err<T>(&self, s: &Spanned<T>, field: impl Into<String>, msg: impl Into<String>) -> SceneError {
@@ -264,7 +264,7 @@ impl<'a> Ctx<'a> {
     }
 
     fn whole_file(&self, field: &str, msg: &str) -> SceneError {
-        SceneError::new(SourceLoc { file: self.file.to_string(), line: 0 }, field, msg)
+        SceneError::new(SourceLoc { file: self.file.into(), line: 0 }, field, msg)
     }
 
     /// Maps a TOML syntax or type error to a [`SceneError`] at its line, guessing the
@@ -273,7 +273,7 @@ impl<'a> Ctx<'a> {
         let offset = e.span().map_or(0, |s| s.start.min(self.text.len()));
         let line = if e.span().is_some() { self.line(offset) } else { 0 };
         let message = e.message().trim().replace('\n', " ");
-        SceneError::new(SourceLoc { file: self.file.to_string(), line }, field_at(self.text, offset), message)
+        SceneError::new(SourceLoc { file: self.file.into(), line }, field_at(self.text, offset), message)
     }
 
     fn finite(&self, v: &Spanned<f64>, field: &str) -> Result<f64, SceneError> {

@@ -45,7 +45,7 @@ pub(super) fn load(entry: &MeshEntry<'_>, label: &str, bytes: &[u8]) -> Result<V
 pub(super) struct PlyMesh {
     /// The triangles (zero-area ones included: placement skips them), with their corners'
     /// normals where the vertices carry them.
-    pub triangles: Vec<([DVec3; 3], Option<[DVec3; 3]>)>,
+    pub triangles: Vec<PlyTriangle>,
     /// Whether the vertices carried normals.
     pub normals: bool,
 }
@@ -135,10 +135,21 @@ struct Header {
     data_line: u32,
 }
 
-/// Parses a PLY file; `label` names it in errors.
+/// Parses a PLY file; `label` names it in errors. Its data is read in chunks on every
+/// core ([`parallel`]); a file that way cannot read (every file with an error) is read
+/// value after value, which says where and why.
 pub(super) fn parse_ply(label: &str, bytes: &[u8]) -> Result<PlyMesh, SceneError> {
-    let at = |line: u32, msg: String| SceneError::new(SourceLoc { file: label.to_string(), line }, "ply", msg);
+    parse_ply_in(label, bytes, Some(crate::chunks::CHUNK_BYTES))
+}
+
+/// [`parse_ply`] with the data in chunks of about `chunk_bytes`, or (`None`) read value
+/// after value only.
+fn parse_ply_in(label: &str, bytes: &[u8], chunk_bytes: Option<usize>) -> Result<PlyMesh, SceneError> {
+    let at = |line: u32, msg: String| SceneError::new(SourceLoc { file: label.into(), line }, "ply", msg);
     let header = parse_header(bytes).map_err(|(line, msg)| at(line, msg))?;
+    if let Some(mesh) = chunk_bytes.and_then(|c| parallel::read(&header, bytes, c)) {
+        return Ok(mesh);
+    }
     let mut data = Data {
         bytes,
         pos: header.data_start,
@@ -319,119 +330,179 @@ struct VertexLayout {
     normal: Option<[usize; 3]>,
 }
 
-/// Reads every element after the header; errors say which element (the caller adds the
-/// line or, in binary, says it has none).
-fn read_body(header: &Header, data: &mut Data<'_>) -> Result<PlyMesh, String> {
+/// An element's role in the mesh: where the vertex element keeps its coordinates, and
+/// which property of the face element is its corner list.
+struct Roles {
+    vertex: Option<VertexLayout>,
+    face_list: Option<usize>,
+}
+
+/// What an element's roles are, or why the element cannot be read.
+fn roles(element: &Element) -> Result<Roles, String> {
     let find = |e: &Element, name: &str| e.properties.iter().position(|(n, _)| n == name);
-    let mut positions: Vec<DVec3> = Vec::new();
-    let mut normals: Vec<DVec3> = Vec::new();
-    // Polygons as (first index into `corners`, corner count, where it was read).
-    let mut corners: Vec<u32> = Vec::new();
-    let mut polygons: Vec<(usize, usize, u32, u64)> = Vec::new();
+    let vertex = (element.name == "vertex")
+        .then(|| {
+            let xyz = [find(element, "x"), find(element, "y"), find(element, "z")];
+            let nxyz = [find(element, "nx"), find(element, "ny"), find(element, "nz")];
+            match xyz {
+                [Some(x), Some(y), Some(z)] => Ok(VertexLayout {
+                    xyz: [x, y, z],
+                    normal: match nxyz {
+                        [Some(a), Some(b), Some(c)] => Some([a, b, c]),
+                        _ => None,
+                    },
+                }),
+                _ => Err("the vertex element has no x, y and z properties".to_string()),
+            }
+        })
+        .transpose()?;
+    let face_list =
+        if element.name == "face" { find(element, "vertex_indices").or(find(element, "vertex_index")) } else { None };
+    if element.name == "face" && face_list.is_none() {
+        return Err("the face element has no vertex_indices list".to_string());
+    }
+    if let Some(k) = face_list {
+        if !matches!(element.properties.get(k), Some((_, Property::List(_, item))) if item.is_integer()) {
+            return Err("the face element's vertex_indices is not a list of integers".to_string());
+        }
+    }
+    Ok(Roles { vertex, face_list })
+}
+
+/// What the elements read so far hold: vertex positions and normals, and the polygons'
+/// corners.
+#[derive(Default)]
+struct Body {
+    positions: Vec<DVec3>,
+    normals: Vec<DVec3>,
+    corners: Vec<u32>,
+    /// Polygons as (first index into `corners`, corner count, line, index in element).
+    polygons: Vec<(usize, usize, u32, u64)>,
+}
+
+/// Reads instance `i` of `element` from `data` into `body`; `scalars` is scratch, one
+/// slot per property. Errors say which instance (the caller adds the line or, in
+/// binary, says it has none).
+fn read_instance(
+    element: &Element,
+    roles: &Roles,
+    i: u64,
+    data: &mut Data<'_>,
+    scalars: &mut [f64],
+    body: &mut Body,
+) -> Result<(), String> {
+    let (start, encoding) = (data.pos, data.encoding);
+    let where_ = |msg: String| match encoding {
+        Encoding::Ascii => format!("{} {i}: {msg}", element.name),
+        Encoding::Binary { .. } => format!("{} {i} (byte {start}): {msg}", element.name),
+    };
+    data.begin().map_err(where_)?;
+    for (k, (_, property)) in element.properties.iter().enumerate() {
+        match property {
+            Property::Scalar(s) => scalars[k] = data.value(*s).map_err(where_)?,
+            Property::List(count_type, item) => {
+                let n = data.value(*count_type).map_err(where_)?;
+                if n < 0.0 {
+                    return Err(where_(format!("a list of {n} items")));
+                }
+                let n = n as u64;
+                let is_face = roles.face_list == Some(k);
+                if is_face {
+                    if n < 3 {
+                        return Err(where_(format!("a face needs at least 3 vertices, found {n}")));
+                    }
+                    body.polygons.push((body.corners.len(), 0, data.line, i));
+                }
+                for _ in 0..n {
+                    let x = data.value(*item).map_err(where_)?;
+                    if is_face {
+                        if x < 0.0 || x > f64::from(u32::MAX) {
+                            return Err(where_(format!("vertex index {x} is out of range")));
+                        }
+                        body.corners.push(x as u32);
+                    }
+                }
+                if let (true, Some(p)) = (is_face, body.polygons.last_mut()) {
+                    p.1 = n as usize;
+                }
+            }
+        }
+    }
+    data.end().map_err(where_)?;
+    if let Some(v) = &roles.vertex {
+        let p = DVec3::new(scalars[v.xyz[0]], scalars[v.xyz[1]], scalars[v.xyz[2]]);
+        if !p.is_finite() || p.abs().max_element() > MAX_COORDINATE {
+            let msg = format!("vertex {p:?} is not finite or out of range [-{MAX_COORDINATE:e}, {MAX_COORDINATE:e}]");
+            return Err(where_(msg));
+        }
+        body.positions.push(p);
+        if let Some(n) = v.normal {
+            body.normals.push(DVec3::new(scalars[n[0]], scalars[n[1]], scalars[n[2]]));
+        }
+    }
+    Ok(())
+}
+
+/// Reads every element after the header, one value after the other; errors say which
+/// element (the caller adds the line or, in binary, says it has none). The reference for
+/// [`parallel`], and the reader of the files it leaves (every file with an error).
+fn read_body(header: &Header, data: &mut Data<'_>) -> Result<PlyMesh, String> {
+    let mut body = Body::default();
     let mut has_normals = false;
     // A bound on how many elements the data can still hold (each takes a byte at least),
     // so that a header's count cannot reserve more memory than the file backs.
     let room = data.bytes.len();
     for element in &header.elements {
-        let vertex = (element.name == "vertex")
-            .then(|| {
-                let xyz = [find(element, "x"), find(element, "y"), find(element, "z")];
-                let nxyz = [find(element, "nx"), find(element, "ny"), find(element, "nz")];
-                match xyz {
-                    [Some(x), Some(y), Some(z)] => Ok(VertexLayout {
-                        xyz: [x, y, z],
-                        normal: match nxyz {
-                            [Some(a), Some(b), Some(c)] => Some([a, b, c]),
-                            _ => None,
-                        },
-                    }),
-                    _ => Err("the vertex element has no x, y and z properties".to_string()),
-                }
-            })
-            .transpose()?;
-        let face_list = if element.name == "face" {
-            find(element, "vertex_indices").or(find(element, "vertex_index"))
-        } else {
-            None
-        };
-        if element.name == "face" && face_list.is_none() {
-            return Err("the face element has no vertex_indices list".to_string());
-        }
-        if let Some(k) = face_list {
-            if !matches!(element.properties.get(k), Some((_, Property::List(_, item))) if item.is_integer()) {
-                return Err("the face element's vertex_indices is not a list of integers".to_string());
-            }
-        }
-        if vertex.is_some() {
-            has_normals = vertex.as_ref().is_some_and(|v| v.normal.is_some());
+        let roles = roles(element)?;
+        if roles.vertex.is_some() {
+            has_normals = roles.vertex.as_ref().is_some_and(|v| v.normal.is_some());
             let cap = usize::try_from(element.count).unwrap_or(usize::MAX).min(room);
-            positions.reserve(cap);
+            body.positions.reserve(cap);
         }
         let mut scalars = vec![0.0; element.properties.len()];
         for i in 0..element.count {
-            let (start, encoding) = (data.pos, data.encoding);
-            let where_ = |msg: String| match encoding {
-                Encoding::Ascii => format!("{} {i}: {msg}", element.name),
-                Encoding::Binary { .. } => format!("{} {i} (byte {start}): {msg}", element.name),
-            };
-            data.begin().map_err(where_)?;
-            for (k, (_, property)) in element.properties.iter().enumerate() {
-                match property {
-                    Property::Scalar(s) => scalars[k] = data.value(*s).map_err(where_)?,
-                    Property::List(count_type, item) => {
-                        let n = data.value(*count_type).map_err(where_)?;
-                        if n < 0.0 {
-                            return Err(where_(format!("a list of {n} items")));
-                        }
-                        let n = n as u64;
-                        let is_face = face_list == Some(k);
-                        if is_face {
-                            if n < 3 {
-                                return Err(where_(format!("a face needs at least 3 vertices, found {n}")));
-                            }
-                            polygons.push((corners.len(), 0, data.line, i));
-                        }
-                        for _ in 0..n {
-                            let x = data.value(*item).map_err(where_)?;
-                            if is_face {
-                                if x < 0.0 || x > f64::from(u32::MAX) {
-                                    return Err(where_(format!("vertex index {x} is out of range")));
-                                }
-                                corners.push(x as u32);
-                            }
-                        }
-                        if let (true, Some(p)) = (is_face, polygons.last_mut()) {
-                            p.1 = n as usize;
-                        }
+            let start = data.pos;
+            read_instance(element, &roles, i, data, &mut scalars, &mut body)?;
+            if body.corners.len() > 3 * MAX_MESH_TRIANGLES {
+                return Err(match data.encoding {
+                    Encoding::Ascii => format!("{} {i}: more than {MAX_MESH_TRIANGLES} triangles", element.name),
+                    Encoding::Binary { .. } => {
+                        format!("{} {i} (byte {start}): more than {MAX_MESH_TRIANGLES} triangles", element.name)
                     }
-                }
-            }
-            data.end().map_err(where_)?;
-            if let Some(v) = &vertex {
-                let p = DVec3::new(scalars[v.xyz[0]], scalars[v.xyz[1]], scalars[v.xyz[2]]);
-                if !p.is_finite() || p.abs().max_element() > MAX_COORDINATE {
-                    let msg =
-                        format!("vertex {p:?} is not finite or out of range [-{MAX_COORDINATE:e}, {MAX_COORDINATE:e}]");
-                    return Err(where_(msg));
-                }
-                positions.push(p);
-                if let Some(n) = v.normal {
-                    normals.push(DVec3::new(scalars[n[0]], scalars[n[1]], scalars[n[2]]));
-                }
-            }
-            if corners.len() > 3 * MAX_MESH_TRIANGLES {
-                return Err(where_(format!("more than {MAX_MESH_TRIANGLES} triangles")));
+                });
             }
         }
     }
     // Bytes after the last element are ignored (some writers pad).
-    let mut triangles = Vec::with_capacity(corners.len().saturating_sub(2 * polygons.len()));
-    for &(first, n, line, i) in &polygons {
+    triangles(&body, has_normals).map_err(|(line, msg)| {
+        data.line = line;
+        msg
+    })
+}
+
+/// A triangle of the mesh and its corners' normals.
+type PlyTriangle = ([DVec3; 3], Option<[DVec3; 3]>);
+
+/// A polygon of [`Body::polygons`].
+type Polygon = (usize, usize, u32, u64);
+
+/// The mesh of what the elements held: each polygon fan-triangulated, oriented by its
+/// corners' normals where the vertices carry them; or the line of the first polygon
+/// with a corner out of range, and why.
+fn triangles(body: &Body, has_normals: bool) -> Result<PlyMesh, (u32, String)> {
+    Ok(PlyMesh { triangles: triangles_of(body, &body.polygons)?, normals: has_normals })
+}
+
+/// The triangles of `polygons`, a run of `body`'s, as [`triangles`] makes them.
+fn triangles_of(body: &Body, polygons: &[Polygon]) -> Result<Vec<PlyTriangle>, (u32, String)> {
+    let (positions, normals, corners) = (&body.positions, &body.normals, &body.corners);
+    let corner_count: usize = polygons.iter().map(|p| p.1).sum();
+    let mut triangles = Vec::with_capacity(corner_count.saturating_sub(2 * polygons.len()));
+    for &(first, n, line, i) in polygons {
         let ids = corners.get(first..first + n).unwrap_or(&[]);
-        let mut vertex = |k: u32| {
+        let vertex = |k: u32| {
             positions.get(k as usize).copied().map(|p| (p, normals.get(k as usize).copied())).ok_or_else(|| {
-                data.line = line;
-                format!("face {i}: vertex index {k} is out of range: {} vertices", positions.len())
+                (line, format!("face {i}: vertex index {k} is out of range: {} vertices", positions.len()))
             })
         };
         let Some((&first_id, rest)) = ids.split_first() else { continue };
@@ -451,8 +522,9 @@ fn read_body(header: &Header, data: &mut Data<'_>) -> Result<PlyMesh, String> {
             triangles.push((t, normals));
         }
     }
-    Ok(PlyMesh { triangles, normals: has_normals })
+    Ok(triangles)
 }
 
+mod parallel;
 #[cfg(test)]
 pub(super) mod tests;

@@ -28,7 +28,7 @@ pub fn generate(g: Generated) -> Scene {
 }
 
 fn loc(what: &str) -> SourceLoc {
-    SourceLoc { file: format!("<{what}>"), line: 0 }
+    SourceLoc { file: format!("<{what}>").into(), line: 0 }
 }
 
 fn c(x: f64, y: f64, z: f64) -> DVec3 {

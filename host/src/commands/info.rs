@@ -5,7 +5,9 @@ use crate::scene_file;
 
 /// Prints the counts of the prepared scene and its plan.
 pub fn run(args: &InfoArgs, files: &scene_file::SceneFiles) -> anyhow::Result<()> {
+    let read_start = std::time::Instant::now();
     let scene = files.load(&args.scene, &args.set.overrides()?)?;
+    let read_s = read_start.elapsed().as_secs_f64();
     let p = magg_prepare::refine::prepare(&scene, magg_core::plan::EffectsPlan::for_scene(&scene))?;
     let h = &p.header;
     let c = h.counts;
@@ -25,6 +27,7 @@ pub fn run(args: &InfoArgs, files: &scene_file::SceneFiles) -> anyhow::Result<()
             "bvh": h.bvh,
             "blocks": h.layout.total,
             "plan": { "passes": h.plan.passes(), "reasons": h.plan.reasons },
+            "read_s": read_s,
             "preprocess_s": p.preprocess_s,
             "prepare": p.preparation,
             "memory_estimate_mb": memory_mb,
@@ -70,6 +73,7 @@ pub fn run(args: &InfoArgs, files: &scene_file::SceneFiles) -> anyhow::Result<()
         "image      {}x{}, {} samples/pixel, {} light rays/pair",
         h.settings.width, h.settings.height, h.settings.pixel_samples, h.settings.light_rays
     );
+    println!("read       {read_s:.3} s  (the scene file and its meshes)");
     println!("preprocess {:.3} s", p.preprocess_s);
     let f = &p.preparation;
     println!(

@@ -23,7 +23,9 @@ use std::sync::Arc;
 /// Renders per `cfg` and writes every requested output. The frame in progress is kept in
 /// `partial`, for a signal that stops the render half-way (see [`crate::partial`]).
 pub fn run(cfg: RenderConfig, files: &scene_file::SceneFiles, partial: &partial::Slot) -> anyhow::Result<()> {
+    let read_start = std::time::Instant::now();
     let (mut scene, path) = files.load_with_path(&cfg.scene, &cfg.overrides)?;
+    let read_s = read_start.elapsed().as_secs_f64();
     if let Some(q) = cfg.quality {
         q.apply(&mut scene);
     }
@@ -193,7 +195,7 @@ pub fn run(cfg: RenderConfig, files: &scene_file::SceneFiles, partial: &partial:
         let e = Energies { element_flux: out.element_flux.clone(), vertex_irradiance: out.vertex_irradiance.clone() };
         saved_energy::save(path, &prepared.name, inputs, &e)?;
     }
-    let run = RunStats::new(&stats, cfg.load_energy.as_deref(), cfg.save_energy.as_deref(), records);
+    let run = RunStats::new(&stats, read_s, cfg.load_energy.as_deref(), cfg.save_energy.as_deref(), records);
     if let Some(path) = &cfg.stats {
         let json = serde_json::to_string_pretty(&run)?;
         std::fs::write(path, json + "\n").with_context(|| format!("cannot write stats file {}", path.display()))?;
@@ -212,7 +214,7 @@ pub fn run(cfg: RenderConfig, files: &scene_file::SceneFiles, partial: &partial:
             format!(" (modelled seconds of the {} machine)", cfg.profile.name)
         };
         eprintln!(
-            "{}: {}x{}, {} elements, {} nodes: preprocess {:.2}s, {lrt}, interp {:.3}s, VRT {:.2}s{frames}, total {:.2}s{clock}; cache hit ratio {:.3} -> {}",
+            "{}: {}x{}, {} elements, {} nodes: read {read_s:.2}s, preprocess {:.2}s, {lrt}, interp {:.3}s, VRT {:.2}s{frames}, total {:.2}s{clock}; cache hit ratio {:.3} -> {}",
             stats.scene,
             out.frame.width,
             out.frame.height,

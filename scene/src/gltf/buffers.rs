@@ -15,7 +15,7 @@ use crate::model::SourceLoc;
 
 /// An error about the glTF file `label` as a whole (no line).
 pub(super) fn file_err(label: &str, msg: String) -> SceneError {
-    SceneError::new(SourceLoc { file: label.to_string(), line: 0 }, "gltf", msg)
+    SceneError::new(SourceLoc { file: label.into(), line: 0 }, "gltf", msg)
 }
 
 /// Splits a GLB file into its JSON chunk and its optional binary chunk.

@@ -320,3 +320,66 @@ fn the_emissive_factor_times_its_strength_is_the_emitted_radiance() {
     );
     assert_eq!(load_ok(&strong).materials[0].emit, Rgb::new(8.0, 4.0, 2.0));
 }
+
+/// A grid of `n` x `n` quads (two triangles each, with normals) as one indexed
+/// primitive and the same vertices as a strip, placed by a node with `scale`.
+fn grid_document(n: u32, scale: f64) -> String {
+    let mut b: Vec<u8> = Vec::new();
+    let side = n + 1;
+    for j in 0..side {
+        for i in 0..side {
+            let p = [i as f32, j as f32, ((i * 7 + j * 3) % 5) as f32 * 0.1];
+            b.extend(p.iter().flat_map(|x| x.to_le_bytes()));
+        }
+    }
+    let normals_at = b.len();
+    for _ in 0..side * side {
+        b.extend([0.0f32, 0.0, 1.0].iter().flat_map(|x| x.to_le_bytes()));
+    }
+    let indices_at = b.len();
+    let mut count = 0;
+    for j in 0..n {
+        for i in 0..n {
+            let k = j * side + i;
+            for x in [k, k + 1, k + side + 1, k, k + side + 1, k + side] {
+                b.extend(x.to_le_bytes());
+                count += 1;
+            }
+        }
+    }
+    let uri = format!("data:application/octet-stream;base64,{}", base64::engine::general_purpose::STANDARD.encode(&b));
+    let v = side * side;
+    format!(
+        r#"{{"asset":{{"version":"2.0"}},"scene":0,"scenes":[{{"nodes":[0]}}],
+"nodes":[{{"mesh":0,"scale":[{scale},-1,1]}}],
+"meshes":[{{"primitives":[{{"attributes":{{"POSITION":0,"NORMAL":1}},"indices":2}},
+{{"attributes":{{"POSITION":0}},"indices":2,"mode":5}}]}}],
+"accessors":[{{"bufferView":0,"componentType":5126,"count":{v},"type":"VEC3","min":[0,0,0],"max":[{n},{n},1]}},
+{{"bufferView":1,"componentType":5126,"count":{v},"type":"VEC3"}},
+{{"bufferView":2,"componentType":5125,"count":{count},"type":"SCALAR"}}],
+"bufferViews":[{{"buffer":0,"byteOffset":0,"byteLength":{normals_at}}},
+{{"buffer":0,"byteOffset":{normals_at},"byteLength":{}}},
+{{"buffer":0,"byteOffset":{indices_at},"byteLength":{}}}],
+"buffers":[{{"byteLength":{},"uri":"{uri}"}}]}}"#,
+        indices_at - normals_at,
+        b.len() - indices_at,
+        b.len()
+    )
+}
+
+#[test]
+fn a_mesh_reads_the_same_on_one_core_as_on_several() {
+    let pool = |threads| rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+    for scale in ["1.5", "1e30"] {
+        let doc = grid_document(40, scale.parse().unwrap());
+        let read = || load_with(doc.as_bytes(), &[], Some(0)).map(|l| l.triangles);
+        let one = pool(1).install(read);
+        let four = pool(4).install(read);
+        if scale == "1.5" {
+            assert_eq!(one.as_ref().map(Vec::len), Ok(2 * 40 * 40 + 3 * 40 * 40 * 2 - 2));
+        } else {
+            assert!(one.as_ref().is_err_and(|e| e.message.contains("places a vertex past")), "{one:?}");
+        }
+        assert_eq!(one, four, "scale {scale}");
+    }
+}

@@ -13,7 +13,7 @@ fn obj_err(text: &str) -> String {
 #[test]
 fn polygons_are_fan_triangulated() {
     let m = obj("v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0.5 1.5 0\nv 0 1 0\nf 1 2 3 4 5\n");
-    let tris: Vec<[usize; 3]> = m.faces.iter().map(|f| f.corners).collect();
+    let tris: Vec<[u32; 3]> = m.faces.iter().map(|f| f.corners).collect();
     assert_eq!(tris, [[0, 1, 2], [0, 2, 3], [0, 3, 4]]);
     assert!(m.faces.iter().all(|f| f.line == 6 && f.usemtl.is_none()));
 }

@@ -142,8 +142,11 @@ impl PatchBuilder<'_, '_> {
             material,
             shading,
         };
-        for t in load_mesh(&entry, base_dir, read, &mut self.materials)? {
-            self.patches.push(PatchDef {
+        // The mesh's triangles become patches as they are read, a run at a time.
+        let patches = &mut self.patches;
+        let first = patches.len();
+        let read = stream_mesh(&entry, base_dir, read, &mut self.materials, &mut |run| {
+            patches.extend(run.into_iter().map(|t| PatchDef {
                 vertices: t.v,
                 material: t.material,
                 subdivisions,
@@ -152,9 +155,12 @@ impl PatchBuilder<'_, '_> {
                 uv: t.uv,
                 texture: t.texture,
                 loc: entry.at.clone(),
-            });
+            }));
+        });
+        if read.is_err() {
+            patches.truncate(first);
         }
-        Ok(())
+        read
     }
 
     fn scale(&self, v: &Spanned<toml::Value>, field: &str) -> Result<DVec3, SceneError> {

@@ -506,3 +506,28 @@ fn emit_makes_an_area_light_and_is_checked() {
         .replace("[[triangle]]", "[[material]]\nname = \"lamp\"\nemit = [1, 1, 1]\n\n[[triangle]]");
     assert!(err(&unused).contains("no [[light]] and no patch of a material with `emit`"));
 }
+
+#[test]
+fn a_streamed_obj_reports_its_errors_in_the_order_of_a_whole_read() {
+    let files = |obj: &'static str| vec![("base/m/cube.obj", obj), ("base/m/cube.mtl", CUBE_MTL)];
+    // A face without a material, then a line that is not OBJ: the text's error first.
+    let obj = "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\nbogus\n";
+    let e = parse_with(&mesh_scene(""), &files(obj)).unwrap_err().to_string();
+    assert!(e.starts_with("base/m/cube.obj:5: obj: unknown statement 'bogus'"), "{e}");
+    // An MTL that cannot be read, named after the faces: before the faces' materials.
+    let obj = "v 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl gold\nf 1 2 3\nmtllib none.mtl\n";
+    let e = parse_with(&mesh_scene(""), &files(obj)).unwrap_err().to_string();
+    assert!(e.starts_with("base/m/cube.obj:6: mtllib: cannot read MTL file 'base/m/none.mtl'"), "{e}");
+    // A vertex the transform sends too far, then a face without a material: the file's
+    // error first, then the placement's.
+    let obj = "mtllib cube.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl red\nf 1 2 3\nusemtl gold\nf 1 2 3\n";
+    let e = parse_with(&mesh_scene("scale = 1e300\n"), &files(obj)).unwrap_err().to_string();
+    assert!(e.contains("base/m/cube.obj:8: material 'gold' is not defined"), "{e}");
+    let obj = "mtllib cube.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl red\nf 1 2 3\n";
+    let e = parse_with(&mesh_scene("scale = 1e300\n"), &files(obj)).unwrap_err().to_string();
+    assert!(e.starts_with("t.toml:19: mesh[0].scale: the transform sends a vertex past"), "{e}");
+    // Only zero-area faces: after everything else.
+    let obj = "mtllib cube.mtl\nv 0 0 0\nv 1 0 0\nusemtl red\nf 1 2 1\n";
+    let e = parse_with(&mesh_scene(""), &files(obj)).unwrap_err().to_string();
+    assert!(e.contains("has no faces of non-zero area"), "{e}");
+}

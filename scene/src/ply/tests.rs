@@ -134,3 +134,121 @@ fn a_header_count_reserves_no_more_than_the_file_holds() {
     let e = parse_ply("m.ply", text.as_bytes()).unwrap_err().to_string();
     assert!(e.contains("vertex 0") && e.contains("truncated"), "{e}");
 }
+
+/// A small deterministic generator (64-bit LCG).
+struct Lcg(u64);
+
+impl Lcg {
+    fn below(&mut self, n: u64) -> u64 {
+        self.0 = self.0.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+        (self.0 >> 33) % n.max(1)
+    }
+}
+
+/// A random PLY file: `vertices` vertices (with normals or not, an extra colour
+/// property), faces of 3 to 5 corners, an `edge` element, in `format`; with `bad` set, a
+/// value somewhere is spoilt (out of range, not a number, missing) or the file is cut.
+fn random_ply(seed: u64, format: &str, vertices: u64, bad: bool) -> Vec<u8> {
+    let mut r = Lcg(seed);
+    let normals = r.below(2) == 0;
+    let faces = vertices;
+    let edges = r.below(3);
+    let mut head = format!(
+        "ply\nformat {format} 1.0\nelement vertex {vertices}\nproperty float x\nproperty double y\nproperty float z\n"
+    );
+    if normals {
+        head += "property float nx\nproperty float ny\nproperty float nz\n";
+    }
+    head += &format!("property uchar red\nelement face {faces}\nproperty list uchar int vertex_indices\nelement edge {edges}\nproperty int vertex1\nproperty int vertex2\nend_header\n");
+    let mut out = head.into_bytes();
+    let ascii = format == "ascii";
+    let big = format == "binary_big_endian";
+    let spoil_at = if bad { r.below(vertices + faces + edges + 1) } else { u64::MAX };
+    let mut k = 0u64;
+    let put = |out: &mut Vec<u8>, values: &[(f64, u8)]| {
+        for &(x, size) in values {
+            if ascii {
+                out.extend(format!("{x} ").as_bytes());
+            } else {
+                let b: Vec<u8> = match size {
+                    1 => vec![x as u8],
+                    4 => (x as i32).to_le_bytes().to_vec(),
+                    40 => (x as f32).to_le_bytes().to_vec(),
+                    _ => x.to_le_bytes().to_vec(),
+                };
+                let mut b = b;
+                if big {
+                    b.reverse();
+                }
+                out.extend(b);
+            }
+        }
+        if ascii {
+            out.push(b'\n');
+        }
+    };
+    for _ in 0..vertices {
+        if ascii && r.below(20) == 0 {
+            out.extend(b"  \r\n");
+        }
+        let mut v = vec![(r.below(64) as f64 / 4.0, 40), (r.below(64) as f64 / 8.0, 8), (r.below(9) as f64, 40)];
+        if normals {
+            v.extend([(0.0, 40), (0.0, 40), (if r.below(2) == 0 { 1.0 } else { -1.0 }, 40)]);
+        }
+        v.push((r.below(256) as f64, 1));
+        if k == spoil_at {
+            v[0].0 = 1e300;
+        }
+        k += 1;
+        put(&mut out, &v);
+    }
+    for _ in 0..faces {
+        let n = 3 + r.below(3);
+        let mut f = vec![(n as f64, 1)];
+        for _ in 0..n {
+            f.push((r.below(vertices) as f64, 4));
+        }
+        if k == spoil_at {
+            f[1].0 = (vertices + r.below(3)) as f64;
+        }
+        k += 1;
+        put(&mut out, &f);
+    }
+    for _ in 0..edges {
+        put(&mut out, &[(r.below(vertices) as f64, 4), (r.below(vertices) as f64, 4)]);
+    }
+    if bad && r.below(4) == 0 {
+        let cut = r.below(out.len() as u64 / 4) as usize;
+        out.truncate(out.len() - cut);
+    }
+    out
+}
+
+#[test]
+fn chunked_reads_give_the_value_by_value_mesh_or_error_in_every_format() {
+    let mut errors = 0;
+    for seed in 0..90 {
+        let format = ["ascii", "binary_little_endian", "binary_big_endian"][(seed % 3) as usize];
+        let bad = seed % 2 == 1;
+        let bytes = random_ply(seed, format, 40 + seed % 17, bad);
+        let want = parse_ply_in("m.ply", &bytes, None);
+        errors += usize::from(want.is_err());
+        if !bad {
+            assert!(want.is_ok(), "seed {seed}: {want:?}");
+        }
+        for cut in [1, 5, 64, 1 << 20] {
+            assert_eq!(parse_ply_in("m.ply", &bytes, Some(cut)), want, "seed {seed} {format}, cut {cut}");
+        }
+    }
+    assert!(errors > 15, "only {errors} of the files are broken");
+}
+
+#[test]
+fn the_fast_path_reads_clean_files_itself() {
+    for (seed, format) in [(3, "ascii"), (4, "binary_little_endian"), (5, "binary_big_endian")] {
+        let bytes = random_ply(seed, format, 50, false);
+        let header = parse_header(&bytes).unwrap();
+        let fast = parallel::read(&header, &bytes, 64).expect(format);
+        assert_eq!(Ok(fast), parse_ply_in("m.ply", &bytes, None));
+    }
+}
