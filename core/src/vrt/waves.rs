@@ -149,8 +149,9 @@ pub fn shade_pixels(
             by_element.sort_unstable();
         }
         lit_all(view, scratch, &mut arrived, &by_element, &mut lookups)?;
+        let area_samples = view.header.plan.area_samples();
         for (_, a, irr) in arrived.iter_mut().filter(|(_, a, _)| a.direct) {
-            *irr = irr.add(direct::irradiance(view, scratch, &a.at, a.patch)?);
+            *irr = irr.add(direct::all_irradiance(view, scratch, &a.at, a.patch, area_samples)?);
         }
         for (i, a, irr) in &arrived {
             let q = &wave[*i as usize];
@@ -215,7 +216,8 @@ fn radiance_from(
         irr = interpolated(view, scratch, &a)?;
     }
     if a.direct {
-        irr = irr.add(direct::irradiance(view, scratch, &a.at, a.patch)?);
+        let area_samples = view.header.plan.area_samples();
+        irr = irr.add(direct::all_irradiance(view, scratch, &a.at, a.patch, area_samples)?);
     }
     let mut spawned = [Ray::new(DVec3::ZERO, DVec3::Z); 3];
     let shaded = a.finish(irr, &mut spawned);
