@@ -15,7 +15,7 @@ use crate::blocks::BlockError;
 use crate::color::Rgb;
 use crate::geometry::{solid_angle, triangle_normal, Ray, SphericalTriangle};
 use crate::lights::intensity_towards;
-use crate::rng::{arrival_rotation, hammersley};
+use crate::rng::{arrival_rng, hammersley, radical_inverse, Rng};
 use crate::scatter::{offset_scale, Arrival};
 use crate::subdivision::element_triangle;
 use crate::trace::{occluded, TraceScratch};
@@ -64,58 +64,97 @@ pub fn irradiance(
     Ok(e)
 }
 
-/// [`irradiance`] plus [`area_irradiance`] with `area_samples` shadow rays: all the direct
-/// light the plan computes at VRT.
+/// Where a primary viewing ray's shadow rays to the area lights lie among its pixel's:
+/// it is sample `index` of the pixel's `count`, whose shadow rays together are one
+/// stratified set (interleaved: each sample's rays still cover every emitter), rotated by
+/// the pixel's `rotation`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PixelStrata {
+    pub index: u32,
+    pub count: u32,
+    pub rotation: [f64; 3],
+}
+
+impl PixelStrata {
+    /// The rotation of pixel (x, y)'s shadow rays to the area lights under scene seed
+    /// `seed`.
+    pub fn rotation(seed: u64, x: u32, y: u32) -> [f64; 3] {
+        rotation3(&mut Rng::from_words(&[seed, 0x415245, x as u64, y as u64]))
+    }
+}
+
+/// Three numbers of `rng`: the rotation of a set of 3-d stratified samples.
+fn rotation3(rng: &mut Rng) -> [f64; 3] {
+    [rng.next_f64(), rng.next_f64(), rng.next_f64()]
+}
+
+/// [`irradiance`] plus [`area_irradiance`] with `area_samples` shadow rays (placed by
+/// `strata` for a primary viewing ray): all the direct light the plan computes at VRT.
 pub fn all_irradiance(
     view: &mut SceneView,
     scratch: &mut TraceScratch,
     at: &Arrival,
     patch: u32,
     area_samples: u32,
+    strata: Option<PixelStrata>,
 ) -> Result<Rgb, BlockError> {
     let e = irradiance(view, scratch, at, patch)?;
     if area_samples == 0 {
         return Ok(e);
     }
-    Ok(e.add(area_irradiance(view, scratch, at, patch, area_samples)?))
+    Ok(e.add(area_irradiance(view, scratch, at, patch, area_samples, strata)?))
 }
 
 /// Irradiance at the point of arrival `at` on patch `patch`, on the side the viewing ray
 /// came from, from the area lights (the header's emitters, each an element radiating its
 /// material's `emit` from the front of its patch), estimated with `n` shadow rays.
 ///
-/// Each sample picks an emitter in proportion to its power and a direction uniformly
-/// over the solid angle `Omega` the emitter subtends (the spherical triangle), and counts
+/// Each sample picks an emitter in proportion to its power (with its first coordinate)
+/// and a direction uniformly over the solid angle `Omega` the emitter subtends (the
+/// spherical triangle, with the other two), and counts
 /// `emit * cos(theta) * Omega / P` where the shadow ray reaches it unoccluded (`P` the
 /// emitter's probability). Sampling the solid angle rather than the area keeps every
 /// sample bounded near an emitter (no `1 / d^2`): the variance that a path tracer's
 /// multiple importance sampling with the BSDF would remove at a diffuse hit. The `n`
-/// samples are stratified (Hammersley, the first coordinate picking the emitter and
-/// then stretched within its share), rotated by a seed of the scene seed, the point and
-/// the incoming direction.
+/// samples are stratified in three dimensions (`(k + 1/2) / N` and the radical inverses
+/// of `k` in bases 2 and 3, each rotated): with `strata`, as its part of its pixel's set
+/// of `N = n count` (the pixel's samples together stratify the lamps `count` times more
+/// finely); else on their own, rotated by a seed of the scene seed, the point and the
+/// incoming direction. (The coordinate that picks the emitter is not reused within it:
+/// evenly spaced picks over equal emitters would land at the same place in each.)
 pub fn area_irradiance(
     view: &mut SceneView,
     scratch: &mut TraceScratch,
     at: &Arrival,
     patch: u32,
     n: u32,
+    strata: Option<PixelStrata>,
 ) -> Result<Rgb, BlockError> {
     let (p, facing, shading) = (at.p, at.normal, at.shading);
-    let (sx, sy) = arrival_rotation(view.header.settings.seed, 0x415245, p, at.d);
+    let PixelStrata { index, count, rotation: [sx, sy, sz] } = match strata {
+        Some(s) if s.index < s.count && s.count.checked_mul(n).is_some() => s,
+        _ => {
+            let rotation = rotation3(&mut arrival_rng(view.header.settings.seed, 0x415245, p, at.d));
+            PixelStrata { index: 0, count: 1, rotation }
+        }
+    };
+    let all = n * count;
     let tmin = offset_scale(p);
     let mut e = Rgb::BLACK;
     // The emitter seen from the point, kept while consecutive samples pick it (the
     // stratified first coordinate picks each emitter in a run).
     let mut seen: Option<(usize, Option<Seen>)> = None;
     for j in 0..n {
-        let (u0, u1) = hammersley(j, n, sx, sy);
-        let Some((k, prob, u0)) = view.pick_emitter(u0) else { break };
+        let i = j * count + index;
+        let (u0, u1) = hammersley(i, all, sx, sy);
+        let u2 = radical_inverse(3, i) + sz;
+        let Some((k, prob)) = view.pick_emitter(u0) else { break };
         if seen.as_ref().is_none_or(|(kept, _)| *kept != k) {
             seen = Some((k, Seen::of(view, k, p)?));
         }
         let Some((_, Some(Seen { tri, en, emit, omega, spherical }))) = &seen else { continue };
         let (tri, en, emit, omega) = (*tri, *en, *emit, *omega);
-        let Some(w) = spherical.sample(u0, u1) else { continue };
+        let Some(w) = spherical.sample(u1, u2 - u2.floor()) else { continue };
         let cos = shading.dot(w);
         if !(cos > 0.0) || !(facing.dot(w) > 0.0) || !(en.dot(w) < 0.0) {
             continue;

@@ -308,7 +308,7 @@ pub fn area_samples(pixel_samples: u32) -> u32 {
 }
 
 /// Shadow rays to the area lights per pixel ([`area_samples`]).
-pub const AREA_SAMPLES_PER_PIXEL: u32 = 64;
+pub const AREA_SAMPLES_PER_PIXEL: u32 = 32;
 
 /// Most shadow rays to the area lights per diffuse hit ([`area_samples`]).
 pub const MAX_AREA_SAMPLES: u32 = 16;

@@ -90,10 +90,9 @@ impl SceneView {
     }
 
     /// The emitter (index into the header's `emitters`) that `u` in [0, 1) picks, with
-    /// probability proportional to its power, the probability, and `u` stretched back
-    /// to [0, 1) within the emitter's share (so that stratified `u` stay stratified);
-    /// `None` when no emitter has power.
-    pub fn pick_emitter(&self, u: f64) -> Option<(usize, f64, f64)> {
+    /// probability proportional to its power, and the probability; `None` when no
+    /// emitter has power.
+    pub fn pick_emitter(&self, u: f64) -> Option<(usize, f64)> {
         let total = *self.emitter_cdf.last()?;
         if !(total > 0.0) {
             return None;
@@ -105,7 +104,7 @@ impl SceneView {
         if !(share > 0.0) {
             return None;
         }
-        Some((k, share / total, ((x - below) / share).clamp(0.0, 1.0 - f64::EPSILON / 2.0)))
+        Some((k, share / total))
     }
 
     /// Cache hit and miss counts.

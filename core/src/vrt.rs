@@ -12,6 +12,7 @@
 use crate::blocks::{BlockError, ElementRecord};
 use crate::camera::CameraRig;
 use crate::color::Rgb;
+use crate::direct::PixelStrata;
 use crate::geometry::{cosine_hemisphere, triangle_normal, Ray};
 use crate::rng::{arrival_rotation, hammersley, Rng};
 use crate::scatter::{arrive, offset_scale, Arrival, Dielectric};
@@ -40,17 +41,27 @@ pub fn shade_pixel(
 }
 
 /// The viewing rays of pixel (x, y): `n` stratified samples, seeded from (scene seed,
-/// pixel), in sample order.
-fn pixel_rays(seed: u64, n: u32, rig: &CameraRig, x: u32, y: u32) -> impl Iterator<Item = Ray> + '_ {
+/// pixel), in sample order, each with its place among the pixel's shadow rays to the
+/// area lights where the plan sends any ([`PixelStrata`]).
+fn pixel_rays<'a>(
+    seed: u64,
+    n: u32,
+    area: bool,
+    rig: &'a CameraRig,
+    x: u32,
+    y: u32,
+) -> impl Iterator<Item = (Ray, Option<PixelStrata>)> + 'a {
     let (sx, sy) = if n > 1 {
         let mut rng = Rng::from_words(&[seed, 0x565254, x as u64, y as u64]);
         (rng.next_f64(), rng.next_f64())
     } else {
         (0.0, 0.0)
     };
+    let rotation = area.then(|| PixelStrata::rotation(seed, x, y));
     (0..n).map(move |i| {
         let (u, v) = if n > 1 { hammersley(i, n, sx, sy) } else { (0.5, 0.5) };
-        rig.ray(x as f64 + u, y as f64 + v)
+        let strata = rotation.map(|rotation| PixelStrata { index: i, count: n, rotation });
+        (rig.ray(x as f64 + u, y as f64 + v), strata)
     })
 }
 
@@ -114,6 +125,8 @@ struct Arrived {
     shaded: bool,
     direct: bool,
     depth: u32,
+    /// A primary ray's place among its pixel's shadow rays to the area lights.
+    strata: Option<PixelStrata>,
 }
 
 impl Arrived {
@@ -176,7 +189,7 @@ fn arrive_at(
 ) -> Result<Result<Arrived, Rgb>, BlockError> {
     let q = query(ray, exclude);
     let hit = cast(view, scratch, ray, q.tmin, q.tmax, exclude, false)?;
-    arrival(view, ray, hit, depth)
+    arrival(view, ray, hit, depth, None)
 }
 
 /// The query [`arrive_at`] casts for viewing ray `ray` leaving patch `exclude` (or the
@@ -187,9 +200,16 @@ fn query(ray: &Ray, exclude: u32) -> Bundled {
     Bundled { ray: *ray, tmin, tmax: f64::INFINITY, exclude }
 }
 
-/// [`arrive_at`] once the ray's hit is known (cast for it alone or with others).
+/// [`arrive_at`] once the ray's hit is known (cast for it alone or with others); a
+/// primary ray says its place among its pixel's samples (`strata`).
 #[inline]
-fn arrival(view: &mut SceneView, ray: &Ray, hit: Option<Hit>, depth: u32) -> Result<Result<Arrived, Rgb>, BlockError> {
+fn arrival(
+    view: &mut SceneView,
+    ray: &Ray,
+    hit: Option<Hit>,
+    depth: u32,
+    strata: Option<PixelStrata>,
+) -> Result<Result<Arrived, Rgb>, BlockError> {
     view.counters.view_rays += 1;
     let Some(hit) = hit else {
         return Ok(Err(view.header.settings.background));
@@ -215,7 +235,7 @@ fn arrival(view: &mut SceneView, ray: &Ray, hit: Option<Hit>, depth: u32) -> Res
         }
         false => (0, [0.0; 3]),
     };
-    Ok(Ok(Arrived { at, patch: hit.patch, m, element, w, diffuse, shaded, direct, depth }))
+    Ok(Ok(Arrived { at, patch: hit.patch, m, element, w, diffuse, shaded, direct, depth, strata }))
 }
 
 /// The irradiance the elements hold where `a` arrived on a diffuse surface: the hit
@@ -299,7 +319,7 @@ pub fn gathered(
         let diffuse = m.diffuse;
         let (q, albedo) = arrive(view, &prec, ray.at(hit.t), dir, normal, Some(hit.bary))?;
         let rho = diffuse.mul(albedo);
-        sum = sum.add(rho.mul(crate::direct::all_irradiance(view, scratch, &q, hit.patch, area_samples)?));
+        sum = sum.add(rho.mul(crate::direct::all_irradiance(view, scratch, &q, hit.patch, area_samples, None)?));
     }
     Ok(sum.scale(1.0 / n.max(1) as f64))
 }

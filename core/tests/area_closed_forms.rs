@@ -205,7 +205,7 @@ fn the_irradiance_sampled_over_a_closed_box_adds_up_to_pi_l_a() {
                     continue;
                 }
                 let at = Arrival::new(from + d * hit.t, d, magg_core::geometry::triangle_normal(&prec.v));
-                let e = area_irradiance(&mut view, &mut scratch, &at, hit.patch, 16).unwrap();
+                let e = area_irradiance(&mut view, &mut scratch, &at, hit.patch, 16, None).unwrap();
                 flux += e.0[0] * da;
             }
         }
