@@ -40,4 +40,4 @@ pub const NOT_LOADED: &str = "no scene loaded";
 
 /// Version of the wire protocol: a node's registration or a fork's `LoadShard` of another
 /// version is refused (`FAILED_PRECONDITION`). Its history is in CHANGELOG.md.
-pub const PROTOCOL_VERSION: u32 = 15;
+pub const PROTOCOL_VERSION: u32 = 16;
