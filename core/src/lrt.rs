@@ -10,9 +10,9 @@
 //! element they reach, recursively, to the depth limits of the effects plan.
 //!
 //! When the effects plan computes direct light at VRT ([`crate::plan::EffectsPlan`]'s
-//! `direct_vrt`), the primary rays deposit nothing: they only start the secondary rays,
-//! and the pairs of elements that neither reflect specularly nor bounce diffusely are not
-//! traced at all.
+//! `direct_vrt`), the primary rays of every light, point or area, deposit nothing: they
+//! only start the secondary rays, and the pairs of elements that neither reflect
+//! specularly nor bounce diffusely are not traced at all.
 //!
 //! Area lights (elements of a material with `emit`) are light sources after the point
 //! lights: light index `lights + k` is emitting element k, so their pairs are numbered,
@@ -223,16 +223,17 @@ fn trace_into(
         let ray = Ray::new(l.position, w);
         trees.bundle.push(Bundled { ray, tmin: eps0, tmax: t_plane * (1.0 - 1e-9), exclude: erec.patch });
     }
-    let target = Target { light, element, erec, prec, normal, material, fan, offset: (bx, by), emitter: false };
+    let target = Target { light, element, erec, prec, normal, material, fan, offset: (bx, by) };
     land_primaries(view, scratch, trees, &mut tally, &target, out)?;
     trees.trace(view, scratch, &mut tally, out)?;
     Ok(tally)
 }
 
-/// Light rays of a point light's pair whose target is element record `own` (of
-/// `material`), and the diffuse bounce rays each sends: the scene's `light_rays` with
-/// one bounce each, except for a pair traced only for the diffuse bounces its rays
-/// start (direct light at VRT, a target that neither mirrors nor transmits).
+/// Light rays of a pair (a point light's or an emitter's) whose target is element record
+/// `own` (of `material`), and the diffuse bounce rays each sends: the scene's
+/// `light_rays` with one bounce each, except for a pair traced only for the diffuse
+/// bounces its rays start (direct light at VRT, a target that neither mirrors nor
+/// transmits).
 ///
 /// Such a pair sends `light_rays` bounce rays, a quarter as many for each level of
 /// refinement that made its element (at least one): the bounce is sent from as many
@@ -241,7 +242,7 @@ fn trace_into(
 /// from). Its light rays only find where on the element the light arrives, which varies
 /// little across one element, so each sends `bounce_rays` of them: it casts that many
 /// times fewer light rays for the same bounce rays (docs/ACCURACY.md measures it).
-fn rays_for(
+pub(crate) fn rays_for(
     view: &mut SceneView,
     plan: &crate::plan::EffectsPlan,
     material: Option<&crate::scene::Material>,
@@ -249,7 +250,7 @@ fn rays_for(
 ) -> Result<(u32, u32), BlockError> {
     let settings = &view.header.settings;
     let (n, fan) = (settings.light_rays.max(1), settings.bounce_rays);
-    let bounce_only = !plan.deposits_direct(false) && material.is_none_or(|m| !m.is_specular());
+    let bounce_only = !plan.deposits_direct() && material.is_none_or(|m| !m.is_specular());
     if !bounce_only {
         return Ok((n, 1));
     }

@@ -4,11 +4,12 @@
 //! on or off with a reason. A pass left out costs nothing, and because every kernel only
 //! spawns rays whose weight is non-zero, forcing it on gives a bitwise-identical image.
 //!
-//! Area lights (patches of a material with `emit`) are always LRT's: their pairs
-//! (emitting element, element) deposit direct light on the elements whatever `direct`
-//! says, since VRT's shadow rays serve point and spot lights only
-//! ([`EffectsPlan::deposits_direct`]). So with emitters the pairs of diffuse elements are
-//! never skipped, and `direct = "vrt"` leaves on the elements the emitters' light too.
+//! Area lights (patches of a material with `emit`) follow `direct` like the point lights:
+//! where direct light is computed at VRT, a diffuse hit samples points on the emitters
+//! with shadow rays ([`crate::direct::area_irradiance`]) and their pairs (emitting element,
+//! element) deposit only what arrives via a mirror, glass or a diffuse bounce
+//! ([`EffectsPlan::deposits_direct`]); with `direct = "lrt"` their light rays deposit it
+//! all on the elements (the paper's way).
 
 use crate::scene::{DirectLight, Scene};
 
@@ -34,12 +35,14 @@ pub struct EffectsPlan {
     pub ambient: bool,
     /// Viewing rays per pixel.
     pub pixel_samples: u32,
-    /// Direct light from point and spot lights is computed at VRT, with one shadow ray
-    /// per light at each diffuse hit; their light rays then deposit only what arrives via
-    /// a specular surface or a diffuse bounce.
+    /// Direct light is computed at VRT: from point and spot lights with one shadow ray
+    /// per light at each diffuse hit, from area lights with shadow rays to points sampled
+    /// on the emitters ([`crate::direct`]); light rays of both kinds then deposit only
+    /// what arrives via a specular surface or a diffuse bounce.
     pub direct_vrt: bool,
     /// Some patch emits (a material with `emit`): LRT traces (emitting element, element)
-    /// pairs after the point lights' pairs, and they deposit direct light on elements.
+    /// pairs after the point lights' pairs (their direct light on the elements only
+    /// where `direct_vrt` is off).
     pub area_lights: bool,
     /// One line per decision, for people.
     pub reasons: Vec<String>,
@@ -78,8 +81,7 @@ impl EffectsPlan {
         }
         if emitting > 0 {
             reasons.push(format!(
-                "{emitting} emitting patch(es): area lights, LRT traces (emitting element, element) pairs and \
-                 deposits their light on elements (whatever `direct` says)"
+                "{emitting} emitting patch(es): area lights, LRT traces (emitting element, element) pairs"
             ));
         }
         let lrt_depth = if !lrt {
@@ -129,7 +131,7 @@ impl EffectsPlan {
                 "ambient term off (zero ambient)".to_string()
             });
         }
-        let direct_vrt = direct_at_vrt(scene, any_light && lrt && any_diffuse, &mut reasons);
+        let direct_vrt = direct_at_vrt(scene, (any_light || emitting > 0) && lrt && any_diffuse, &mut reasons);
         if direct_vrt && diffuse_bounces > 0 {
             let (light, fan) = bounce_split(s.light_rays, s.bounce_rays);
             reasons.push(format!(
@@ -163,38 +165,47 @@ impl EffectsPlan {
     /// True when a diffuse hit beside elements that received no light gathers the bounced
     /// light with `gather_rays` rays instead of interpolating the elements' (see
     /// [`crate::energy::gather_vertices`]): the elements must hold exactly what a gather
-    /// finds, one diffuse bounce of the point and spot lights' direct light (direct light
-    /// at VRT, one diffuse bounce, no light carried via mirrors or glass, no area light).
+    /// finds, one diffuse bounce of the lights' direct light (direct light at VRT, point,
+    /// spot and area lights alike; one diffuse bounce; no light carried via mirrors or
+    /// glass).
     /// Light via mirrors or glass needs both secondary light rays and a specular material
     /// among `materials`, so forcing secondary light rays on in a scene without one
     /// (`--all-effects`) changes nothing.
     pub fn gathers(&self, gather_rays: u32, materials: &[crate::scene::Material]) -> bool {
         let no_specular_light = self.lrt_depth == 0 || !materials.iter().any(|m| m.is_specular());
-        gather_rays > 0 && self.direct_vrt && self.diffuse_bounces == 1 && no_specular_light && !self.area_lights
+        gather_rays > 0 && self.direct_vrt && self.diffuse_bounces == 1 && no_specular_light
     }
 
-    /// True when the primary light rays of a pair deposit what they carry on the element
-    /// they reach (direct light): always for an emitter's pair (`emitter`), for a point
-    /// or spot light's pair unless direct light is computed at VRT.
-    pub fn deposits_direct(&self, emitter: bool) -> bool {
-        emitter || !self.direct_vrt
+    /// True when the primary light rays of a pair (a point, spot or area light's) deposit
+    /// what they carry on the element they reach (direct light): unless direct light is
+    /// computed at VRT.
+    pub fn deposits_direct(&self) -> bool {
+        !self.direct_vrt
     }
 
-    /// True when no light ray of a point or spot light can deposit anything on an element
-    /// of a material without mirror or transmissive parts: direct light is computed at
-    /// VRT and light rays do not bounce diffusely, so the pairs of such a light and such
-    /// an element need not be traced. Never said of an emitter's pairs, which always
-    /// deposit ([`EffectsPlan::deposits_direct`]).
+    /// True when no light ray can deposit anything on an element of a material without
+    /// mirror or transmissive parts: direct light is computed at VRT and light rays do
+    /// not bounce diffusely, so the pairs of any light (point, spot or emitting element)
+    /// and such an element need not be traced.
     pub fn skips_diffuse_pairs(&self) -> bool {
         self.direct_vrt && self.diffuse_bounces == 0
     }
 
-    /// True when the pairs of point and spot lights with elements of a material without
-    /// mirror or transmissive parts are traced for their diffuse bounce alone (direct
-    /// light at VRT, diffuse bounces on): their light rays then split the bounce
-    /// ([`bounce_split`], `[render] bounce_rays`).
+    /// True when the pairs of any light with elements of a material without mirror or
+    /// transmissive parts are traced for their diffuse bounce alone (direct light at VRT,
+    /// diffuse bounces on): their light rays then split the bounce ([`bounce_split`],
+    /// `[render] bounce_rays`).
     pub fn splits_bounces(&self) -> bool {
         self.direct_vrt && self.diffuse_bounces > 0
+    }
+
+    /// Shadow rays a diffuse hit sends to the area lights: [`area_samples`] where their
+    /// direct light is computed at VRT, else none.
+    pub fn area_samples(&self) -> u32 {
+        match self.direct_vrt && self.area_lights {
+            true => area_samples(self.pixel_samples),
+            false => 0,
+        }
     }
 
     /// The plan with every optional effect forced on at the scene's settings: used to
@@ -253,18 +264,27 @@ fn direct_at_vrt(scene: &Scene, lit: bool, reasons: &mut Vec<String>) -> bool {
         return false;
     }
     let lights = scene.lights.iter().filter(|l| !l.intensity.is_black()).count();
+    let area = scene.patches.iter().any(|p| scene.materials.get(p.material as usize).is_some_and(|m| m.is_emitter()));
+    let area_note = match area {
+        true => {
+            let n = area_samples(scene.settings.pixel_samples);
+            format!(", {n} shadow ray(s) to points sampled on the emitters (area lights)")
+        }
+        false => String::new(),
+    };
     let (on, why) = match scene.settings.direct {
         DirectLight::Lrt => {
             (false, "direct = \"lrt\": light rays deposit direct light on elements (the paper's way)".to_string())
         }
-        DirectLight::Vrt => {
-            (true, "direct = \"vrt\": direct light at VRT, one shadow ray per light at each diffuse hit".to_string())
-        }
+        DirectLight::Vrt => (
+            true,
+            format!("direct = \"vrt\": direct light at VRT, one shadow ray per light at each diffuse hit{area_note}"),
+        ),
         DirectLight::Auto if lights <= MAX_VRT_LIGHTS => (
             true,
             format!(
-                "{lights} light(s): direct light at VRT, one shadow ray per light at each diffuse hit (pixel-sharp \
-                 shadows); light rays carry light via mirrors, glass and diffuse bounces"
+                "{lights} light(s): direct light at VRT, one shadow ray per light at each diffuse hit{area_note} \
+                 (pixel-sharp shadows); light rays carry light via mirrors, glass and diffuse bounces"
             ),
         ),
         DirectLight::Auto => (
@@ -278,6 +298,20 @@ fn direct_at_vrt(scene: &Scene, lit: bool, reasons: &mut Vec<String>) -> bool {
     reasons.push(why);
     on
 }
+
+/// Shadow rays a diffuse hit of a viewing ray sends to points sampled on the area lights
+/// (all emitters together, [`crate::direct::area_irradiance`]), with `pixel_samples`
+/// viewing rays per pixel: [`AREA_SAMPLES_PER_PIXEL`] per pixel shared among its samples,
+/// between 1 and [`MAX_AREA_SAMPLES`] per hit.
+pub fn area_samples(pixel_samples: u32) -> u32 {
+    AREA_SAMPLES_PER_PIXEL.div_ceil(pixel_samples.max(1)).clamp(1, MAX_AREA_SAMPLES)
+}
+
+/// Shadow rays to the area lights per pixel ([`area_samples`]).
+pub const AREA_SAMPLES_PER_PIXEL: u32 = 32;
+
+/// Most shadow rays to the area lights per diffuse hit ([`area_samples`]).
+pub const MAX_AREA_SAMPLES: u32 = 16;
 
 impl std::fmt::Display for EffectsPlan {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {

@@ -47,6 +47,23 @@ pub fn radical_inverse2(i: u32) -> f64 {
     i.reverse_bits() as f64 * (1.0 / 4_294_967_296.0)
 }
 
+/// The generator of a ray's samples where it arrived, seeded from (`seed`, `tag`, the
+/// point `p`, the incoming direction `d`): the same ray gets the same samples on any
+/// node, in any order of tracing (the gather's rays and the shadow rays to area lights at
+/// a viewing ray's hit).
+pub fn arrival_rng(seed: u64, tag: u64, p: glam::DVec3, d: glam::DVec3) -> Rng {
+    let bits = |v: glam::DVec3| [v.x.to_bits(), v.y.to_bits(), v.z.to_bits()];
+    let ([px, py, pz], [dx, dy, dz]) = (bits(p), bits(d));
+    Rng::from_words(&[seed, tag, px, py, pz, dx, dy, dz])
+}
+
+/// The Cranley-Patterson rotation `(sx, sy)` of a ray's stratified samples where it
+/// arrived: the first two numbers of [`arrival_rng`].
+pub fn arrival_rotation(seed: u64, tag: u64, p: glam::DVec3, d: glam::DVec3) -> (f64, f64) {
+    let mut rng = arrival_rng(seed, tag, p, d);
+    (rng.next_f64(), rng.next_f64())
+}
+
 /// Sample `i` of an `n`-point stratified 2D set (Hammersley), shifted by a
 /// Cranley-Patterson rotation `(sx, sy)`: each of the n strata of either axis gets one
 /// point, whatever n is.

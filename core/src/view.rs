@@ -68,12 +68,43 @@ pub struct SceneView {
     cache: BlockCache,
     /// Operation counts so far.
     pub counters: OpCounters,
+    /// The emitters' powers summed over channels, running totals in the header's order:
+    /// area lights are sampled in proportion to them ([`SceneView::pick_emitter`]).
+    emitter_cdf: Arc<[f64]>,
 }
 
 impl SceneView {
     /// A view reading blocks through `cache`.
     pub fn new(header: Arc<SceneHeader>, cache: BlockCache) -> Self {
-        SceneView { header, cache, counters: OpCounters::default() }
+        let mut total = 0.0;
+        let emitter_cdf = header
+            .emitters
+            .iter()
+            .map(|e| {
+                let p = e.power.0.iter().sum::<f64>();
+                total += if p.is_finite() && p > 0.0 { p } else { 0.0 };
+                total
+            })
+            .collect();
+        SceneView { header, cache, counters: OpCounters::default(), emitter_cdf }
+    }
+
+    /// The emitter (index into the header's `emitters`) that `u` in [0, 1) picks, with
+    /// probability proportional to its power, and the probability; `None` when no
+    /// emitter has power.
+    pub fn pick_emitter(&self, u: f64) -> Option<(usize, f64)> {
+        let total = *self.emitter_cdf.last()?;
+        if !(total > 0.0) {
+            return None;
+        }
+        let x = u * total;
+        let k = self.emitter_cdf.partition_point(|&c| c <= x).min(self.emitter_cdf.len() - 1);
+        let below = if k == 0 { 0.0 } else { self.emitter_cdf[k - 1] };
+        let share = self.emitter_cdf[k] - below;
+        if !(share > 0.0) {
+            return None;
+        }
+        Some((k, share / total))
     }
 
     /// Cache hit and miss counts.

@@ -2,7 +2,8 @@
 //!
 //! At a diffuse hit the irradiance is interpolated from the hit element's vertices (plus,
 //! when the plan computes direct light here, what the lights give through one shadow ray
-//! each, [`crate::direct`]) and radiance is `rho_d / pi * E + rho_d * ambient` (the
+//! each and the area lights through shadow rays to points sampled on them,
+//! [`crate::direct`]) and radiance is `rho_d / pi * E + rho_d * ambient` (the
 //! ambient term only when the plan keeps it), plus `emit` on the front of an area light.
 //! Mirror and dielectric parts recurse with Fresnel weights to the plan's VRT
 //! depth. Each pixel is seeded from (scene seed, pixel), so the image does not depend on
@@ -11,8 +12,9 @@
 use crate::blocks::{BlockError, ElementRecord};
 use crate::camera::CameraRig;
 use crate::color::Rgb;
+use crate::direct::PixelStrata;
 use crate::geometry::{cosine_hemisphere, triangle_normal, Ray};
-use crate::rng::{hammersley, Rng};
+use crate::rng::{arrival_rotation, hammersley, Rng};
 use crate::scatter::{arrive, offset_scale, Arrival, Dielectric};
 use crate::subdivision::locate;
 use crate::subscreen::Subscreen;
@@ -39,17 +41,27 @@ pub fn shade_pixel(
 }
 
 /// The viewing rays of pixel (x, y): `n` stratified samples, seeded from (scene seed,
-/// pixel), in sample order.
-fn pixel_rays(seed: u64, n: u32, rig: &CameraRig, x: u32, y: u32) -> impl Iterator<Item = Ray> + '_ {
+/// pixel), in sample order, each with its place among the pixel's shadow rays to the
+/// area lights where the plan sends any ([`PixelStrata`]).
+fn pixel_rays<'a>(
+    seed: u64,
+    n: u32,
+    area: bool,
+    rig: &'a CameraRig,
+    x: u32,
+    y: u32,
+) -> impl Iterator<Item = (Ray, Option<PixelStrata>)> + 'a {
     let (sx, sy) = if n > 1 {
         let mut rng = Rng::from_words(&[seed, 0x565254, x as u64, y as u64]);
         (rng.next_f64(), rng.next_f64())
     } else {
         (0.0, 0.0)
     };
+    let rotation = area.then(|| PixelStrata::rotation(seed, x, y));
     (0..n).map(move |i| {
         let (u, v) = if n > 1 { hammersley(i, n, sx, sy) } else { (0.5, 0.5) };
-        rig.ray(x as f64 + u, y as f64 + v)
+        let strata = rotation.map(|rotation| PixelStrata { index: i, count: n, rotation });
+        (rig.ray(x as f64 + u, y as f64 + v), strata)
     })
 }
 
@@ -97,7 +109,7 @@ impl Join {
 }
 
 /// A viewing ray arrived at a surface that takes or passes light on: what its shading
-/// stages ([`interpolated`], [`crate::direct::irradiance`], [`Arrived::finish`]) need.
+/// stages ([`interpolated`], [`crate::direct::all_irradiance`], [`Arrived::finish`]) need.
 struct Arrived {
     at: Arrival,
     patch: u32,
@@ -113,6 +125,8 @@ struct Arrived {
     shaded: bool,
     direct: bool,
     depth: u32,
+    /// A primary ray's place among its pixel's shadow rays to the area lights.
+    strata: Option<PixelStrata>,
 }
 
 impl Arrived {
@@ -175,7 +189,7 @@ fn arrive_at(
 ) -> Result<Result<Arrived, Rgb>, BlockError> {
     let q = query(ray, exclude);
     let hit = cast(view, scratch, ray, q.tmin, q.tmax, exclude, false)?;
-    arrival(view, ray, hit, depth)
+    arrival(view, ray, hit, depth, None)
 }
 
 /// The query [`arrive_at`] casts for viewing ray `ray` leaving patch `exclude` (or the
@@ -186,9 +200,16 @@ fn query(ray: &Ray, exclude: u32) -> Bundled {
     Bundled { ray: *ray, tmin, tmax: f64::INFINITY, exclude }
 }
 
-/// [`arrive_at`] once the ray's hit is known (cast for it alone or with others).
+/// [`arrive_at`] once the ray's hit is known (cast for it alone or with others); a
+/// primary ray says its place among its pixel's samples (`strata`).
 #[inline]
-fn arrival(view: &mut SceneView, ray: &Ray, hit: Option<Hit>, depth: u32) -> Result<Result<Arrived, Rgb>, BlockError> {
+fn arrival(
+    view: &mut SceneView,
+    ray: &Ray,
+    hit: Option<Hit>,
+    depth: u32,
+    strata: Option<PixelStrata>,
+) -> Result<Result<Arrived, Rgb>, BlockError> {
     view.counters.view_rays += 1;
     let Some(hit) = hit else {
         return Ok(Err(view.header.settings.background));
@@ -214,7 +235,7 @@ fn arrival(view: &mut SceneView, ray: &Ray, hit: Option<Hit>, depth: u32) -> Res
         }
         false => (0, [0.0; 3]),
     };
-    Ok(Ok(Arrived { at, patch: hit.patch, m, element, w, diffuse, shaded, direct, depth }))
+    Ok(Ok(Arrived { at, patch: hit.patch, m, element, w, diffuse, shaded, direct, depth, strata }))
 }
 
 /// The irradiance the elements hold where `a` arrived on a diffuse surface: the hit
@@ -260,10 +281,11 @@ fn lit(
 /// stratified (Hammersley, rotated by a seed of the point and the incoming direction, so
 /// that the result depends on the ray alone, not on the node or the order of tracing).
 /// Each ray's hit reflects `rho E`: its diffuse reflectance (textured) times the direct
-/// irradiance the lights give it there ([`crate::direct::irradiance`], on the side the
-/// gather ray arrived on), which is exactly the light that the elements' one diffuse
-/// bounce carries; the mean of `rho E` over cosine-weighted directions is the
-/// irradiance.
+/// irradiance the lights give it there ([`crate::direct::all_irradiance`], on the side
+/// the gather ray arrived on, with one shadow ray to the area lights), which is exactly
+/// the light that the elements' one diffuse bounce carries; the mean of `rho E` over
+/// cosine-weighted directions is the irradiance. (A gather ray that meets an emitter
+/// counts nothing of it: that is direct light, which the hit's own shadow rays count.)
 ///
 /// Used where the elements cannot hold that light: beside elements that received none
 /// ([`crate::energy::gather_vertices`]), i.e. along a contact with another surface,
@@ -276,10 +298,9 @@ pub fn gathered(
     patch: u32,
     n: u32,
 ) -> Result<Rgb, BlockError> {
-    let bits = |v: glam::DVec3| [v.x.to_bits(), v.y.to_bits(), v.z.to_bits()];
-    let ([px, py, pz], [dx, dy, dz]) = (bits(at.p), bits(at.d));
-    let mut rng = Rng::from_words(&[view.header.settings.seed, 0x474154, px, py, pz, dx, dy, dz]);
-    let (sx, sy) = (rng.next_f64(), rng.next_f64());
+    let (sx, sy) = arrival_rotation(view.header.settings.seed, 0x474154, at.p, at.d);
+    // One shadow ray to the area lights at each gather ray's hit: the n rays average them.
+    let area_samples = view.header.plan.area_samples().min(1);
     let mut sum = Rgb::BLACK;
     for j in 0..n {
         let (u0, u1) = hammersley(j, n, sx, sy);
@@ -298,7 +319,7 @@ pub fn gathered(
         let diffuse = m.diffuse;
         let (q, albedo) = arrive(view, &prec, ray.at(hit.t), dir, normal, Some(hit.bary))?;
         let rho = diffuse.mul(albedo);
-        sum = sum.add(rho.mul(crate::direct::irradiance(view, scratch, &q, hit.patch)?));
+        sum = sum.add(rho.mul(crate::direct::all_irradiance(view, scratch, &q, hit.patch, area_samples, None)?));
     }
     Ok(sum.scale(1.0 / n.max(1) as f64))
 }

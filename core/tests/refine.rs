@@ -96,7 +96,7 @@ fn bounce_only_pairs_cast_as_many_rays_per_unit_area_after_a_split() {
     s.settings.refine = 2;
     s.patches.extend(quad(v(-1.0, 2.0, -1.0), v(1.0, 2.0, -1.0), v(1.0, 2.0, 1.0), v(-1.0, 2.0, 1.0), 0, 2));
     let plan = EffectsPlan::for_scene(&s);
-    assert!(!plan.deposits_direct(false), "direct light at VRT");
+    assert!(!plan.deposits_direct(), "direct light at VRT");
     let base = prepare_split(&s, plan.clone(), &[]).unwrap();
     let lattice = base.elements.len() as u32;
     let first: Vec<u32> = (0..lattice).step_by(3).collect();

@@ -231,8 +231,9 @@ pub struct Knobs {
     #[arg(long)]
     pub accel: Option<String>,
     /// Where direct light is computed: "auto" (the effects plan decides), "vrt" (a shadow
-    /// ray per light at each diffuse hit: pixel-sharp shadows) or "lrt" (light rays onto
-    /// elements, the paper's way; the default with --scheme paper).
+    /// ray per light, and shadow rays to points sampled on the area lights, at each
+    /// diffuse hit: pixel-sharp shadows) or "lrt" (light rays onto elements, the paper's
+    /// way; the default with --scheme paper).
     #[arg(long)]
     pub direct: Option<String>,
 }

@@ -13,11 +13,16 @@
 //! pair's deposits thus stay below `2 pi * emit * A_e` (twice the emitter's power).
 //!
 //! Occluded rays deposit nothing (the occluder's own pair accounts for its light); the
-//! rays that reach the receiver deposit there (whatever `direct` says: the plan computes
-//! only point and spot lights at VRT) and scatter on like point-light rays. Pairs that
-//! cannot exchange light are skipped before any ray: a receiver entirely on or behind
-//! the emitter's plane, or a one-sided receiver whose front faces away from the whole
-//! emitter.
+//! rays that reach the receiver deposit there unless the plan computes direct light at
+//! VRT ([`crate::direct::area_irradiance`] then samples the emitters from each diffuse
+//! hit), and scatter on like point-light rays: what they carry via mirrors, glass and
+//! diffuse bounces is LRT's either way, so nothing is counted twice. As for a point
+//! light, a pair traced only for the bounce its rays start sends fewer light rays with
+//! several bounce rays each ([`super::rays_for`]), and a pair that could deposit nothing
+//! (direct light at VRT, no diffuse bounce, a receiver that neither mirrors nor
+//! transmits) is not traced. Pairs that cannot exchange light are skipped before any
+//! ray: a receiver entirely on or behind the emitter's plane, or a one-sided receiver
+//! whose front faces away from the whole emitter.
 
 use super::landing::{land_primaries, Target};
 use super::result::{LrtTally, RawDeposit};
@@ -63,17 +68,21 @@ pub(super) fn trace_emitter_pair(
     if !plan.lrt || emitter.element == element || emitter.power.is_black() {
         return Ok(tally);
     }
-    let src = view.element(emitter.element)?;
-    let sp = view.patch(src.patch)?;
-    let etri = element_triangle(&sp.v, sp.subdivisions, src.local);
-    let en = triangle_normal(&sp.v);
     let own = view.element(element)?;
     if own.child != 0 {
         // Refinement split it: its four children have pairs of their own.
         return Ok(tally);
     }
+    let material = header.materials.get(view.patch(own.patch)?.material as usize);
+    if plan.skips_diffuse_pairs() && material.is_none_or(|m| !m.is_specular()) {
+        // Its direct light is computed at VRT and nothing bounces on from it.
+        return Ok(tally);
+    }
+    let src = view.element(emitter.element)?;
+    let sp = view.patch(src.patch)?;
+    let etri = element_triangle(&sp.v, sp.subdivisions, src.local);
+    let en = triangle_normal(&sp.v);
     let (erec, prec, tri) = view.element_geometry(element, own)?;
-    let material = header.materials.get(prec.material as usize);
     let normal = triangle_normal(&prec.v);
     if tri.iter().all(|v| en.dot(*v - etri[0]) <= 0.0) {
         // On or behind the emitter's plane: its front sends nothing there.
@@ -94,7 +103,7 @@ pub(super) fn trace_emitter_pair(
     }
     // emit * A_e, per channel.
     let radiance_area = emitter.power.scale(1.0 / PI);
-    let n = header.settings.light_rays.max(1);
+    let (n, fan) = super::rays_for(view, plan, material, own)?;
     let (points, rays_of) = split(n);
     let mut rng = Rng::from_words(&[header.settings.seed, 0x4c5254, light as u64, element as u64]);
     let (sx, sy) = (rng.next_f64(), rng.next_f64());
@@ -148,7 +157,7 @@ pub(super) fn trace_emitter_pair(
             trees.bundle.push(Bundled { ray, tmin: eps0, tmax: t_plane * (1.0 - 1e-9), exclude: erec.patch });
         }
     }
-    let target = Target { light, element, erec, prec, normal, material, fan: 1, offset: (bx, by), emitter: true };
+    let target = Target { light, element, erec, prec, normal, material, fan, offset: (bx, by) };
     land_primaries(view, scratch, trees, &mut tally, &target, out)?;
     trees.trace(view, scratch, &mut tally, out)?;
     Ok(tally)

@@ -56,9 +56,6 @@ pub(super) struct Target<'a> {
     /// strata.
     pub fan: u32,
     pub offset: (f64, f64),
-    /// An emitter's pair (else a point light's): whether the primary deposit stays on
-    /// the element is the plan's call for each kind ([`crate::plan::EffectsPlan::deposits_direct`]).
-    pub emitter: bool,
 }
 
 /// The tail of a pair's primary rays, queued in `trees.shots` (ray number, flux, distance
@@ -66,7 +63,7 @@ pub(super) struct Target<'a> {
 /// answered together, then each ray in order. A blocked ray counts as occluded; one that
 /// reaches the element's back of a one-sided material is absorbed; the others arrive
 /// (shading normal, texture), deposit their flux on the element unless the plan computes
-/// this kind of light's direct light at VRT, and scatter on, their diffuse bounce
+/// direct light at VRT ([`crate::plan::EffectsPlan::deposits_direct`]), and scatter on, their diffuse bounce
 /// stratified over the pair's rays ([`Strata`]).
 pub(super) fn land_primaries(
     view: &mut SceneView,
@@ -77,7 +74,7 @@ pub(super) fn land_primaries(
     out: &mut Vec<RawDeposit>,
 ) -> Result<(), BlockError> {
     let header = view.header.clone();
-    let Target { light, element, erec, prec, normal, material, fan, offset, emitter } = *target;
+    let Target { light, element, erec, prec, normal, material, fan, offset } = *target;
     let (shots, bundle, mut occluded) =
         (std::mem::take(&mut trees.shots), std::mem::take(&mut trees.bundle), std::mem::take(&mut trees.occluded));
     let answered = occluded_all(view, scratch, &bundle, &mut occluded);
@@ -102,7 +99,7 @@ pub(super) fn land_primaries(
             let s = Surface { at, albedo, material: prec.material, patch: erec.patch };
             let id = RayId::primary(header.settings.seed, light, element, k);
             scatter(view, id, &mut trees.spawned, tally, s, bounce, flux, 0, 0, floor);
-            let deposit = header.plan.deposits_direct(emitter).then_some(RawDeposit::On(element, flux));
+            let deposit = header.plan.deposits_direct().then_some(RawDeposit::On(element, flux));
             trees.root(view, scratch, tally, deposit, out)?;
         }
         Ok(())

@@ -19,7 +19,7 @@ use super::{arrival, arrive_at, interpolated, lit, pixel_rays, query, Arrived, J
 use crate::blocks::BlockError;
 use crate::camera::CameraRig;
 use crate::color::Rgb;
-use crate::direct;
+use crate::direct::{self, PixelStrata};
 use crate::geometry::Ray;
 use crate::subscreen::Subscreen;
 use crate::trace::{cast_all, TraceScratch, NO_PATCH};
@@ -43,6 +43,8 @@ struct Queued {
     ray: Ray,
     depth: u32,
     exclude: u32,
+    /// A primary ray's place among its pixel's shadow rays to the area lights.
+    strata: Option<PixelStrata>,
 }
 
 /// Linear radiance of the pixels of subscreen `s`, appended to `out` row by row: for
@@ -57,29 +59,34 @@ pub fn shade_pixels(
     out: &mut Vec<Rgb>,
 ) -> Result<(), BlockError> {
     let (n, seed) = (view.header.plan.pixel_samples.max(1), view.header.settings.seed);
+    let area = view.header.plan.area_samples() > 0;
     if !view.cache_is_bounded() {
         // Every block resident: tile by tile (4 x 4 pixels), the tile's primary rays cast
         // together (they leave the eye: packets through the BVH), then each ray's tree
         // depth first, with no bookkeeping (the same bits).
         let start = out.len();
         out.resize(start + s.pixels() as usize, Rgb::BLACK);
-        let (mut pixels, mut queries, mut hits) = (Vec::new(), Vec::new(), Vec::new());
+        let (mut pixels, mut queries, mut hits, mut strata_of) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
         for ty in (0..s.h).step_by(4) {
             for tx in (0..s.w).step_by(4) {
                 pixels.clear();
                 queries.clear();
+                strata_of.clear();
                 for dy in ty..(ty + 4).min(s.h) {
                     for dx in tx..(tx + 4).min(s.w) {
                         pixels.push((dy * s.w + dx) as usize);
-                        queries.extend(pixel_rays(seed, n, rig, s.x + dx, s.y + dy).map(|r| query(&r, NO_PATCH)));
+                        queries.extend(pixel_rays(seed, n, area, rig, s.x + dx, s.y + dy).map(|(r, strata)| {
+                            strata_of.push(strata);
+                            query(&r, NO_PATCH)
+                        }));
                     }
                 }
                 cast_all(view, scratch, &queries, &mut hits)?;
-                let rays = queries.chunks(n as usize).zip(hits.chunks(n as usize));
-                for (&pixel, (qs, hs)) in pixels.iter().zip(rays) {
+                let rays = queries.chunks(n as usize).zip(hits.chunks(n as usize)).zip(strata_of.chunks(n as usize));
+                for (&pixel, ((qs, hs), ps)) in pixels.iter().zip(rays) {
                     let mut sum = Rgb::BLACK;
-                    for (q, h) in qs.iter().zip(hs) {
-                        let arrived = arrival(view, &q.ray, *h, 0)?;
+                    for ((q, h), strata) in qs.iter().zip(hs).zip(ps) {
+                        let arrived = arrival(view, &q.ray, *h, 0, *strata)?;
                         sum = sum.add(radiance_from(view, scratch, arrived, 0)?);
                     }
                     out[start + pixel] = sum.scale(1.0 / n as f64);
@@ -100,10 +107,10 @@ pub fn shade_pixels(
     let mut nodes: Vec<Node> = Vec::with_capacity(2 * rays);
     let mut wave: Vec<Queued> = Vec::with_capacity(rays);
     for &(dx, dy) in &order {
-        for ray in pixel_rays(seed, n, rig, s.x + dx, s.y + dy) {
+        for (ray, strata) in pixel_rays(seed, n, area, rig, s.x + dx, s.y + dy) {
             let node = nodes.len() as u32;
             nodes.push(Node { ..leaf });
-            wave.push(Queued { node, path: 0, ray, depth: 0, exclude: NO_PATCH });
+            wave.push(Queued { node, path: 0, ray, depth: 0, exclude: NO_PATCH, strata });
         }
     }
     let mut spawned = [Ray::new(DVec3::ZERO, DVec3::Z); 3];
@@ -134,7 +141,7 @@ pub fn shade_pixels(
             |_, i| [patch(i), NO_BLOCK, NO_BLOCK],
             |view, (arrived, nodes), i| {
                 let q = &wave[i];
-                match arrival(view, &q.ray, hits[i], q.depth)? {
+                match arrival(view, &q.ray, hits[i], q.depth, q.strata)? {
                     Ok(a) => arrived.push((i as u32, a, Rgb::BLACK)),
                     Err(local) => nodes[q.node as usize].local = local,
                 }
@@ -149,8 +156,9 @@ pub fn shade_pixels(
             by_element.sort_unstable();
         }
         lit_all(view, scratch, &mut arrived, &by_element, &mut lookups)?;
+        let area_samples = view.header.plan.area_samples();
         for (_, a, irr) in arrived.iter_mut().filter(|(_, a, _)| a.direct) {
-            *irr = irr.add(direct::irradiance(view, scratch, &a.at, a.patch)?);
+            *irr = irr.add(direct::all_irradiance(view, scratch, &a.at, a.patch, area_samples, a.strata)?);
         }
         for (i, a, irr) in &arrived {
             let q = &wave[*i as usize];
@@ -163,7 +171,7 @@ pub fn shade_pixels(
                 nodes.push(Node { ..leaf });
                 // The branch taken, one base-4 digit per generation.
                 let path = q.path.wrapping_mul(4).wrapping_add(k as u64 + 1);
-                next.push(Queued { node, path, ray, depth: q.depth + 1, exclude: shaded.patch });
+                next.push(Queued { node, path, ray, depth: q.depth + 1, exclude: shaded.patch, strata: None });
             }
         }
         arrived.clear();
@@ -215,7 +223,8 @@ fn radiance_from(
         irr = interpolated(view, scratch, &a)?;
     }
     if a.direct {
-        irr = irr.add(direct::irradiance(view, scratch, &a.at, a.patch)?);
+        let area_samples = view.header.plan.area_samples();
+        irr = irr.add(direct::all_irradiance(view, scratch, &a.at, a.patch, area_samples, a.strata)?);
     }
     let mut spawned = [Ray::new(DVec3::ZERO, DVec3::Z); 3];
     let shaded = a.finish(irr, &mut spawned);
