@@ -5,7 +5,15 @@ use crate::scene_file;
 
 /// Prints the counts of the prepared scene and its plan.
 pub fn run(args: &InfoArgs, files: &scene_file::SceneFiles) -> anyhow::Result<()> {
-    let scene = files.load(&args.scene, &args.set.overrides()?)?;
+    let (mut scene, _, mut chosen) = files.load_explained(&args.scene, &args.set.overrides()?)?;
+    if let Some(q) = args.quality {
+        q.apply(&mut scene);
+        let s = &scene.settings;
+        chosen.lines.push(format!(
+            "--quality {q:?}: element_size {}, light_rays {}, pixel_samples {}, refine {}",
+            s.element_size, s.light_rays, s.pixel_samples, s.refine
+        ));
+    }
     let p = magg_prepare::refine::prepare(&scene, magg_core::plan::EffectsPlan::for_scene(&scene))?;
     let h = &p.header;
     let c = h.counts;
@@ -22,6 +30,7 @@ pub fn run(args: &InfoArgs, files: &scene_file::SceneFiles) -> anyhow::Result<()
             "bvh": h.bvh,
             "blocks": h.layout.total,
             "plan": { "passes": h.plan.passes(), "reasons": h.plan.reasons },
+            "chosen": chosen.lines,
             "preprocess_s": p.preprocess_s,
             "refined": p.splits.iter().map(Vec::len).collect::<Vec<_>>(),
         });
@@ -66,6 +75,9 @@ pub fn run(args: &InfoArgs, files: &scene_file::SceneFiles) -> anyhow::Result<()
         h.settings.width, h.settings.height, h.settings.pixel_samples, h.settings.light_rays
     );
     println!("preprocess {:.3} s", p.preprocess_s);
+    for line in &chosen.lines {
+        println!("chosen     {line}");
+    }
     print!("{}", h.plan);
     Ok(())
 }
