@@ -50,3 +50,32 @@ fn large_scene_info_is_quick_and_consistent() {
     assert!(v["counts"]["elements"].as_u64().unwrap() > patches);
     assert_eq!(v["lights"].as_u64(), Some(2));
 }
+
+/// The `chosen` lines of `magg-host info --json` on `scene` with `args`.
+fn chosen(scene: &str, args: &[&str]) -> Vec<String> {
+    let out = magg_host().args(["info", scene, "--json"]).args(args).output().unwrap();
+    assert_success(&out, "magg-host info --json");
+    let v: Value = serde_json::from_slice(&out.stdout).unwrap();
+    v["chosen"].as_array().expect("chosen").iter().map(|l| l.as_str().unwrap().to_string()).collect()
+}
+
+#[test]
+fn info_says_what_magg_chose_for_the_knobs_a_scene_leaves_unset() {
+    // cornell-glass leaves the bounces and refinement to magg (coarse elements and few
+    // rays keep the pilots quick).
+    let quick = ["--set", "render.element_size=0.4", "--set", "render.light_rays=4"];
+    let lines = chosen("scenes/cornell-glass.toml", &quick);
+    let has = |s: &str| lines.iter().any(|l| l.starts_with(s));
+    assert!(has("element_size = 0.4: the scene's"), "{lines:?}");
+    assert!(has("diffuse_bounces = 7: the mean reflectance 0.60"), "{lines:?}");
+    assert!(has("refine = 2: an area light"), "{lines:?}");
+    // What --quality makes of them: final adds a level.
+    let lines = chosen("scenes/cornell-glass.toml", &[&quick[..], &["--quality", "final"]].concat());
+    assert!(lines.iter().any(|l| l.contains("--quality Final") && l.ends_with("refine 3")), "{lines:?}");
+    // A scene that gives an ambient term keeps the paper's model; one that sets a knob
+    // keeps it.
+    let lines = chosen("scenes/area.toml", &[]);
+    assert!(lines.iter().any(|l| l.starts_with("diffuse_bounces = 0: the scene gives an ambient term")), "{lines:?}");
+    let lines = chosen("scenes/cornell-glass.toml", &[&quick[..], &["--set", "render.refine=0"]].concat());
+    assert!(!lines.iter().any(|l| l.starts_with("refine")), "{lines:?}");
+}

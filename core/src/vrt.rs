@@ -78,12 +78,19 @@ struct Shaded {
 
 /// How the radiance of the rays spawned at a hit joins the hit's own: none spawned, or
 /// a mirror's reflected ray (`mirror`, first) and a dielectric's reflected and refracted
-/// rays (`transmit`, then; the Fresnel reflectance when both were spawned, `None` for
-/// total internal reflection).
+/// rays (`transmit`, then; when both were spawned, the Fresnel reflectance and the
+/// refracted ray's radiance factor `eta^2`, `None` for total internal reflection).
+///
+/// Radiance is not flux: light refracted into a denser medium is squeezed into a smaller
+/// solid angle, so what comes back along a viewing ray that crossed from index `n_i`
+/// into `n_t` is the far side's radiance times `(1 - F) (n_i / n_t)^2`. Through a closed
+/// body the factors of the way in and out cancel; through an open surface (water over a
+/// floor) they do not: without it the floor under water looked `n^2` times too bright
+/// (light rays carry flux, which refraction conserves, and need no such factor).
 #[derive(Clone, Copy)]
 enum Join {
     None,
-    Specular { mirror: Option<Rgb>, transmit: Option<(Rgb, Option<f64>)> },
+    Specular { mirror: Option<Rgb>, transmit: Option<(Rgb, Option<(f64, f64)>)> },
 }
 
 impl Join {
@@ -100,7 +107,9 @@ impl Join {
         if let Some((t, split)) = transmit {
             let reflected = next();
             l = match split {
-                Some(fresnel) => l.add(t.mul(reflected.scale(fresnel).add(next().scale(1.0 - fresnel)))),
+                Some((fresnel, eta2)) => {
+                    l.add(t.mul(reflected.scale(fresnel).add(next().scale((1.0 - fresnel) * eta2))))
+                }
                 None => l.add(t.mul(reflected)),
             };
         }
@@ -167,7 +176,8 @@ impl Arrived {
             transmit = Some(match at.dielectric(m.ior, m.refraction) {
                 Dielectric::Split { fresnel, refracted } => {
                     spawn(at.spawn(refracted));
-                    (m.transmit, Some(fresnel))
+                    let eta = at.eta(m.ior);
+                    (m.transmit, Some((fresnel, eta * eta)))
                 }
                 Dielectric::Reflected => (m.transmit, None),
             });

@@ -249,6 +249,9 @@ pub struct InfoArgs {
     /// Print as JSON.
     #[arg(long)]
     pub json: bool,
+    /// The scene as `render --quality` would render it.
+    #[arg(long, value_enum)]
+    pub quality: Option<magg_study::accuracy::preset::Quality>,
 }
 
 pub use crate::images::ImageFormat;

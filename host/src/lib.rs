@@ -6,6 +6,7 @@
 //! command renders a scene with no set-up ([`harness`]); the host library
 //! (`magg-cluster`) also drives separate processes.
 
+pub mod auto;
 pub mod cli;
 pub mod commands;
 pub mod energy_csv;

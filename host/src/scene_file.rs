@@ -47,18 +47,35 @@ impl SceneFiles {
 
     /// Reads and parses the scene at `path` with its camera path, if it has one, with
     /// `overrides` applied to its text first. An error that follows from them says so.
+    /// The knobs its file leaves unset are chosen ([`crate::auto`]).
     pub fn load_with_path(&self, path: &Path, overrides: &[Override]) -> anyhow::Result<(Scene, Option<CameraPath>)> {
+        self.load_explained(path, overrides).map(|(scene, camera_path, _)| (scene, camera_path))
+    }
+
+    /// [`SceneFiles::load_with_path`], with what was chosen for the knobs the file
+    /// leaves unset, and why.
+    pub fn load_explained(
+        &self,
+        path: &Path,
+        overrides: &[Override],
+    ) -> anyhow::Result<(Scene, Option<CameraPath>, crate::auto::Chosen)> {
         let text = if crate::model_scene::is_model(path) {
             self.model_scene(path)?
         } else {
             read_capped(path, MAX_SCENE_BYTES).with_context(|| format!("cannot read scene file {}", path.display()))?
         };
-        if !overrides.is_empty() {
+        let (text, parsed) = if !overrides.is_empty() {
             let text = crate::overrides::apply(&text, overrides).with_context(|| path.display().to_string())?;
             let with: Vec<String> = overrides.iter().map(|o| o.to_string()).collect();
-            return self.parse(path, &text).with_context(|| format!("with {}", with.join(" ")));
-        }
-        self.parse(path, &text)
+            let parsed = self.parse(path, &text).with_context(|| format!("with {}", with.join(" ")));
+            (text, parsed)
+        } else {
+            let parsed = self.parse(path, &text);
+            (text, parsed)
+        };
+        let (mut scene, camera_path) = parsed?;
+        let chosen = crate::auto::choose(&mut scene, &crate::auto::Given::of(&text));
+        Ok((scene, camera_path, chosen))
     }
 
     /// The scene made up around the model file at `path` ([`crate::model_scene`]): parsed

@@ -4,6 +4,10 @@
 //!   centred at the origin, faces wound counter-clockwise seen from outside.
 //! - `terrain.obj` + `terrain.mtl`: a 140 x 140 heightfield (39 200 triangles, 14 m x 14 m,
 //!   normals up) with five columns standing on it (`usemtl ground` / `usemtl stone`).
+//! - `water.obj`: a wavy water surface, 2 m x 2 m at height 0 (128 x 128 squares, 32 768
+//!   triangles, normals up, no vertex normals: a scene smooths it with `crease_angle`),
+//!   the sum of three travelling waves 1 to 1.5 cm high and 23 to 55 cm long, whose
+//!   crests focus light into caustics about 0.5 to 2 m below (`scenes/water.toml`).
 //!
 //! And, on request, a benchmark model that is not kept in the repository:
 //!
@@ -183,33 +187,9 @@ fn height(x: f64, z: f64) -> f64 {
 fn terrain() -> Obj {
     const N: usize = 140;
     const HALF: f64 = 7.0;
-    let d = 2.0 * HALF / N as f64;
     let mut obj = Obj::default();
     obj.usemtl.push((0, "ground"));
-    let first = obj.v.len() + 1;
-    for j in 0..=N {
-        for i in 0..=N {
-            let (x, z) = (-HALF + i as f64 * d, -HALF + j as f64 * d);
-            obj.vertex([x, height(x, z), z]);
-        }
-    }
-    let id = |i: usize, j: usize| first + j * (N + 1) + i;
-    for j in 0..N {
-        for i in 0..N {
-            let (a, b, c, e) = (id(i, j), id(i + 1, j), id(i + 1, j + 1), id(i, j + 1));
-            // Alternate the diagonal so the triangulation has no preferred direction.
-            if (i + j) % 2 == 0 {
-                obj.tri(a, c, b);
-                obj.tri(a, e, c);
-            } else {
-                obj.tri(a, e, b);
-                obj.tri(b, e, c);
-            }
-        }
-    }
-    for f in &obj.f {
-        assert!(obj.normal(f)[1] > 0.0, "terrain face wound downwards");
-    }
+    heightfield(&mut obj, N, HALF, height);
     obj.usemtl.push((obj.f.len(), "stone"));
     for (cx, cz, r, h) in [
         (-3.0, -2.5, 0.3, 2.6),
@@ -251,6 +231,53 @@ fn column(obj: &mut Obj, cx: f64, cz: f64, r: f64, h: f64) {
             [(a[0] + b[0] + c[0]) / 3.0 - cx, (a[1] + b[1] + c[1]) / 3.0 - h / 2.0, (a[2] + b[2] + c[2]) / 3.0 - cz];
         assert!(dot(obj.normal(f), centroid) > 0.0, "column face wound inwards");
     }
+}
+
+/// Adds the heightfield `y = height(x, z)` over [-half, half]^2 to `obj`: n x n squares,
+/// each split in two along a diagonal that alternates, so that the triangulation has no
+/// preferred direction; wound counter-clockwise seen from above (normals up).
+fn heightfield(obj: &mut Obj, n: usize, half: f64, height: fn(f64, f64) -> f64) {
+    let d = 2.0 * half / n as f64;
+    let (first, faces) = (obj.v.len() + 1, obj.f.len());
+    for j in 0..=n {
+        for i in 0..=n {
+            let (x, z) = (-half + i as f64 * d, -half + j as f64 * d);
+            obj.vertex([x, height(x, z), z]);
+        }
+    }
+    let id = |i: usize, j: usize| first + j * (n + 1) + i;
+    for j in 0..n {
+        for i in 0..n {
+            let (a, b, c, e) = (id(i, j), id(i + 1, j), id(i + 1, j + 1), id(i, j + 1));
+            if (i + j) % 2 == 0 {
+                obj.tri(a, c, b);
+                obj.tri(a, e, c);
+            } else {
+                obj.tri(a, e, b);
+                obj.tri(b, e, c);
+            }
+        }
+    }
+    for f in &obj.f[faces..] {
+        assert!(obj.normal(f)[1] > 0.0, "heightfield face wound downwards");
+    }
+}
+
+/// Height of the water surface above its mean level at (x, z), metres: three waves
+/// of different lengths and headings, so that their crests cross in a caustic net.
+fn wave(x: f64, z: f64) -> f64 {
+    use std::f64::consts::TAU;
+    0.012 * (TAU * (0.9 * x + 0.44 * z) / 0.55 + 0.3).sin()
+        + 0.008 * (TAU * (-0.3 * x + 0.95 * z) / 0.37 + 1.1).sin()
+        + 0.005 * (TAU * (0.7 * x - 0.71 * z) / 0.23 + 2.0).sin()
+}
+
+/// The water surface of `water.obj`: a 128 x 128 heightfield over [-1, 1]^2, wound
+/// counter-clockwise seen from above (normals up, out of the water).
+fn water() -> Obj {
+    let mut obj = Obj::default();
+    heightfield(&mut obj, 128, 1.0, wave);
+    obj
 }
 
 const MTL: &str = "\
@@ -388,10 +415,18 @@ fn main() -> std::io::Result<()> {
         format!("Heightfield terrain with five columns: {} vertices, {} faces.\n{generated}", t.v.len(), t.f.len());
     std::fs::write(out.join("terrain.obj"), t.write(&header, Some("terrain.mtl")))?;
     std::fs::write(out.join("terrain.mtl"), MTL)?;
+    let w = water();
+    let header = format!(
+        "Wavy water surface, 2 m x 2 m at height 0: {} vertices, {} faces, normals up.\n{generated}",
+        w.v.len(),
+        w.f.len()
+    );
+    std::fs::write(out.join("water.obj"), w.write(&header, None))?;
     println!(
-        "wrote sphere.obj ({} faces), terrain.obj ({} faces), terrain.mtl to {}",
+        "wrote sphere.obj ({} faces), terrain.obj ({} faces), terrain.mtl, water.obj ({} faces) to {}",
         sphere.f.len(),
         t.f.len(),
+        w.f.len(),
         out.display()
     );
     Ok(())

@@ -6,8 +6,16 @@ use crate::scene_file;
 /// Prints the counts of the prepared scene and its plan.
 pub fn run(args: &InfoArgs, files: &scene_file::SceneFiles) -> anyhow::Result<()> {
     let read_start = std::time::Instant::now();
-    let scene = files.load(&args.scene, &args.set.overrides()?)?;
+    let (mut scene, _, mut chosen) = files.load_explained(&args.scene, &args.set.overrides()?)?;
     let read_s = read_start.elapsed().as_secs_f64();
+    if let Some(q) = args.quality {
+        q.apply(&mut scene);
+        let s = &scene.settings;
+        chosen.lines.push(format!(
+            "--quality {q:?}: element_size {}, light_rays {}, pixel_samples {}, refine {}",
+            s.element_size, s.light_rays, s.pixel_samples, s.refine
+        ));
+    }
     let p = magg_prepare::refine::prepare(&scene, magg_core::plan::EffectsPlan::for_scene(&scene))?;
     let h = &p.header;
     let c = h.counts;
@@ -28,6 +36,7 @@ pub fn run(args: &InfoArgs, files: &scene_file::SceneFiles) -> anyhow::Result<()
             "blocks": h.layout.total,
             "plan": { "passes": h.plan.passes(), "reasons": h.plan.reasons },
             "read_s": read_s,
+            "chosen": chosen.lines,
             "preprocess_s": p.preprocess_s,
             "prepare": p.preparation,
             "memory_estimate_mb": memory_mb,
@@ -81,6 +90,9 @@ pub fn run(args: &InfoArgs, files: &scene_file::SceneFiles) -> anyhow::Result<()
         f.shares, f.place, f.plan_s, f.weld_s, f.accel_s, f.pack_s
     );
     println!("memory     about {memory_mb:.0} MB for a render in one process (the memory check's estimate)");
+    for line in &chosen.lines {
+        println!("chosen     {line}");
+    }
     print!("{}", h.plan);
     Ok(())
 }

@@ -109,8 +109,7 @@ pub struct Share {
 pub type PartialBlocks = Vec<(u32, Box<Block>)>;
 
 /// A point's 64-bit key for hash tables: the lattice index above the patch, so that the
-/// low bits, which pick a table's bucket, vary with the patch ([`IdMap`]'s hash carries
-/// a key's low bits only upwards).
+/// key's low bits vary with the patch.
 fn pack(p: PointId) -> u64 {
     ((p.1 as u64) << 32) | p.0 as u64
 }

@@ -19,7 +19,8 @@ pub enum Quality {
     /// (at least 4), 1 pixel sample, the scene's levels of refinement (on coarse
     /// elements a caustic without them is a smudge, and their pilots cost little).
     Draft,
-    /// The scene's own `[render]` settings.
+    /// The scene's own `[render]` settings (and, loaded by `magg-host`, what it chose
+    /// for those the scene leaves unset: `magg_host::auto`).
     Good,
     /// Near the converged reference: the scene's elements, four times its light rays
     /// per pair, 16 pixel samples, one level of adaptive refinement more than the
