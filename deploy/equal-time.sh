@@ -31,15 +31,8 @@ work=${WORK:-$(mktemp -d)}
 extra=(${SET:-})
 scenes=("$@")
 [[ ${#scenes[@]} -eq 0 ]] && scenes=(scenes/cornell-glass.toml scenes/spheres.toml)
-if ! python3 -c 'import mitsuba' 2>/dev/null; then
-  echo "equal-time: mitsuba is not installed (pip install mitsuba); skipped" >&2
-  exit 0
-fi
-host=${MAGG_HOST:-}
-if [[ -z $host ]]; then
-  cargo build --release --quiet -p magg-host
-  host=target/release/magg-host
-fi
+source deploy/mitsuba/common.sh
+tools equal-time
 common=(--width "$size" --height "$size" --set 'render.ambient=[0,0,0]' "${extra[@]}")
 now() { date +%s.%N; }
 mitsuba() { # dir spp out seed -> seconds

@@ -1,4 +1,5 @@
-# Shared by deploy/accuracy-vs-mitsuba.sh and deploy/ptracer-vs-mitsuba.sh (sourced).
+# Shared by deploy/accuracy-vs-mitsuba.sh, deploy/ptracer-vs-mitsuba.sh and
+# deploy/equal-time.sh (sourced).
 # The caller sets scene, common (magg's arguments), work, spps, qualities, repeats,
 # ref_spp, and defines `mitsuba_at SPP OUT SEED` (prints Mitsuba's seconds) and `relmse
 # FILE` (prints FILE's relMSE against the reference).
