@@ -185,7 +185,8 @@ pub struct Preparation {
     pub shares: u32,
     /// Where they were prepared: `in process` or the forks' addresses.
     pub place: String,
-    /// Attempts (more than 1 when a fork was lost during preparation).
+    /// Attempts: 1, plus one for every time a preparation of the render (its scene's or
+    /// one of refinement's pilot levels') started again after a fork was lost.
     pub attempts: u32,
     /// Seconds numbering the patches and elements and splitting space (the host).
     pub plan_s: f64,

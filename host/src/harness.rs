@@ -60,11 +60,10 @@ pub struct ClusterShape {
 }
 
 /// A harness started ahead of its render: the async runtime, the forks of this process
-/// (serving, empty), the host's bound listener. `magg-host render` starts it on another
-/// thread while the scene is preprocessed (the paper's conclusion asks for preprocessing
-/// in parallel; the forks have nothing to wait for meanwhile), or first, when refinement's
-/// pilot passes run on it ([`StartedCluster::prepare`]). Dropped, it stops its forks, and
-/// its nodes hear that the render is done.
+/// (serving, empty), the host's bound listener. `magg-host render` starts it first: the
+/// forks prepare the scene, and refinement's pilot passes run on its nodes
+/// ([`StartedCluster::prepare`]). Dropped, it stops its forks, and its nodes hear that
+/// the render is done.
 pub struct StartedCluster {
     /// Taken only when dropped (see `Drop`): the node threads' calls run on it.
     rt: Option<tokio::runtime::Runtime>,

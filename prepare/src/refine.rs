@@ -130,6 +130,8 @@ pub fn prepare_with(
     let mut splits: Vec<Vec<u32>> = Vec::new();
     let mut kept = None;
     let mut figures = Refinement::default();
+    // Attempts past the first of every preparation (a fork lost during one).
+    let mut retries = 0;
     if scene.settings.refine > 0 {
         // The pilot carries the light that makes edges: direct light from the lights and
         // light via mirrors and glass. Diffuse interreflection is smooth (and noisy in a
@@ -144,6 +146,7 @@ pub fn prepare_with(
         let levels = scene.settings.refine.min(MAX_REFINE_LEVELS);
         for level in 1..=levels {
             let pilot = Arc::new(prepare_split_on(&pilot_scene, pilot_plan.clone(), &splits, shares, set)?);
+            retries += pilot.preparation.attempts.saturating_sub(1);
             if !pilot.header.plan.lrt {
                 break;
             }
@@ -172,6 +175,7 @@ pub fn prepare_with(
     prepared.preprocess_s = start.elapsed().as_secs_f64();
     prepared.kept_pairs = KeptSlot::new(kept.filter(|k| !k.is_empty()));
     prepared.refinement = figures;
+    prepared.preparation.attempts += retries;
     Ok(prepared)
 }
 
