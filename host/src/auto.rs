@@ -9,10 +9,9 @@
 //!   2% of the light, at most [`MAX_AUTO_BOUNCES`]: a room lit by its walls is not left
 //!   dark.
 //! - `refine`: [`AUTO_REFINE`] levels where the elements hold light that changes sharply
-//!   (caustics and mirror light, whenever a mirror or glass is lit; an area light's
-//!   direct light, which LRT deposits; direct light deposited by light rays), none where
-//!   they hold only bounced light (smooth; direct light from point lights is computed at
-//!   VRT, pixel-sharp). The quality presets build on it (`final` adds a level).
+//!   (caustics and mirror light, whenever a mirror or glass is lit; direct light
+//!   deposited by light rays, `direct = "lrt"`), none where they hold only bounced light
+//!   (smooth; direct light from point and area lights is computed at VRT, pixel-sharp). The quality presets build on it (`final` adds a level).
 //!
 //! A scene that gives an `ambient` term uses the paper's model of light: its transport is
 //! its own, so neither bounces nor refinement are chosen for it (every shipped scene
@@ -139,9 +138,6 @@ fn sharp_light(scene: &Scene) -> Option<String> {
     let used = |f: &dyn Fn(&magg_core::scene::Material) -> bool| {
         scene.patches.iter().any(|p| scene.materials.get(p.material as usize).is_some_and(f))
     };
-    if used(&|m| m.is_emitter()) {
-        return Some("an area light's direct light is deposited on the elements (soft shadows' edges)".into());
-    }
     if used(&|m| m.is_specular()) && scene.settings.lrt_depth > 0 {
         return Some("light via mirrors or glass lands on the elements (caustics' edges)".into());
     }
