@@ -7,7 +7,10 @@
 //! A fork that cannot be reached within the fork timeout, or that answers `ABORTED` (it
 //! restarted and no longer holds its share), is [`ShareError::Lost`]: the host prepares
 //! again in a new session ([`magg_prepare::ATTEMPTS`] times), every share on the forks
-//! as they are then.
+//! as they are then. A fork that accepts a connection and does not answer a `Begin`
+//! (which only stores patches) within the fork timeout is silent, as a `LoadShard` would
+//! find it: the render stops naming it. The other steps compute, and may take longer:
+//! their deadline is [`STEP_TIMEOUT_FACTOR`] fork timeouts, two minutes at least.
 
 use magg_plumbing::auth::{AddToken, Authed, Token};
 use magg_plumbing::retry::{self, Backoff};
@@ -19,6 +22,9 @@ use magg_proto::v1::fork_client::ForkClient;
 use magg_proto::v1::PrepareRequest;
 use std::time::Duration;
 use tonic::Code;
+
+/// A computing step's deadline, in fork timeouts.
+pub const STEP_TIMEOUT_FACTOR: u32 = 8;
 
 /// The shares of a scene on the forks at `addrs`.
 pub struct ForkShares {
@@ -75,6 +81,8 @@ impl ShareSet for ForkShares {
         if self.addrs.is_empty() {
             return Err(ShareError::Failed { share: 0, why: "no fork to prepare the scene on".into() });
         }
+        // A Begin only stores patches: a fork that does not answer it in time is silent.
+        let begin = matches!(requests.first(), Some((_, Request::Begin { .. })));
         let mut calls = Vec::with_capacity(requests.len());
         for (share, request) in requests {
             let f = share as usize % self.addrs.len();
@@ -87,27 +95,38 @@ impl ShareSet for ForkShares {
             };
             calls.push((share, f, client, req));
         }
-        let backoff = Backoff { deadline: self.timeout, ..Default::default() };
+        let timeout = self.timeout;
+        let step_timeout = (timeout * STEP_TIMEOUT_FACTOR).max(Duration::from_secs(120));
+        let backoff = Backoff { deadline: timeout, call_timeout: step_timeout, ..Default::default() };
         let answers = self.rt.block_on(futures_util::future::join_all(calls.into_iter().map(
             |(share, f, client, req)| async move {
-                let reply = retry::retry("Prepare", backoff, || {
+                let call = retry::retry("Prepare", backoff, || {
                     let (mut c, req) = (client.clone(), req.clone());
                     async move { c.prepare(req).await }
-                })
-                .await;
+                });
+                let reply = match begin {
+                    true => tokio::time::timeout(timeout, call).await.map_err(|_| ()),
+                    false => Ok(call.await),
+                };
                 (share, f, reply)
             },
         )));
         let mut replies = Vec::with_capacity(answers.len());
         for (share, f, answer) in answers {
             let at = &self.addrs[f];
+            let Ok(answer) = answer else {
+                let why =
+                    format!("the fork at {at} has not answered for {timeout:?} (--fork-timeout): no answer to Prepare");
+                return Err(ShareError::Failed { share, why });
+            };
             match answer {
                 Ok(r) => replies.push(
                     wire::decode_reply(&r.into_inner().payload)
                         .map_err(|e| ShareError::Failed { share, why: format!("the fork at {at}: {e}") })?,
                 ),
                 Err(status) => {
-                    let why = format!("{:?}: {}", status.code(), status.message());
+                    let hint = magg_plumbing::tls::mismatch_hint(&status.to_string());
+                    let why = format!("{:?}: {}{hint}", status.code(), status.message());
                     // A connection that broke, or a fork that restarted since: try again.
                     self.clients[f] = None;
                     return Err(match status.code() {

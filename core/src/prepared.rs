@@ -39,7 +39,7 @@ pub enum PrepareError {
         file: String,
     },
     /// The shares that prepare the scene (on the forks) could not finish it.
-    #[error("{file}: preparing the scene in shares ({place}) failed after {attempts} attempts: {why}")]
+    #[error("{file}: preparing the scene in shares ({place}) failed (attempts: {attempts}): {why}")]
     Shares {
         /// Scene label.
         file: String,
